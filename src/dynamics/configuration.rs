@@ -1,0 +1,89 @@
+//! Operations on the configuration manifold `R^3 x SO(3) x R^n` (SE(3) base).
+
+use crate::model::{JointKind, Model};
+use crate::spatial::{exp6, log6, Motion, SE3};
+use nalgebra::{DVector, Quaternion, UnitQuaternion, Vector3};
+
+fn base_pose(q: &[f64]) -> SE3 {
+    super::kinematics::joint_transform(&JointKind::FreeFlyer, q)
+}
+
+/// `q_out = q (+) v`: the configuration reached by following velocity `v` for unit time.
+/// Base: `M_out = M exp6(v_base)` (local twist); other joints: `q + v`.
+pub fn integrate(model: &Model, q: &DVector<f64>, v: &DVector<f64>, q_out: &mut DVector<f64>) {
+    for j in model.joints.iter().skip(1) {
+        let (iq, iv) = (j.idx_q, j.idx_v);
+        match j.kind {
+            JointKind::FreeFlyer => {
+                let qs = &q.as_slice()[iq..iq + 7];
+                let m = base_pose(qs);
+                let step = exp6(&Motion::from_slice(&v.as_slice()[iv..iv + 6]));
+                let t = m.translation + m.rotation * step.translation;
+                let q0 = Quaternion::new(qs[6], qs[3], qs[4], qs[5]);
+                let dq = UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(step.rotation));
+                let mut qn = q0 * dq.into_inner();
+                qn /= qn.norm();
+                let out = &mut q_out.as_mut_slice()[iq..iq + 7];
+                out[0] = t.x;
+                out[1] = t.y;
+                out[2] = t.z;
+                out[3] = qn.i;
+                out[4] = qn.j;
+                out[5] = qn.k;
+                out[6] = qn.w;
+            }
+            JointKind::Universe => {}
+            _ => q_out[iq] = q[iq] + v[iv],
+        }
+    }
+}
+
+/// `v = q1 (-) q0`, the velocity with `integrate(q0, v) = q1`.
+/// Base: `log6(M0^-1 M1)`; other joints: `q1 - q0`.
+pub fn difference(model: &Model, q0: &DVector<f64>, q1: &DVector<f64>, v_out: &mut DVector<f64>) {
+    for j in model.joints.iter().skip(1) {
+        let (iq, iv) = (j.idx_q, j.idx_v);
+        match j.kind {
+            JointKind::FreeFlyer => {
+                let m0 = base_pose(&q0.as_slice()[iq..iq + 7]);
+                let m1 = base_pose(&q1.as_slice()[iq..iq + 7]);
+                let tw = log6(&m0.inv_mul(&m1)).to_vector();
+                v_out.as_mut_slice()[iv..iv + 6].copy_from_slice(tw.as_slice());
+            }
+            JointKind::Universe => {}
+            _ => v_out[iv] = q1[iq] - q0[iq],
+        }
+    }
+}
+
+/// A random configuration: base position uniform in `[-1, 1]^3`, orientation uniform on
+/// SO(3), joints uniform within their limits (clipped to `[-pi, pi]` where unbounded).
+/// `uniform` returns samples of U(0, 1).
+pub fn random_configuration(model: &Model, uniform: &mut impl FnMut() -> f64) -> DVector<f64> {
+    let mut q = model.neutral();
+    for j in model.joints.iter().skip(1) {
+        let iq = j.idx_q;
+        match j.kind {
+            JointKind::FreeFlyer => {
+                for k in 0..3 {
+                    q[iq + k] = 2.0 * uniform() - 1.0;
+                }
+                // Shoemake's uniform random quaternion.
+                let (u1, u2, u3) = (uniform(), uniform(), uniform());
+                let tau = std::f64::consts::TAU;
+                let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
+                let quat = [a * (tau * u2).sin(), a * (tau * u2).cos(), b * (tau * u3).sin(), b * (tau * u3).cos()];
+                q.as_mut_slice()[iq + 3..iq + 7].copy_from_slice(&quat);
+            }
+            JointKind::Universe => {}
+            _ => {
+                let pi = std::f64::consts::PI;
+                let lo = j.limits.lower[0].max(-pi);
+                let hi = j.limits.upper[0].min(pi);
+                q[iq] = lo + (hi - lo) * uniform();
+            }
+        }
+    }
+    let _ = Vector3::<f64>::zeros;
+    q
+}

@@ -1,0 +1,142 @@
+use crate::model::Model;
+use crate::spatial::{Force, Inertia, Matrix6, Motion, Vector6, SE3};
+use nalgebra::{DMatrix, DVector, Matrix3xX, Matrix6xX, Vector3};
+
+/// The mutable workspace of the dynamics algorithms: one per thread, built once from a
+/// [`Model`] and reused; no algorithm allocates.
+///
+/// Field names follow Pinocchio's `Data` where they have a counterpart.
+#[derive(Clone, Debug)]
+pub struct Data {
+    /// Pose of joint `i` in its parent joint's frame (`liMi`).
+    pub li_m_i: Vec<SE3>,
+    /// Pose of joint `i` in the world (`oMi`).
+    pub o_m_i: Vec<SE3>,
+    /// Pose of each frame in the world (`oMf`), after [`super::update_frame_placements`].
+    pub o_m_f: Vec<SE3>,
+    /// Spatial velocity of each joint, in its own frame.
+    pub v: Vec<Motion>,
+    /// Spatial acceleration of each joint, in its own frame (gravity included, as Pinocchio).
+    pub a: Vec<Motion>,
+    /// Spatial force transmitted by each joint, in its own frame.
+    pub f: Vec<Force>,
+    /// Generalized force, output of RNEA.
+    pub tau: DVector<f64>,
+    /// Generalized acceleration, output of ABA.
+    pub ddq: DVector<f64>,
+    /// Non-linear effects `C(q, v) v + g(q)`.
+    pub nle: DVector<f64>,
+    /// Generalized gravity `g(q)`.
+    pub g: DVector<f64>,
+    /// Joint-space inertia matrix (full, symmetric), output of CRBA.
+    pub mass_matrix: DMatrix<f64>,
+    /// Inverse of the joint-space inertia matrix (full, symmetric).
+    pub minv: DMatrix<f64>,
+    /// Joint Jacobian columns in the world frame (`J`, spatial velocity at the world origin).
+    pub jacobian: Matrix6xX<f64>,
+    /// Centre of mass of the whole robot in the world.
+    pub com: Vector3<f64>,
+    /// Jacobian of the centre of mass (3 x nv).
+    pub com_jacobian: Matrix3xX<f64>,
+    /// Centroidal momentum matrix `A_g` (6 x nv), linear rows first.
+    pub centroidal_matrix: Matrix6xX<f64>,
+    /// Centroidal momentum `h_g = A_g v`: linear momentum, angular momentum about the CoM.
+    pub centroidal_momentum: Force,
+    /// Mass of the subtree rooted at each joint.
+    pub subtree_mass: Vec<f64>,
+    /// Centre of mass of the subtree rooted at each joint, in the world.
+    pub subtree_com: Vec<Vector3<f64>>,
+    /// `d ddq / dq` in the tangent space (ABA derivatives).
+    pub ddq_dq: DMatrix<f64>,
+    /// `d ddq / dv`.
+    pub ddq_dv: DMatrix<f64>,
+    /// `d tau / dq` (RNEA derivatives).
+    pub dtau_dq: DMatrix<f64>,
+    /// `d tau / dv`.
+    pub dtau_dv: DMatrix<f64>,
+
+    // --- scratch of the algorithms ---
+    pub(crate) c: Vec<Motion>,
+    pub(crate) y_aba: Vec<Matrix6>,
+    pub(crate) p_a: Vec<Force>,
+    pub(crate) u_col: Vec<Vector6>,
+    pub(crate) d_inv: Vec<f64>,
+    pub(crate) u_scalar: Vec<f64>,
+    pub(crate) y_crb: Vec<Inertia>,
+    pub(crate) o_y_crb: Vec<Inertia>,
+    pub(crate) f_crb: Vec<Force>,
+    pub(crate) ov: Vec<Motion>,
+    pub(crate) oa: Vec<Motion>,
+    pub(crate) of: Vec<Force>,
+    pub(crate) oh: Vec<Force>,
+    pub(crate) do_y_crb: Vec<Matrix6>,
+    pub(crate) o_y_crb6: Vec<Matrix6>,
+    pub(crate) dj: Matrix6xX<f64>,
+    pub(crate) dvdq: Matrix6xX<f64>,
+    pub(crate) dadq: Matrix6xX<f64>,
+    pub(crate) dadv: Matrix6xX<f64>,
+    pub(crate) dfdq: Matrix6xX<f64>,
+    pub(crate) dfdv: Matrix6xX<f64>,
+    pub(crate) dfda: Matrix6xX<f64>,
+    pub(crate) tmp_nv: DVector<f64>,
+    pub(crate) tmp_nv_nv: DMatrix<f64>,
+    pub(crate) minv_chol: DMatrix<f64>,
+}
+
+impl Data {
+    /// A workspace sized for `model`.
+    pub fn new(model: &Model) -> Self {
+        let n = model.njoints();
+        let nv = model.nv;
+        Self {
+            li_m_i: vec![SE3::identity(); n],
+            o_m_i: vec![SE3::identity(); n],
+            o_m_f: vec![SE3::identity(); model.frames.len()],
+            v: vec![Motion::zero(); n],
+            a: vec![Motion::zero(); n],
+            f: vec![Force::zero(); n],
+            tau: DVector::zeros(nv),
+            ddq: DVector::zeros(nv),
+            nle: DVector::zeros(nv),
+            g: DVector::zeros(nv),
+            mass_matrix: DMatrix::zeros(nv, nv),
+            minv: DMatrix::zeros(nv, nv),
+            jacobian: Matrix6xX::zeros(nv),
+            com: Vector3::zeros(),
+            com_jacobian: Matrix3xX::zeros(nv),
+            centroidal_matrix: Matrix6xX::zeros(nv),
+            centroidal_momentum: Force::zero(),
+            subtree_mass: vec![0.0; n],
+            subtree_com: vec![Vector3::zeros(); n],
+            ddq_dq: DMatrix::zeros(nv, nv),
+            ddq_dv: DMatrix::zeros(nv, nv),
+            dtau_dq: DMatrix::zeros(nv, nv),
+            dtau_dv: DMatrix::zeros(nv, nv),
+            c: vec![Motion::zero(); n],
+            y_aba: vec![Matrix6::zeros(); n],
+            p_a: vec![Force::zero(); n],
+            u_col: vec![Vector6::zeros(); n],
+            d_inv: vec![0.0; n],
+            u_scalar: vec![0.0; n],
+            y_crb: vec![Inertia::zero(); n],
+            o_y_crb: vec![Inertia::zero(); n],
+            f_crb: vec![Force::zero(); nv],
+            ov: vec![Motion::zero(); n],
+            oa: vec![Motion::zero(); n],
+            of: vec![Force::zero(); n],
+            oh: vec![Force::zero(); n],
+            do_y_crb: vec![Matrix6::zeros(); n],
+            o_y_crb6: vec![Matrix6::zeros(); n],
+            dj: Matrix6xX::zeros(nv),
+            dvdq: Matrix6xX::zeros(nv),
+            dadq: Matrix6xX::zeros(nv),
+            dadv: Matrix6xX::zeros(nv),
+            dfdq: Matrix6xX::zeros(nv),
+            dfdv: Matrix6xX::zeros(nv),
+            dfda: Matrix6xX::zeros(nv),
+            tmp_nv: DVector::zeros(nv),
+            tmp_nv_nv: DMatrix::zeros(nv, nv),
+            minv_chol: DMatrix::zeros(nv, nv),
+        }
+    }
+}

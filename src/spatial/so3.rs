@@ -1,0 +1,118 @@
+//! Exponential and logarithm maps of SO(3) and SE(3) (Murray, Li & Sastry 1994, ch. 2;
+//! Sola et al. 2018, "A micro Lie theory", appendices), with Taylor expansions near zero.
+
+use super::{Matrix3, Motion, Vector3, SE3};
+
+/// The skew-symmetric matrix `[v]x` with `[v]x u = v x u`.
+#[inline]
+pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
+    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+}
+
+/// Rodrigues: `Exp(w) = I + sin(t)/t [w]x + (1 - cos t)/t^2 [w]x^2`, `t = |w|`.
+pub fn exp3(w: &Vector3<f64>) -> Matrix3<f64> {
+    let t2 = w.norm_squared();
+    let (a, b) = if t2 < 1e-8 {
+        (1.0 - t2 / 6.0 + t2 * t2 / 120.0, 0.5 - t2 / 24.0 + t2 * t2 / 720.0)
+    } else {
+        let t = t2.sqrt();
+        (t.sin() / t, (1.0 - t.cos()) / t2)
+    };
+    let s = skew(w);
+    Matrix3::identity() + s * a + s * s * b
+}
+
+/// `Log(R)`: the rotation vector `w` with `Exp(w) = R`, `|w| <= pi`.
+pub fn log3(r: &Matrix3<f64>) -> Vector3<f64> {
+    let rot = nalgebra::Rotation3::from_matrix_unchecked(*r);
+    rot.scaled_axis()
+}
+
+/// Right Jacobian of `Exp` on SO(3): `Exp(w + dw) = Exp(w) Exp(Jr(w) dw)` to first order.
+pub fn jexp3(w: &Vector3<f64>) -> Matrix3<f64> {
+    let t2 = w.norm_squared();
+    let (a, b) = if t2 < 1e-8 {
+        (0.5 - t2 / 24.0, 1.0 / 6.0 - t2 / 120.0)
+    } else {
+        let t = t2.sqrt();
+        ((1.0 - t.cos()) / t2, (t - t.sin()) / (t2 * t))
+    };
+    let s = skew(w);
+    Matrix3::identity() - s * a + s * s * b
+}
+
+/// Inverse of [`jexp3`]: `Log(Exp(w) Exp(dw)) = w + Jr^-1(w) dw` to first order.
+pub fn jlog3(w: &Vector3<f64>) -> Matrix3<f64> {
+    let t2 = w.norm_squared();
+    let c = if t2 < 1e-8 {
+        1.0 / 12.0 + t2 / 720.0
+    } else {
+        let t = t2.sqrt();
+        1.0 / t2 - (1.0 + t.cos()) / (2.0 * t * t.sin())
+    };
+    let s = skew(w);
+    Matrix3::identity() + s * 0.5 + s * s * c
+}
+
+/// SE(3) exponential of a twist `[v; w]` (linear first):
+/// `R = Exp(w)`, `p = V(w) v` with `V = I + (1 - cos t)/t^2 [w]x + (t - sin t)/t^3 [w]x^2`.
+pub fn exp6(m: &Motion) -> SE3 {
+    let w = &m.w;
+    let t2 = w.norm_squared();
+    let (b, c) = if t2 < 1e-8 {
+        (0.5 - t2 / 24.0, 1.0 / 6.0 - t2 / 120.0)
+    } else {
+        let t = t2.sqrt();
+        ((1.0 - t.cos()) / t2, (t - t.sin()) / (t2 * t))
+    };
+    let s = skew(w);
+    let v_mat = Matrix3::identity() + s * b + s * s * c;
+    SE3::new(exp3(w), v_mat * m.v)
+}
+
+/// SE(3) logarithm: the twist `[v; w]` with `exp6(twist) = M`.
+pub fn log6(m: &SE3) -> Motion {
+    let w = log3(&m.rotation);
+    let t2 = w.norm_squared();
+    // V^-1 = I - 1/2 [w]x + (1/t^2) (1 - t sin t / (2 (1 - cos t))) [w]x^2
+    let c = if t2 < 1e-8 {
+        1.0 / 12.0 + t2 / 720.0
+    } else {
+        let t = t2.sqrt();
+        (1.0 - t * t.sin() / (2.0 * (1.0 - t.cos()))) / t2
+    };
+    let s = skew(&w);
+    let v_inv = Matrix3::identity() - s * 0.5 + s * s * c;
+    Motion::new(v_inv * m.translation, w)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exp_log_roundtrip() {
+        for w in [Vector3::new(0.3, -1.2, 0.5), Vector3::new(1e-6, 0.0, 2e-6), Vector3::new(0.0, 3.0, 0.0)] {
+            let r = exp3(&w);
+            assert!((r.transpose() * r - Matrix3::identity()).norm() < 1e-14);
+            assert!((log3(&r) - w).norm() < 1e-12, "{w}");
+            let m = Motion::new(Vector3::new(0.1, 0.7, -0.4), w);
+            let back = log6(&exp6(&m));
+            assert!((back.to_vector() - m.to_vector()).norm() < 1e-11);
+        }
+    }
+
+    #[test]
+    fn right_jacobian_matches_finite_differences() {
+        let w = Vector3::new(0.4, -0.9, 0.3);
+        let jr = jexp3(&w);
+        let h = 1e-6;
+        for k in 0..3 {
+            let mut d = Vector3::zeros();
+            d[k] = h;
+            let col = log3(&(exp3(&w).transpose() * exp3(&(w + d)))) / h;
+            assert!((col - jr.column(k)).norm() < 1e-6);
+        }
+        assert!((jlog3(&w) * jr - Matrix3::identity()).norm() < 1e-12);
+    }
+}
