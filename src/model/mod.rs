@@ -23,6 +23,7 @@
 
 pub mod description;
 pub mod embedded;
+pub mod info;
 pub mod urdf;
 
 use crate::spatial::{Inertia, Motion, SE3};

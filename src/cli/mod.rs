@@ -1,0 +1,48 @@
+//! Command-line interface (clap derive). One module per command group; errors are
+//! `anyhow` here, at the edge, and printed with their causes.
+
+mod robot;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Whole-body motion generation for quadruped robots.
+#[derive(Debug, Parser)]
+#[command(name = "legwork", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Robot models: list the embedded robots, inspect one.
+    #[command(subcommand)]
+    Robot(robot::RobotCommand),
+}
+
+/// Parses the command line, runs the command, prints an error with its causes on failure.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Robot(cmd) => robot::run(cmd),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn command_line_definition_is_consistent() {
+        Cli::command().debug_assert();
+    }
+}
