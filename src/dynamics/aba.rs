@@ -3,11 +3,13 @@
 use super::kinematics::{joint_motion, local_placement};
 use super::Data;
 use crate::model::{JointKind, Model};
-use crate::spatial::{Force, Motion};
+use crate::spatial::{Force, Motion, Vector3};
 use nalgebra::DVector;
 
-/// Forward dynamics by the articulated-body algorithm (Featherstone 2008, Table 7.1), in
-/// the joints' local frames (Pinocchio's `Convention::LOCAL`). Returns `data.ddq`.
+/// Forward dynamics by the articulated-body algorithm (Featherstone 2008, Table 7.1),
+/// written in the world frame (Pinocchio's `Convention::WORLD`): articulated inertias are
+/// then summed into the parent without a change of frame. Returns `data.ddq`; the world
+/// spatial accelerations of the joints (gravity included, `a_0 = -g`) are in `data.oa`.
 ///
 /// ```
 /// use legwork::{model::embedded, dynamics::{Data, aba, crba, nonlinear_effects}};
@@ -48,41 +50,55 @@ fn aba_impl<'d>(
     f_ext: Option<&[Force]>,
 ) -> &'d DVector<f64> {
     let n = model.njoints();
-    // Pass 1: velocities, bias accelerations, rigid-body inertias and bias forces.
-    //   v_i = iXp v_p + S qd,  c_i = v_i x (S qd),  IA_i = I_i,  pA_i = v_i x* I_i v_i - f_ext_i
+    // Pass 1 (world frame): joint axes, velocities, bias accelerations, inertias, bias forces.
+    //   s_i = oMi S_i,  v_i = v_p + s_i qd,  c_i = v_p x (s_i qd),  IA_i = oY_i,
+    //   pA_i = v_i x* oY_i v_i - oMi f_ext_i
     for i in 1..n {
+        let jnt = &model.joints[i];
+        let p = jnt.parent;
         let li = local_placement(model, i, q);
-        let p = model.joints[i].parent;
-        let vj = joint_motion(model, i, v);
-        let vi = if p > 0 { li.act_inv(&data.v[p]) + vj } else { vj };
-        let inertia = &model.inertias[i];
-        data.c[i] = vi.cross(&vj);
-        data.y_aba[i] = inertia.matrix();
-        let mut pa = vi.cross_force(&inertia.mul_motion(&vi));
+        let omi = if p > 0 { &data.o_m_i[p] * &li } else { li };
+        let ov_p = if p > 0 { data.ov[p] } else { Motion::zero() };
+        let ov = match jnt.kind {
+            JointKind::FreeFlyer => {
+                data.c[i] = Motion::zero();
+                ov_p + omi.act(&joint_motion(model, i, v))
+            }
+            JointKind::Universe => ov_p,
+            kind => {
+                let s = omi.act(&kind.subspace());
+                let vj = s * v[jnt.idx_v];
+                data.o_j[i] = s;
+                data.c[i] = ov_p.cross(&vj);
+                ov_p + vj
+            }
+        };
+        let oy = data.body_moments[i].transformed(&omi);
+        data.y_aba[i] = oy.matrix();
+        let mut pa = ov.cross_force(&oy.mul_motion(&ov));
         if let Some(fe) = f_ext {
-            pa -= fe[i];
+            pa -= omi.act_force(&fe[i]);
         }
         data.p_a[i] = pa;
-        data.v[i] = vi;
-        data.o_m_i[i] = if p > 0 { &data.o_m_i[p] * &li } else { li };
+        data.ov[i] = ov;
+        data.o_m_i[i] = omi;
         data.li_m_i[i] = li;
     }
-    // Pass 2: articulated inertias, leaves to root.
-    //   U = IA S, D = S^T U, u = tau - S^T pA
-    //   Ia = IA - U D^-1 U^T, pa = pA + Ia c + U D^-1 u;  IA_p += pXi* Ia iXp,  pA_p += pXi* pa
+    // Pass 2: articulated inertias, leaves to root (world frame, so no transform):
+    //   U = IA s, D = s^T U, u = tau - s^T pA
+    //   Ia = IA - U D^-1 U^T,  pa = pA + Ia c + U D^-1 u;  IA_p += Ia,  pA_p += pa
     for i in (1..n).rev() {
         let j = &model.joints[i];
         match j.kind {
             JointKind::FreeFlyer => {
-                // S = I6: U = IA, D = IA, u = tau_base - pA. Handled in pass 3.
+                // S = oX1: the base wrench moved to the world origin, minus the bias force.
                 let t = &tau.as_slice()[j.idx_v..j.idx_v + 6];
-                let tb = Force::from_vector(&nalgebra::Vector6::from_column_slice(t));
-                data.p_a[i] = tb - data.p_a[i];
-                continue;
+                let tb = Force::new(Vector3::new(t[0], t[1], t[2]), Vector3::new(t[3], t[4], t[5]));
+                data.p_a[i] = data.o_m_i[i].act_force(&tb) - data.p_a[i];
             }
-            JointKind::Universe => continue,
-            k => {
-                let s = k.subspace().to_vector();
+            JointKind::Universe => {}
+            _ => {
+                let s = data.o_j[i].to_vector();
                 let ya = &data.y_aba[i];
                 let u_col = ya * s;
                 let d_inv = 1.0 / s.dot(&u_col);
@@ -93,40 +109,38 @@ fn aba_impl<'d>(
                 if j.parent > 0 {
                     let ia = ya - u_col * (u_col.transpose() * d_inv);
                     let pa = data.p_a[i].to_vector() + ia * data.c[i].to_vector() + u_col * (u * d_inv);
-                    let li = &data.li_m_i[i];
-                    let y_parent = li.act_inertia_matrix(&ia);
-                    data.y_aba[j.parent] += y_parent;
-                    let fp = li.act_force(&Force::from_vector(&pa));
-                    data.p_a[j.parent] += fp;
+                    data.y_aba[j.parent] += ia;
+                    data.p_a[j.parent] += Force::from_vector(&pa);
                 }
             }
         }
     }
-    // Pass 3: accelerations, root to leaves.
-    //   a' = iXp a_p + c_i,  qdd_i = D^-1 (u - U^T a'),  a_i = a' + S qdd_i
+    // Pass 3: accelerations, root to leaves (world frame, a_0 = -g):
+    //   a' = a_p + c_i,  qdd_i = D^-1 (u - U^T a'),  a_i = a' + s_i qdd_i
+    // For the free-flyer root (s = oX1, c = 0): IA a_1 = oX1* tau_b - pA, qdd_b = oX1^-1 (a_1 - a_0).
     let a0 = -model.gravity;
     for i in 1..n {
         let j = &model.joints[i];
         let p = j.parent;
-        let ap = if p > 0 { data.li_m_i[i].act_inv(&data.a[p]) } else { data.li_m_i[i].act_inv(&a0) };
-        let a_prime = ap + data.c[i];
+        let a_prime = if p > 0 { data.oa[p] + data.c[i] } else { a0 + data.c[i] };
         match j.kind {
             JointKind::FreeFlyer => {
-                // IA qdd = (tau - pA) - IA a'
                 let ya = data.y_aba[i];
-                let rhs = data.p_a[i].to_vector() - ya * a_prime.to_vector();
-                let qdd = match ya.cholesky() {
+                let rhs = data.p_a[i].to_vector();
+                let a1 = match ya.cholesky() {
                     Some(ch) => ch.solve(&rhs),
                     None => nalgebra::Vector6::from_element(f64::NAN),
                 };
-                data.ddq.as_mut_slice()[j.idx_v..j.idx_v + 6].copy_from_slice(qdd.as_slice());
-                data.a[i] = a_prime + Motion::from_vector(&qdd);
+                let a1 = Motion::from_vector(&a1);
+                let qdd = data.o_m_i[i].act_inv(&(a1 - a_prime));
+                data.ddq.as_mut_slice()[j.idx_v..j.idx_v + 6].copy_from_slice(qdd.to_vector().as_slice());
+                data.oa[i] = a1;
             }
-            JointKind::Universe => {}
-            k => {
+            JointKind::Universe => data.oa[i] = a_prime,
+            _ => {
                 let qdd = data.d_inv[i] * (data.u_scalar[i] - data.u_col[i].dot(&a_prime.to_vector()));
                 data.ddq[j.idx_v] = qdd;
-                data.a[i] = a_prime + k.subspace() * qdd;
+                data.oa[i] = a_prime + data.o_j[i] * qdd;
             }
         }
     }

@@ -20,64 +20,64 @@ use super::Data;
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 
-/// In-place `M = L^T D L` (Featherstone 2008, Table 6.3): on return the strict lower triangle
-/// of `h` holds `L` (unit diagonal implied) and the diagonal holds `D`. `lambda[k]` is the
-/// parent degree of freedom of `k` (`usize::MAX` at the root).
-fn ltdl_in_place(h: &mut DMatrix<f64>, lambda: &[usize]) {
-    let n = h.nrows();
+
+const ROOT: usize = usize::MAX;
+
+/// In-place `M = L^T D L` (Featherstone 2008, Table 6.3) on a column-major `n x n` slice: on
+/// return the strict lower triangle holds `L` (unit diagonal implied) and the diagonal `D`.
+/// `lambda[k]` is the parent degree of freedom of `k` (`ROOT` at the root); only the
+/// entries on a branch are touched.
+fn ltdl_in_place(h: &mut [f64], n: usize, lambda: &[usize]) {
     for k in (0..n).rev() {
+        let hkk = h[k + k * n];
         let mut i = lambda[k];
-        while i != usize::MAX {
-            let a = h[(k, i)] / h[(k, k)];
+        while i != ROOT {
+            // a = H_ki / H_kk;  H_ij -= a H_kj for j on the branch of i;  H_ki = a
+            let a = h[k + i * n] / hkk;
             let mut j = i;
-            while j != usize::MAX {
-                h[(i, j)] -= a * h[(k, j)];
+            while j != ROOT {
+                h[i + j * n] -= a * h[k + j * n];
                 j = lambda[j];
             }
-            h[(k, i)] = a;
+            h[k + i * n] = a;
             i = lambda[i];
         }
     }
 }
 
-/// `M^-1 = L^-1 D^-1 L^-T` from the factor in `h`, into `out` (full, symmetric).
+/// `M^-1 = L^-1 D^-1 L^-T` from the factor in `h`, into `out` (full, symmetric);
+/// `linv` is scratch for `L^-1`.
 ///
-/// Column `c` of `M^-1` solves `L^T D L x = e_c`; by symmetry only the rows `>= c` are
-/// computed from `y = D^-1 L^-T e_c`, which is non-zero only on the path of `c` to the root.
-fn minv_from_ltdl(h: &DMatrix<f64>, lambda: &[usize], out: &mut DMatrix<f64>, y: &mut DVector<f64>) {
-    let n = h.nrows();
-    for c in 0..n {
-        // L^T y = e_c: y_c = 1, then for each i on the path (descending) y_j -= L_ij y_i
-        // for every ancestor j of i.
-        y.fill(0.0);
-        y[c] = 1.0;
-        let mut i = c;
-        while i != usize::MAX {
-            let yi = y[i];
-            let mut j = lambda[i];
-            while j != usize::MAX {
-                y[j] -= h[(i, j)] * yi;
-                j = lambda[j];
+/// `L^-1` has the branch pattern of `L`: from `L L^-1 = I`,
+/// `L^-1[i, j] = -sum_{k on the branch from i (excluded) to j (included)} L[i, k] L^-1[k, j]`.
+/// Then `M^-1[a, b] = sum_{k common ancestor of a and b} L^-1[a, k] L^-1[b, k] / D_k`.
+fn minv_from_ltdl(h: &[f64], n: usize, lambda: &[usize], linv: &mut [f64], out: &mut [f64]) {
+    linv.fill(0.0);
+    for i in 0..n {
+        linv[i + i * n] = 1.0;
+        let mut j = lambda[i];
+        while j != ROOT {
+            let mut acc = 0.0;
+            let mut k = lambda[i];
+            while k != ROOT && k >= j {
+                acc += h[i + k * n] * linv[k + j * n];
+                k = lambda[k];
             }
-            i = lambda[i];
+            linv[i + j * n] = -acc;
+            j = lambda[j];
         }
-        // D z = y
-        let mut i = c;
-        while i != usize::MAX {
-            y[i] /= h[(i, i)];
-            i = lambda[i];
-        }
-        // L x = z: x_i = z_i - sum_{j on path of i} L_ij x_j, in increasing order.
-        for i in 0..n {
-            let mut j = lambda[i];
-            let mut acc = y[i];
-            while j != usize::MAX {
-                acc -= h[(i, j)] * y[j];
-                j = lambda[j];
+    }
+    for a in 0..n {
+        for b in 0..=a {
+            let mut acc = 0.0;
+            let mut k = b;
+            while k != ROOT {
+                acc += linv[a + k * n] * linv[b + k * n] / h[k + k * n];
+                k = lambda[k];
             }
-            y[i] = acc;
+            out[a + b * n] = acc;
+            out[b + a * n] = acc;
         }
-        out.column_mut(c).copy_from(y);
     }
 }
 
@@ -90,9 +90,10 @@ pub fn compute_minverse<'d>(model: &Model, data: &'d mut Data, q: &DVector<f64>)
 }
 
 fn invert_mass_matrix(model: &Model, data: &mut Data) {
-    data.minv_chol.copy_from(&data.mass_matrix);
-    ltdl_in_place(&mut data.minv_chol, &model.dof_parent);
-    minv_from_ltdl(&data.minv_chol, &model.dof_parent, &mut data.minv, &mut data.tmp_nv);
+    let n = model.nv;
+    data.ltdl.copy_from(&data.mass_matrix);
+    ltdl_in_place(data.ltdl.as_mut_slice(), n, &model.dof_parent);
+    minv_from_ltdl(data.ltdl.as_slice(), n, &model.dof_parent, data.linv.as_mut_slice(), data.minv.as_mut_slice());
 }
 
 /// Partial derivatives of forward dynamics `qdd = ABA(q, v, tau)`: `data.ddq_dq`,

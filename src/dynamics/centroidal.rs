@@ -16,13 +16,14 @@ pub fn centroidal_map<'d>(model: &Model, data: &'d mut Data, q: &DVector<f64>) -
     compute_joint_jacobians(model, data, q);
     let n = model.njoints();
     for i in 0..n {
-        data.o_y_crb[i] = model.inertias[i].transformed(&data.o_m_i[i]);
+        data.o_y_crb[i] = data.body_moments[i].transformed(&data.o_m_i[i]);
     }
     for i in (1..n).rev() {
         let p = model.joints[i].parent;
-        data.o_y_crb[p] = data.o_y_crb[p] + data.o_y_crb[i];
+        let child = data.o_y_crb[i];
+        data.o_y_crb[p] += child;
     }
-    let com = data.o_y_crb[0].com;
+    let com = data.o_y_crb[0].first / data.o_y_crb[0].mass;
     data.com = com;
     for i in 1..n {
         let j = &model.joints[i];

@@ -1,9 +1,9 @@
 use crate::model::Model;
-use crate::spatial::{Force, Inertia, Matrix6, Motion, Vector6, SE3};
+use crate::spatial::{Force, InertiaMoments, Matrix3, Matrix6, Motion, Vector6, SE3};
 use nalgebra::{DMatrix, DVector, Matrix3xX, Matrix6xX, Vector3};
 
 /// The mutable workspace of the dynamics algorithms: one per thread, built once from a
-/// [`Model`] and reused; no algorithm allocates.
+/// [`Model`] and reused; no algorithm allocates. Build a new `Data` if the model changes.
 ///
 /// Field names follow Pinocchio's `Data` where they have a counterpart.
 #[derive(Clone, Debug)]
@@ -55,6 +55,9 @@ pub struct Data {
     /// `d tau / dv`.
     pub dtau_dv: DMatrix<f64>,
 
+    // --- cached from the model ---
+    /// Body inertias of the model as mass moments about each joint origin.
+    pub(crate) body_moments: Vec<InertiaMoments>,
     // --- scratch of the algorithms ---
     pub(crate) c: Vec<Motion>,
     pub(crate) y_aba: Vec<Matrix6>,
@@ -62,26 +65,32 @@ pub struct Data {
     pub(crate) u_col: Vec<Vector6>,
     pub(crate) d_inv: Vec<f64>,
     pub(crate) u_scalar: Vec<f64>,
-    pub(crate) y_crb: Vec<Inertia>,
-    pub(crate) o_y_crb: Vec<Inertia>,
-    pub(crate) f_crb: Vec<Force>,
+    pub(crate) y_crb: Vec<InertiaMoments>,
+    pub(crate) o_y_crb: Vec<InertiaMoments>,
     pub(crate) ov: Vec<Motion>,
-    pub(crate) oa: Vec<Motion>,
+    /// World-frame spatial acceleration of each joint after [`super::aba`], with gravity as a
+    /// fictitious base acceleration `a_0 = -g` (a body in free fall has `oa = 0`).
+    pub oa: Vec<Motion>,
     pub(crate) of: Vec<Force>,
     pub(crate) oh: Vec<Force>,
-    pub(crate) do_y_crb: Vec<Matrix6>,
-    pub(crate) o_y_crb6: Vec<Matrix6>,
-    pub(crate) dj: Matrix6xX<f64>,
+    /// Inertia variation `dY` of Carpentier & Mansard 2018: `[[0, [t]x], [0, B]]`, kept as
+    /// the vector `t` and the block `B` (its other blocks are zero).
+    pub(crate) do_y_top: Vec<nalgebra::Vector3<f64>>,
+    pub(crate) do_y_b: Vec<Matrix3<f64>>,
+    pub(crate) o_j: Vec<Motion>,
     pub(crate) dvdq: Matrix6xX<f64>,
     pub(crate) dadq: Matrix6xX<f64>,
     pub(crate) dadv: Matrix6xX<f64>,
     pub(crate) dfdq: Matrix6xX<f64>,
     pub(crate) dfdv: Matrix6xX<f64>,
     pub(crate) dfda: Matrix6xX<f64>,
-    pub(crate) dytj: Matrix6xX<f64>,
+    /// Angular halves of the columns `dY^T J` (their linear halves are zero).
+    pub(crate) dytj: Matrix3xX<f64>,
     pub(crate) tmp_nv: DVector<f64>,
-    pub(crate) tmp_nv_nv: DMatrix<f64>,
-    pub(crate) minv_chol: DMatrix<f64>,
+    /// `L^T D L` factor of `M` (Featherstone 2008, §6.5).
+    pub(crate) ltdl: DMatrix<f64>,
+    /// `L^-1`.
+    pub(crate) linv: DMatrix<f64>,
 }
 
 impl Data {
@@ -113,32 +122,32 @@ impl Data {
             ddq_dv: DMatrix::zeros(nv, nv),
             dtau_dq: DMatrix::zeros(nv, nv),
             dtau_dv: DMatrix::zeros(nv, nv),
+            body_moments: model.inertias.iter().map(InertiaMoments::from_inertia).collect(),
             c: vec![Motion::zero(); n],
             y_aba: vec![Matrix6::zeros(); n],
             p_a: vec![Force::zero(); n],
             u_col: vec![Vector6::zeros(); n],
             d_inv: vec![0.0; n],
             u_scalar: vec![0.0; n],
-            y_crb: vec![Inertia::zero(); n],
-            o_y_crb: vec![Inertia::zero(); n],
-            f_crb: vec![Force::zero(); nv],
+            y_crb: vec![InertiaMoments::zero(); n],
+            o_y_crb: vec![InertiaMoments::zero(); n],
             ov: vec![Motion::zero(); n],
             oa: vec![Motion::zero(); n],
             of: vec![Force::zero(); n],
             oh: vec![Force::zero(); n],
-            do_y_crb: vec![Matrix6::zeros(); n],
-            o_y_crb6: vec![Matrix6::zeros(); n],
-            dj: Matrix6xX::zeros(nv),
+            do_y_top: vec![nalgebra::Vector3::zeros(); n],
+            do_y_b: vec![Matrix3::zeros(); n],
+            o_j: vec![Motion::zero(); n],
             dvdq: Matrix6xX::zeros(nv),
             dadq: Matrix6xX::zeros(nv),
             dadv: Matrix6xX::zeros(nv),
             dfdq: Matrix6xX::zeros(nv),
             dfdv: Matrix6xX::zeros(nv),
             dfda: Matrix6xX::zeros(nv),
-            dytj: Matrix6xX::zeros(nv),
+            dytj: Matrix3xX::zeros(nv),
             tmp_nv: DVector::zeros(nv),
-            tmp_nv_nv: DMatrix::zeros(nv, nv),
-            minv_chol: DMatrix::zeros(nv, nv),
+            ltdl: DMatrix::zeros(nv, nv),
+            linv: DMatrix::zeros(nv, nv),
         }
     }
 }

@@ -10,50 +10,59 @@
 use super::kinematics::{joint_motion, local_placement};
 use super::Data;
 use crate::model::{JointKind, Model};
-use crate::spatial::{skew, Force, Inertia, Matrix6, Motion};
-use nalgebra::{DVector, Vector6};
+use crate::spatial::{skew, Force, InertiaMoments, Matrix3, Motion, Vector3};
+use nalgebra::{DVector, Matrix6xX, Vector6};
 
-/// `crm(v)`: the matrix of `m -> v x m` (linear first): `[[w]x, [v]x; 0, [w]x]`.
-#[inline]
-fn motion_cross_matrix(v: &Motion) -> Matrix6 {
-    let mut m = Matrix6::zeros();
-    let w = skew(&v.w);
-    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&w);
-    m.fixed_view_mut::<3, 3>(3, 3).copy_from(&w);
-    m.fixed_view_mut::<3, 3>(0, 3).copy_from(&skew(&v.v));
-    m
-}
-
-/// Time derivative of a world inertia carried with twist `v`, plus the matrix of
-/// `m -> m x* h` for the body momentum `h = Y v`:
+/// The inertia variation of Carpentier & Mansard 2018 (eq. (14)-(15)) for a world inertia
+/// `Y = [m I, -[h]x; [h]x, I_o]` moving with twist `(v, w)` and momentum `(h_f, h_n) = Y (v, w)`:
 ///
-/// `dY = v x* Y - Y v x  +  [m -> m x* h]`   (Carpentier & Mansard 2018, eq. (14)-(15)).
+/// `dY = v x* Y - Y v x + [m -> m x* (h_f, h_n)]`.
+///
+/// Written out, the commutator `[w]x[h]x - [h]x[w]x = [w x h]x` collapses it to
+/// `dY = [[0, -2 [h_f]x], [0, B]]` with `B = [w]x I_o - I_o [w]x - [v]x [h]x - [h]x [v]x - [h_n]x`,
+/// so only the vector `t = -2 h_f` and the block `B` are kept.
 #[inline]
-fn inertia_variation_plus_momentum_cross(y: &Inertia, v: &Motion, h: &Force) -> Matrix6 {
-    let ym = y.matrix();
-    let crm = motion_cross_matrix(v);
-    // crf(v) = -crm(v)^T
-    let mut out = -(crm.transpose() * ym) - ym * crm;
-    // m x* h = [w x h_f; w x h_n + v x h_f] = [[0, -[h_f]x]; [-[h_f]x, -[h_n]x]] [v; w]
-    let hf = skew(&h.f);
-    let hn = skew(&h.n);
-    for r in 0..3 {
-        for c in 0..3 {
-            out[(r, 3 + c)] -= hf[(r, c)];
-            out[(3 + r, c)] -= hf[(r, c)];
-            out[(3 + r, 3 + c)] -= hn[(r, c)];
-        }
-    }
-    out
+fn inertia_variation(y: &InertiaMoments, v: &Motion, momentum: &Force) -> (Vector3<f64>, Matrix3<f64>) {
+    let w = skew(&v.w);
+    let vx = skew(&v.v);
+    let hx = skew(&y.first);
+    let b = w * y.second - y.second * w - vx * hx - hx * vx - skew(&momentum.n);
+    (momentum.f * -2.0, b)
 }
 
 #[inline]
-fn col_motion(m: &nalgebra::Matrix6xX<f64>, k: usize) -> Motion {
-    Motion::from_slice(m.column(k).as_slice())
+fn col(m: &Matrix6xX<f64>, k: usize) -> Motion {
+    Motion::from_slice(&m.as_slice()[6 * k..6 * k + 6])
 }
 #[inline]
-fn set_col(m: &mut nalgebra::Matrix6xX<f64>, k: usize, x: &Vector6<f64>) {
-    m.column_mut(k).copy_from(x);
+fn set_col(m: &mut Matrix6xX<f64>, k: usize, x: &Motion) {
+    let s = &mut m.as_mut_slice()[6 * k..6 * k + 6];
+    s[0] = x.v.x;
+    s[1] = x.v.y;
+    s[2] = x.v.z;
+    s[3] = x.w.x;
+    s[4] = x.w.y;
+    s[5] = x.w.z;
+}
+#[inline]
+fn set_col_f(m: &mut Matrix6xX<f64>, k: usize, x: &Force) {
+    set_col(m, k, &Motion::new(x.f, x.n));
+}
+#[inline(always)]
+fn col6(s: &[f64], k: usize) -> [f64; 6] {
+    s[6 * k..6 * k + 6].try_into().expect("6 rows")
+}
+#[inline(always)]
+fn col3(s: &[f64], k: usize) -> [f64; 3] {
+    s[3 * k..3 * k + 3].try_into().expect("3 rows")
+}
+#[inline(always)]
+fn dot6(a: &[f64; 6], b: &[f64; 6]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
+}
+#[inline(always)]
+fn dot3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// Partial derivatives of `tau = RNEA(q, v, a)`: `data.dtau_dq`, `data.dtau_dv`, and
@@ -95,7 +104,7 @@ pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>
         data.o_m_i[i] = omi;
         data.v[i] = vi;
         data.a[i] = ai;
-        let oy = model.inertias[i].transformed(&omi);
+        let oy = data.body_moments[i].transformed(&omi);
         let ov = omi.act(&vi);
         let oa_gf = omi.act(&ai) + minus_g;
         let oh = oy.mul_motion(&ov);
@@ -115,80 +124,84 @@ pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>
                 kind => kind.subspace(),
             };
             let jc = omi.act(&s_local);
-            let dj = ov.cross(&jc);
             let dvdq = ov_p.cross(&jc);
             let dadq = oa_gf_p.cross(&jc) + ov_p.cross(&dvdq);
-            let dadv = dj + dvdq;
-            set_col(&mut data.jacobian, k, &jc.to_vector());
-            set_col(&mut data.dj, k, &dj.to_vector());
-            set_col(&mut data.dvdq, k, &dvdq.to_vector());
-            set_col(&mut data.dadq, k, &dadq.to_vector());
-            set_col(&mut data.dadv, k, &dadv.to_vector());
+            let dadv = ov.cross(&jc) + dvdq; // dJ + dV/dq
+            set_col(&mut data.jacobian, k, &jc);
+            set_col(&mut data.dvdq, k, &dvdq);
+            set_col(&mut data.dadq, k, &dadq);
+            set_col(&mut data.dadv, k, &dadv);
         }
-        data.do_y_crb[i] = inertia_variation_plus_momentum_cross(&oy, &ov, &oh);
+        let (t, b) = inertia_variation(&oy, &ov, &oh);
+        data.do_y_top[i] = t;
+        data.do_y_b[i] = b;
     }
     // ---- backward pass
+    let nv = model.nv;
     for i in (1..n).rev() {
         let jnt = &model.joints[i];
         let p = jnt.parent;
         let (iv, nvj) = (jnt.idx_v, jnt.nv);
         let sub_end = iv + model.nv_subtree[i];
         let oyc = data.o_y_crb[i];
-        let doyc = data.do_y_crb[i];
+        let (t, b) = (data.do_y_top[i], data.do_y_b[i]);
         let of = data.of[i];
         for k in iv..iv + nvj {
-            let jc = col_motion(&data.jacobian, k);
+            let jc = col(&data.jacobian, k);
             data.tau[k] = jc.dot(&of);
-            // dF/da (= A_g column, in the world origin), dY^T J
-            let dfda = oyc.mul_motion(&jc).to_vector();
-            set_col(&mut data.dfda, k, &dfda);
-            let dytj = doyc.transpose() * jc.to_vector();
-            set_col(&mut data.dytj, k, &dytj);
-            let dvdq = col_motion(&data.dvdq, k);
-            let dadq = col_motion(&data.dadq, k);
-            let dadv = col_motion(&data.dadv, k);
-            let mut dfdq = oyc.mul_motion(&dadq).to_vector();
+            // dF/da = oYc J (the A_g column at the world origin); dY^T J = [0; -t x J_v + B^T J_w]
+            set_col_f(&mut data.dfda, k, &oyc.mul_motion(&jc));
+            let yt = b.tr_mul(&jc.w) - t.cross(&jc.v);
+            data.dytj.as_mut_slice()[3 * k..3 * k + 3].copy_from_slice(yt.as_slice());
+            let (dvdq, dadq, dadv) = (col(&data.dvdq, k), col(&data.dadq, k), col(&data.dadv, k));
+            // dY x = [t x x_w; B x_w]
+            let mut dfdq = oyc.mul_motion(&dadq);
             if p > 0 {
-                dfdq += doyc * dvdq.to_vector();
+                dfdq += Force::new(t.cross(&dvdq.w), b * dvdq.w);
             }
-            set_col(&mut data.dfdq, k, &dfdq);
-            let dfdv = doyc * jc.to_vector() + oyc.mul_motion(&dadv).to_vector();
-            set_col(&mut data.dfdv, k, &dfdv);
+            set_col_f(&mut data.dfdq, k, &dfdq);
+            let dfdv = oyc.mul_motion(&dadv) + Force::new(t.cross(&jc.w), b * jc.w);
+            set_col_f(&mut data.dfdv, k, &dfdv);
         }
-        for k in iv..iv + nvj {
-            let jc = data.jacobian.column(k).clone_owned();
-            let dvdq = data.dvdq.column(k).clone_owned();
-            let dadq = data.dadq.column(k).clone_owned();
-            let dadv = data.dadv.column(k).clone_owned();
-            // rows of the joint, columns of the subtree
-            for c in iv..sub_end {
-                data.mass_matrix[(k, c)] = jc.dot(&data.dfda.column(c));
-                data.dtau_dq[(k, c)] = jc.dot(&data.dfdq.column(c));
-                data.dtau_dv[(k, c)] = jc.dot(&data.dfdv.column(c));
+        let (js, dfda, dytj, dfdq, dfdv) =
+            (data.jacobian.as_slice(), data.dfda.as_slice(), data.dytj.as_slice(), data.dfdq.as_slice(), data.dfdv.as_slice());
+        let (dvdq_s, dadq_s, dadv_s) = (data.dvdq.as_slice(), data.dadq.as_slice(), data.dadv.as_slice());
+        let (mm, dq, dv) = (data.mass_matrix.as_mut_slice(), data.dtau_dq.as_mut_slice(), data.dtau_dv.as_mut_slice());
+        // Rows of the joint, columns of its subtree: M, dtau/dq, dtau/dv = J_k^T (dF/da, dF/dq, dF/dv)_c
+        for c in iv..sub_end {
+            let (fa, fq, fv) = (col6(dfda, c), col6(dfdq, c), col6(dfdv, c));
+            for k in iv..iv + nvj {
+                let jc = col6(js, k);
+                mm[k + c * nv] = dot6(&jc, &fa);
+                dq[k + c * nv] = dot6(&jc, &fq);
+                dv[k + c * nv] = dot6(&jc, &fv);
             }
-            // rows of the strict subtree, columns of the joint
+        }
+        // Rows of the strict subtree, columns of the joint:
+        //   dtau/dq[r, k] = (dF/da)_r . dA/dq_k + (dY^T J)_r . dV/dq_k   ((dY^T J)_r is angular only)
+        for k in iv..iv + nvj {
+            let (jc, dvdq, dadq, dadv) = (col6(js, k), col6(dvdq_s, k), col6(dadq_s, k), col6(dadv_s, k));
+            let (dvdq_w, jc_w) = ([dvdq[3], dvdq[4], dvdq[5]], [jc[3], jc[4], jc[5]]);
             for r in iv + nvj..sub_end {
-                let fa = data.dfda.column(r);
-                let yt = data.dytj.column(r);
-                data.dtau_dq[(r, k)] = fa.dot(&dadq) + yt.dot(&dvdq);
-                data.dtau_dv[(r, k)] = fa.dot(&dadv) + yt.dot(&jc);
+                let (fa, yt) = (col6(dfda, r), col3(dytj, r));
+                dq[r + k * nv] = dot6(&fa, &dadq) + dot3(&yt, &dvdq_w);
+                dv[r + k * nv] = dot6(&fa, &dadv) + dot3(&yt, &jc_w);
             }
         }
-        // dF/dq += J x* f (for the ancestors' rows)
+        // dF/dq += J x* f, for the ancestors' rows
         for k in iv..iv + nvj {
-            let jc = col_motion(&data.jacobian, k);
-            let add = jc.cross_force(&of).to_vector();
-            let mut col = data.dfdq.column_mut(k);
-            col += add;
+            let add = col(&data.jacobian, k).cross_force(&of);
+            let cur = col(&data.dfdq, k);
+            set_col(&mut data.dfdq, k, &Motion::new(cur.v + add.f, cur.w + add.n));
         }
         if p > 0 {
-            data.o_y_crb[p] = data.o_y_crb[p] + oyc;
-            data.do_y_crb[p] += doyc;
+            data.o_y_crb[p] += oyc;
+            data.do_y_top[p] += t;
+            data.do_y_b[p] += b;
             data.of[p] += of;
         }
     }
     // M: mirror the upper triangle.
-    let nv = model.nv;
     for r in 0..nv {
         for c in 0..r {
             data.mass_matrix[(r, c)] = data.mass_matrix[(c, r)];

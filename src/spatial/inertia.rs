@@ -165,3 +165,102 @@ mod tests {
         assert!(Inertia::validated(1.0, Vector3::zeros(), Matrix3::identity()).is_ok());
     }
 }
+
+/// The same spatial inertia as [`Inertia`], stored as its mass moments about the frame
+/// origin: mass `m`, first moment `h = m c` and second moment (rotational inertia about the
+/// origin) `I_o = I_c - m [c]x [c]x`. As a 6x6 matrix: `[m I, -[h]x; [h]x, I_o]`.
+///
+/// Adding two bodies is a plain sum and moving to another frame costs one `R I R^T`, which
+/// makes this the form of the composite (subtree) inertias inside CRBA and the derivative
+/// algorithms.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InertiaMoments {
+    pub mass: f64,
+    pub first: Vector3<f64>,
+    pub second: Matrix3<f64>,
+}
+
+impl InertiaMoments {
+    pub fn zero() -> Self {
+        Self { mass: 0.0, first: Vector3::zeros(), second: Matrix3::zeros() }
+    }
+    /// From (mass, centre of mass, inertia about the centre of mass).
+    #[inline]
+    pub fn from_inertia(i: &Inertia) -> Self {
+        Self { mass: i.mass, first: i.com * i.mass, second: i.inertia_origin() }
+    }
+    /// Back to (mass, centre of mass, inertia about the centre of mass); zero mass gives zero.
+    pub fn to_inertia(&self) -> Inertia {
+        if self.mass <= 0.0 {
+            return Inertia::zero();
+        }
+        let c = self.first / self.mass;
+        let s = skew(&c);
+        Inertia { mass: self.mass, com: c, inertia_com: self.second + s * s * self.mass }
+    }
+    /// The moments in frame `a`, given `aMb` and the moments in `b` (`r' = R r + p`):
+    /// `h' = R h + m p`, `I' = R I R^T - [p]x [R h]x - [R h]x [p]x - m [p]x [p]x`.
+    #[inline]
+    pub fn transformed(&self, a_m_b: &SE3) -> InertiaMoments {
+        let r = &a_m_b.rotation;
+        let p = &a_m_b.translation;
+        let rh = r * self.first;
+        let sp = skew(p);
+        let srh = skew(&rh);
+        let second = r * self.second * r.transpose() - sp * srh - srh * sp - sp * sp * self.mass;
+        InertiaMoments { mass: self.mass, first: rh + p * self.mass, second }
+    }
+    /// Momentum of a twist: `f = m v - h x w`, `n = h x v + I_o w`.
+    #[inline]
+    pub fn mul_motion(&self, m: &Motion) -> Force {
+        Force { f: m.v * self.mass - self.first.cross(&m.w), n: self.first.cross(&m.v) + self.second * m.w }
+    }
+    /// The 6x6 matrix `[m I, -[h]x; [h]x, I_o]`.
+    pub fn matrix(&self) -> Matrix6 {
+        let mut y = Matrix6::zeros();
+        let h = skew(&self.first);
+        y[(0, 0)] = self.mass;
+        y[(1, 1)] = self.mass;
+        y[(2, 2)] = self.mass;
+        y.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-h));
+        y.fixed_view_mut::<3, 3>(3, 0).copy_from(&h);
+        y.fixed_view_mut::<3, 3>(3, 3).copy_from(&self.second);
+        y
+    }
+}
+
+impl Add for InertiaMoments {
+    type Output = InertiaMoments;
+    #[inline]
+    fn add(self, o: InertiaMoments) -> InertiaMoments {
+        InertiaMoments { mass: self.mass + o.mass, first: self.first + o.first, second: self.second + o.second }
+    }
+}
+
+impl std::ops::AddAssign for InertiaMoments {
+    #[inline]
+    fn add_assign(&mut self, o: InertiaMoments) {
+        self.mass += o.mass;
+        self.first += o.first;
+        self.second += o.second;
+    }
+}
+
+#[cfg(test)]
+mod moments_tests {
+    use super::*;
+    #[test]
+    fn moments_agree_with_inertia() {
+        let i = Inertia::new(2.5, Vector3::new(0.1, -0.2, 0.3), Matrix3::new(0.3, 0.01, 0.02, 0.01, 0.4, 0.03, 0.02, 0.03, 0.5));
+        let m = InertiaMoments::from_inertia(&i);
+        assert!((m.matrix() - i.matrix()).norm() < 1e-13);
+        let x = SE3::new(crate::spatial::exp3(&Vector3::new(0.2, 0.5, -0.3)), Vector3::new(0.4, -0.1, 0.9));
+        assert!((m.transformed(&x).matrix() - i.transformed(&x).matrix()).norm() < 1e-12);
+        let tw = Motion::new(Vector3::new(0.3, 0.1, -0.7), Vector3::new(1.0, 2.0, -0.5));
+        assert!((m.mul_motion(&tw).to_vector() - i.mul_motion(&tw).to_vector()).norm() < 1e-13);
+        assert!((m.to_inertia().matrix() - i.matrix()).norm() < 1e-12);
+        let j = Inertia::new(1.0, Vector3::new(0.0, 0.4, 0.0), Matrix3::identity() * 0.1);
+        let sum = m + InertiaMoments::from_inertia(&j);
+        assert!((sum.matrix() - (i + j).matrix()).norm() < 1e-12);
+    }
+}

@@ -14,7 +14,7 @@ mod se3;
 mod so3;
 
 pub use force::Force;
-pub use inertia::{Inertia, InertiaError};
+pub use inertia::{Inertia, InertiaError, InertiaMoments};
 pub use motion::Motion;
 pub use se3::SE3;
 pub use so3::{exp3, exp6, log3, log6, skew, jlog3, jexp3};
@@ -24,11 +24,3 @@ pub type Matrix6 = nalgebra::Matrix6<f64>;
 /// A 6-vector in the spatial layout (linear first).
 pub type Vector6 = nalgebra::Vector6<f64>;
 pub use nalgebra::{Matrix3, Vector3};
-
-/// `P A P` for a skew matrix `P = [p]x` and a symmetric `A`, written out, because this product
-/// is on the hot path of ABA (articulated inertia transform).
-#[inline]
-pub(crate) fn skew_sym_skew(p: &Vector3<f64>, a: &Matrix3<f64>) -> Matrix3<f64> {
-    let s = skew(p);
-    s * a * s
-}

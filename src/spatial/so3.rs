@@ -23,9 +23,34 @@ pub fn exp3(w: &Vector3<f64>) -> Matrix3<f64> {
 }
 
 /// `Log(R)`: the rotation vector `w` with `Exp(w) = R`, `|w| <= pi`.
+///
+/// `theta = atan2(|vee(R - R^T)| / 2, (tr R - 1) / 2)` keeps full precision near zero
+/// (where `acos` of the trace loses half the digits); near `pi` the axis comes from the
+/// symmetric part `(R + R^T)/2 - cos(theta) I = (1 - cos theta) a a^T`.
 pub fn log3(r: &Matrix3<f64>) -> Vector3<f64> {
-    let rot = nalgebra::Rotation3::from_matrix_unchecked(*r);
-    rot.scaled_axis()
+    let v = Vector3::new(r[(2, 1)] - r[(1, 2)], r[(0, 2)] - r[(2, 0)], r[(1, 0)] - r[(0, 1)]) * 0.5;
+    let cos = ((r.trace() - 1.0) * 0.5).clamp(-1.0, 1.0);
+    let sin = v.norm();
+    let theta = sin.atan2(cos);
+    if cos > -0.9 {
+        // theta / sin(theta), with its Taylor series near zero
+        let k = if sin < 1e-8 { 1.0 + sin * sin / 6.0 } else { theta / sin };
+        return v * k;
+    }
+    let b = (r + r.transpose()) * 0.5 - Matrix3::identity() * cos;
+    let (mut best, mut big) = (0, b[(0, 0)]);
+    for i in 1..3 {
+        if b[(i, i)] > big {
+            best = i;
+            big = b[(i, i)];
+        }
+    }
+    let mut axis = b.column(best).into_owned() / big.max(f64::MIN_POSITIVE).sqrt();
+    axis /= axis.norm();
+    if axis.dot(&v) < 0.0 {
+        axis = -axis;
+    }
+    axis * theta
 }
 
 /// Right Jacobian of `Exp` on SO(3): `Exp(w + dw) = Exp(w) Exp(Jr(w) dw)` to first order.
@@ -92,7 +117,13 @@ mod tests {
 
     #[test]
     fn exp_log_roundtrip() {
-        for w in [Vector3::new(0.3, -1.2, 0.5), Vector3::new(1e-6, 0.0, 2e-6), Vector3::new(0.0, 3.0, 0.0)] {
+        for w in [
+            Vector3::new(0.3, -1.2, 0.5),
+            Vector3::new(1e-6, 0.0, 2e-6),
+            Vector3::new(0.0, 3.0, 0.0),
+            Vector3::new(1.0, -2.0, 2.0) * (std::f64::consts::PI - 1e-7) / 3.0,
+            Vector3::new(0.0, 0.0, 1e-12),
+        ] {
             let r = exp3(&w);
             assert!((r.transpose() * r - Matrix3::identity()).norm() < 1e-14);
             assert!((log3(&r) - w).norm() < 1e-12, "{w}");
@@ -110,8 +141,11 @@ mod tests {
         for k in 0..3 {
             let mut d = Vector3::zeros();
             d[k] = h;
-            let col = log3(&(exp3(&w).transpose() * exp3(&(w + d)))) / h;
-            assert!((col - jr.column(k)).norm() < 1e-6);
+            // central difference: Log(Exp(w)^T Exp(w +- d)) = +- Jr d + O(h^2)
+            let plus = log3(&(exp3(&w).transpose() * exp3(&(w + d))));
+            let minus = log3(&(exp3(&w).transpose() * exp3(&(w - d))));
+            let col = (plus - minus) / (2.0 * h);
+            assert!((col - jr.column(k)).norm() < 1e-8, "column {k}: {col} vs {}", jr.column(k));
         }
         assert!((jlog3(&w) * jr - Matrix3::identity()).norm() < 1e-12);
     }
