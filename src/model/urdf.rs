@@ -189,8 +189,13 @@ pub fn from_str(xml: &str, source: &str, root: RootJoint) -> Result<Model, UrdfE
 
 /// Parses `text` into a DOM whose root element must be `<expected_root>`.
 fn parse_dom(text: &str, file: &str, expected_root: &str) -> Result<xml::Element, UrdfError> {
-    let dom: xml::Element =
-        text.parse().map_err(|e: xml::BuilderError| UrdfError::new(file, UrdfErrorKind::Xml, format!("malformed XML: {e}")))?;
+    let dom: xml::Element = text.parse().map_err(|e: xml::BuilderError| {
+        let detail = match e {
+            xml::BuilderError::Parser(p) => p.to_string(),
+            _ => nesting_problem(text),
+        };
+        UrdfError::new(file, UrdfErrorKind::Xml, format!("malformed XML: {detail}"))
+    })?;
     if dom.name != expected_root {
         return Err(UrdfError::new(
             file,
@@ -199,6 +204,53 @@ fn parse_dom(text: &str, file: &str, expected_root: &str) -> Result<xml::Element
         ));
     }
     Ok(dom)
+}
+
+/// Says where the elements of `text` stop nesting properly (a closing tag that does not
+/// match, or the end of the text with elements still open), naming the innermost enclosing
+/// element that has a `name` attribute.
+fn nesting_problem(text: &str) -> String {
+    let mut parser = xml::Parser::new();
+    parser.feed_str(text);
+    // (tag, name attribute)
+    let mut stack: Vec<(String, Option<String>)> = Vec::new();
+    let inside = |stack: &[(String, Option<String>)]| {
+        stack
+            .iter()
+            .rev()
+            .find_map(|(tag, name)| name.as_ref().map(|n| format!(" inside {tag} '{n}'")))
+            .unwrap_or_default()
+    };
+    let mut seen_root = false;
+    for event in parser {
+        match event {
+            Ok(xml::Event::ElementStart(t)) => {
+                seen_root = true;
+                let name = t.attributes.iter().find(|((k, ns), _)| k == "name" && ns.is_none()).map(|(_, v)| v.clone());
+                stack.push((t.name, name));
+            }
+            Ok(xml::Event::ElementEnd(t)) => match stack.pop() {
+                Some((open, _)) if open == t.name => {
+                    if stack.is_empty() {
+                        return "elements are not properly nested".into();
+                    }
+                }
+                Some((open, name)) => {
+                    let at = inside(&stack);
+                    let open_name = name.map(|n| format!(" name=\"{n}\"")).unwrap_or_default();
+                    return format!("</{}> closes <{open}{open_name}>{at}", t.name);
+                }
+                None => return format!("</{}> closes nothing", t.name),
+            },
+            Ok(_) => {}
+            Err(e) => return e.to_string(),
+        }
+    }
+    match stack.last() {
+        Some((open, _)) => format!("the text ends before </{open}>{}", inside(&stack)),
+        None if seen_root => "elements are not properly nested".into(),
+        None => "no XML element found".into(),
+    }
 }
 
 fn child_elements<'a>(e: &'a xml::Element) -> impl Iterator<Item = &'a xml::Element> + 'a {
@@ -316,15 +368,32 @@ fn diagnose(dom: &xml::Element, file: &str) -> Option<UrdfError> {
                     let Some(g) = first_child(v, "geometry") else {
                         return bad(format!("{owner}: <{tag}> has no <geometry>"));
                     };
-                    for shape in child_elements(g) {
-                        let attrs: &[(&'static str, usize)] = match shape.name.as_str() {
-                            "sphere" => &[("radius", 1)],
-                            "box" => &[("size", 3)],
-                            "cylinder" | "capsule" => &[("radius", 1), ("length", 1)],
-                            _ => &[],
-                        };
-                        for (a, n) in attrs {
-                            checks.push((format!("<{}>", shape.name), shape, a, *n, true));
+                    if g.children.iter().any(|c| matches!(c, xml::Xml::CharacterNode(t) | xml::Xml::CDATANode(t) if !t.trim().is_empty())) {
+                        return bad(format!("{owner}: <{tag}> <geometry> contains text: {:?}", g.content_str().trim()));
+                    }
+                    let shapes: Vec<&xml::Element> = child_elements(g).collect();
+                    let [shape] = shapes.as_slice() else {
+                        return bad(format!("{owner}: a <{tag}> <geometry> needs exactly one shape, it has {}", shapes.len()));
+                    };
+                    let attrs: &[(&'static str, usize, bool)] = match shape.name.as_str() {
+                        "sphere" => &[("radius", 1, true)],
+                        "box" => &[("size", 3, true)],
+                        "cylinder" | "capsule" => &[("radius", 1, true), ("length", 1, true)],
+                        "mesh" => &[("scale", 3, false)],
+                        other => return bad(format!("{owner}: <{tag}> has an unknown geometry <{other}>")),
+                    };
+                    if shape.name == "mesh" && attr(shape, "filename").is_none() {
+                        return bad(format!("{owner}: <{tag}> <mesh> has no filename"));
+                    }
+                    for (a, n, required) in attrs {
+                        checks.push((format!("<{}>", shape.name), shape, a, *n, *required));
+                    }
+                    if let Some(m) = first_child(v, "material") {
+                        if attr(m, "name").is_none() {
+                            return bad(format!("{owner}: <{tag}> <material> has no name"));
+                        }
+                        if let Some(c) = first_child(m, "color") {
+                            checks.push(("<material> <color>".into(), c, "rgba", 4, true));
                         }
                     }
                 }
@@ -344,6 +413,25 @@ fn diagnose(dom: &xml::Element, file: &str) -> Option<UrdfError> {
                 checks.push(("<limit>".into(), l, "velocity", 1, true));
                 for a in ["lower", "upper", "effort"] {
                     checks.push(("<limit>".into(), l, a, 1, false));
+                }
+            }
+            if let Some(sc) = first_child(e, "safety_controller") {
+                checks.push(("<safety_controller>".into(), sc, "k_velocity", 1, true));
+                for a in ["soft_lower_limit", "soft_upper_limit", "k_position"] {
+                    checks.push(("<safety_controller>".into(), sc, a, 1, false));
+                }
+            }
+            if let Some(d) = first_child(e, "dynamics") {
+                for a in ["damping", "friction"] {
+                    checks.push(("<dynamics>".into(), d, a, 1, false));
+                }
+            }
+            if let Some(m) = first_child(e, "mimic") {
+                if attr(m, "joint").is_none() {
+                    return bad(format!("{owner}: <mimic> has no joint"));
+                }
+                for a in ["multiplier", "offset"] {
+                    checks.push(("<mimic>".into(), m, a, 1, false));
                 }
             }
         }
@@ -766,8 +854,8 @@ pub fn foot_rank(name: &str) -> usize {
 /// Adds every `<group_state>` of an SRDF as a reference configuration of `model` (replacing
 /// one of the same name) and returns their names. Joints not listed stay at the neutral
 /// value; the free flyer takes the 7 values `x y z qx qy qz qw` (quaternion normalised).
-/// Joints of the URDF that were merged away (fixed) are skipped, as Pinocchio does; any
-/// other unknown joint is an error. `source` names the SRDF file in errors.
+/// Joints of the URDF that were merged away (fixed), and `root_joint` when the model has
+/// a fixed base, are skipped, as Pinocchio does; any other unknown joint is an error. `source` names the SRDF file in errors.
 pub fn add_srdf_states(model: &mut Model, srdf: &str, source: &str) -> Result<Vec<String>, UrdfError> {
     let err = |m: String| UrdfError::new(source, UrdfErrorKind::Srdf, m);
     let dom = parse_dom(srdf, source, "robot")?;
@@ -788,7 +876,8 @@ pub fn add_srdf_states(model: &mut Model, srdf: &str, source: &str) -> Result<Ve
                 return Err(err(format!("group_state '{state}': joint '{name}': value {bad} is not finite")));
             }
             let Ok(id) = model.joint_id(name) else {
-                if model.frames.iter().any(|f| f.kind == FrameKind::Fixed && f.name == name) {
+                // Merged fixed joints, and the free flyer of a fixed-base model, are skipped.
+                if name == ROOT_JOINT_NAME || model.frames.iter().any(|f| f.kind == FrameKind::Fixed && f.name == name) {
                     continue;
                 }
                 return Err(err(format!("group_state '{state}': joint '{name}' is not in the model")));
