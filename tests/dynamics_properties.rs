@@ -6,7 +6,11 @@
 //! * `CRBA(q) qdd + nle(q, v) = RNEA(q, v, qdd)`;
 //! * `difference(q0, integrate(q0, v)) = v` and `integrate(q0, difference(q0, q1)) = q1`;
 //! * without gravity or torque, a free-floating robot conserves its centroidal momentum and
-//!   kinetic energy (1 s of Runge-Kutta-Munthe-Kaas 4 with 1 ms steps, to 1e-6 relative).
+//!   kinetic energy (1 s of Runge-Kutta-Munthe-Kaas 4 with 1 ms steps, to 1e-6 relative);
+//! * cross-checks of the algorithms the Pinocchio fixtures do not cover: the CoM Jacobian
+//!   against finite differences and the centroidal momentum; the centroidal momentum
+//!   against a body-by-body sum; World, Local and LocalWorldAligned frame Jacobians against
+//!   each other and finite differences; ABA with external forces against RNEA and `J^T f`.
 
 use legwork::dynamics::*;
 use legwork::model::{urdf, Model};
@@ -212,6 +216,110 @@ proptest! {
             let de = (e1 - e0).abs() / e0.max(1.0);
             prop_assert!(dh < 1e-6, "{}: momentum drift {dh:.3e}: {h0} -> {h1}", model.name);
             prop_assert!(de < 1e-6, "{}: energy drift {de:.3e}: {e0} -> {e1}", model.name);
+        }
+    }
+}
+
+/// The centroidal momentum computed body by body: `sum_i oMi* (I_i v_i)` moved from the
+/// world origin to the centre of mass.
+fn centroidal_momentum_by_bodies(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>) -> nalgebra::Vector6<f64> {
+    forward_kinematics_velocity(model, data, q, v);
+    let mut total = legwork::spatial::Force::zero();
+    for i in 1..model.njoints() {
+        total += data.o_m_i[i].act_force(&model.inertias[i].mul_motion(&data.v[i]));
+    }
+    let com = center_of_mass(model, data, q);
+    legwork::spatial::Force::new(total.f, total.n - com.cross(&total.f)).to_vector()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: CASES, .. ProptestConfig::default() })]
+
+    #[test]
+    fn centre_of_mass_jacobian_and_centroidal_momentum_agree(seed in any::<u64>()) {
+        for model in robots() {
+            let mut rng = Rng::new(seed);
+            let mut data = Data::new(model);
+            let q = rng.configuration(model);
+            let v = rng.vector(model.nv, 2.0);
+            let mass = model.total_mass();
+            // d com / dt by central differences along the manifold.
+            let eps = 1e-6;
+            let (mut qp, mut qm) = (q.clone(), q.clone());
+            integrate(model, &q, &(&v * eps), &mut qp);
+            integrate(model, &q, &(&v * -eps), &mut qm);
+            let dcom = (center_of_mass(model, &mut data, &qp) - center_of_mass(model, &mut data, &qm)) / (2.0 * eps);
+            let jc = com_jacobian(model, &mut data, &q).clone();
+            let jv = &jc * &v;
+            let dcom = DVector::from_column_slice(dcom.as_slice());
+            close(&DVector::from_column_slice(jv.as_slice()), &dcom, 1e-7)?;
+            // Linear momentum = m dcom/dt; angular momentum about the CoM body by body.
+            let h = centroidal_momentum(model, &mut data, &q, &v).to_vector();
+            close(&DVector::from_column_slice(&h.as_slice()[..3]), &(DVector::from_column_slice(jv.as_slice()) * mass), 1e-10)?;
+            let h_bodies = centroidal_momentum_by_bodies(model, &mut data, &q, &v);
+            close(&DVector::from_column_slice(h.as_slice()), &DVector::from_column_slice(h_bodies.as_slice()), 1e-10)?;
+        }
+    }
+
+    #[test]
+    fn frame_jacobians_agree_across_reference_frames(seed in any::<u64>()) {
+        for model in robots() {
+            let mut rng = Rng::new(seed);
+            let mut data = Data::new(model);
+            let q = rng.configuration(model);
+            let v = rng.vector(model.nv, 2.0);
+            compute_joint_jacobians(model, &mut data, &q);
+            update_frame_placements(model, &mut data);
+            let (mut jw, mut jl, mut jlwa) = (nalgebra::Matrix6xX::zeros(model.nv), nalgebra::Matrix6xX::zeros(model.nv), nalgebra::Matrix6xX::zeros(model.nv));
+            for foot in &model.feet {
+                frame_jacobian(model, &data, foot.frame, ReferenceFrame::World, &mut jw);
+                frame_jacobian(model, &data, foot.frame, ReferenceFrame::Local, &mut jl);
+                frame_jacobian(model, &data, foot.frame, ReferenceFrame::LocalWorldAligned, &mut jlwa);
+                let m = data.o_m_f[foot.frame];
+                let (vw, vl, vlwa) = (Motion::from_slice((&jw * &v).as_slice()), Motion::from_slice((&jl * &v).as_slice()), Motion::from_slice((&jlwa * &v).as_slice()));
+                // World spatial velocity = oMf . local twist; LWA = local twist rotated to world axes.
+                close(&DVector::from_column_slice(vw.to_vector().as_slice()), &DVector::from_column_slice(m.act(&vl).to_vector().as_slice()), 1e-10)?;
+                let rot = Motion::new(m.rotation * vl.v, m.rotation * vl.w);
+                close(&DVector::from_column_slice(vlwa.to_vector().as_slice()), &DVector::from_column_slice(rot.to_vector().as_slice()), 1e-10)?;
+                // The LWA linear velocity is the time derivative of the foot position.
+                let eps = 1e-6;
+                let (mut qp, mut qm) = (q.clone(), q.clone());
+                integrate(model, &q, &(&v * eps), &mut qp);
+                integrate(model, &q, &(&v * -eps), &mut qm);
+                let mut d2 = Data::new(model);
+                forward_kinematics(model, &mut d2, &qp);
+                let pp = frame_placement(model, &mut d2, foot.frame).translation;
+                forward_kinematics(model, &mut d2, &qm);
+                let pm = frame_placement(model, &mut d2, foot.frame).translation;
+                close(&DVector::from_column_slice(vlwa.v.as_slice()), &DVector::from_column_slice(((pp - pm) / (2.0 * eps)).as_slice()), 1e-7)?;
+            }
+        }
+    }
+
+    #[test]
+    fn external_forces_in_aba_act_through_the_jacobian_transpose(seed in any::<u64>()) {
+        for model in robots() {
+            let mut rng = Rng::new(seed);
+            let mut data = Data::new(model);
+            let q = rng.configuration(model);
+            let v = rng.vector(model.nv, 2.0);
+            let tau = rng.vector(model.nv, 20.0);
+            // A wrench on every body, in its joint's frame.
+            let f_ext: Vec<legwork::spatial::Force> = (0..model.njoints())
+                .map(|i| if i == 0 { legwork::spatial::Force::zero() } else { legwork::spatial::Force::from_vector(&nalgebra::Vector6::from_iterator(rng.vector(6, 30.0).iter().copied())) })
+                .collect();
+            let qdd = aba_with_external_forces(model, &mut data, &q, &v, &tau, &f_ext).clone();
+            // M qdd + nle = tau + sum_i J_i^T f_i, with J_i the LOCAL Jacobian of joint i's frame.
+            let lhs = rnea(model, &mut data, &q, &v, &qdd).clone();
+            compute_joint_jacobians(model, &mut data, &q);
+            let mut rhs = tau.clone();
+            let mut j = nalgebra::Matrix6xX::zeros(model.nv);
+            for (i, f) in f_ext.iter().enumerate().skip(1) {
+                let frame = model.frames.iter().position(|fr| fr.kind == legwork::model::FrameKind::Joint && fr.parent_joint == i).unwrap();
+                frame_jacobian(model, &data, frame, ReferenceFrame::Local, &mut j);
+                rhs += j.transpose() * f.to_vector();
+            }
+            close(&lhs, &rhs, 1e-9)?;
         }
     }
 }
