@@ -117,7 +117,8 @@ fn hyq_limits_and_efforts_match_the_readme() {
     assert!((l.lower[0] + 1.2217).abs() < 1e-4 && (l.upper[0] - 0.8727).abs() < 1e-4);
     let a1 = urdf::load_file(shared("robots/a1/a1.urdf")).unwrap();
     let l = &a1.joints[a1.joint_id("RR_thigh_joint").unwrap()].limits;
-    assert!((l.lower[0] + 1.0472).abs() < 1e-4 && (l.upper[0] - 4.1888).abs() < 1e-4);
+    // [-60, 240] degrees.
+    assert!((l.lower[0] + std::f64::consts::FRAC_PI_3).abs() < 1e-12 && (l.upper[0] - 4.0 * std::f64::consts::FRAC_PI_3).abs() < 1e-12);
     assert_eq!((l.effort[0], l.velocity[0]), (33.5, 21.0));
 }
 

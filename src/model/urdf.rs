@@ -559,7 +559,7 @@ impl Builder<'_> {
             let child = link_index[j.child.link.as_str()];
             visited += 1;
             let origin = self.pose(&j.origin, &format!("joint '{}': <origin>", j.name))?;
-            let placement = &parent_placement * &origin;
+            let placement = parent_placement * origin;
             let (carrier, child_placement) = match j.joint_type {
                 urdf_rs::JointType::Fixed => {
                     model
@@ -812,7 +812,7 @@ impl Builder<'_> {
                     _ => None,
                 })
                 .unwrap_or(0.0);
-            if !(radius >= 0.0) {
+            if radius.is_nan() || radius < 0.0 {
                 return Err(self.err(UrdfErrorKind::NotFinite, format!("link '{}': foot sphere radius {radius} is not valid", f.name)));
             }
             feet.push((foot_rank(&f.name), f.name.clone(), radius));
