@@ -467,6 +467,11 @@ fn non_finite_numbers_are_refused() {
     assert_error(&mini_with(r#"<limit lower="-1" upper="1""#, r#"<limit lower="NaN" upper="1""#), UrdfErrorKind::NotFinite, &["lf_hip_joint", "lower"]);
     assert_error(&mini_with(r#"<axis xyz="0 0 1"/>"#, r#"<axis xyz="0 0 NaN"/>"#), UrdfErrorKind::NotFinite, &["rf_slide", "axis"]);
     assert_error(&mini_with(r#"<sphere radius="0.02"/>"#, r#"<sphere radius="nan"/>"#), UrdfErrorKind::NotFinite, &["lf_foot"]);
+    assert_error(
+        &mini_with(r#"<axis xyz="0 0 1"/>"#, r#"<axis xyz="0 0 1"/><dynamics damping="NaN" friction="0"/>"#),
+        UrdfErrorKind::NotFinite,
+        &["rf_slide", "damping"],
+    );
 }
 
 #[test]

@@ -559,6 +559,7 @@ impl Builder<'_> {
             let child = link_index[j.child.link.as_str()];
             visited += 1;
             let origin = self.pose(&j.origin, &format!("joint '{}': <origin>", j.name))?;
+            self.check_unused_numbers(j)?;
             let placement = parent_placement * origin;
             let (carrier, child_placement) = match j.joint_type {
                 urdf_rs::JointType::Fixed => {
@@ -649,6 +650,35 @@ impl Builder<'_> {
             ));
         }
         Ok(SE3::from_rpy_xyz(p.rpy.0, p.xyz.0))
+    }
+
+    /// The joint elements the model does not use (`<dynamics>`, `<mimic>`,
+    /// `<safety_controller>`, `<calibration>`) must still hold finite numbers.
+    fn check_unused_numbers(&self, j: &urdf_rs::Joint) -> Result<(), UrdfError> {
+        let mut values: Vec<(&str, f64)> = Vec::new();
+        if let Some(d) = &j.dynamics {
+            values.extend([("<dynamics> damping", d.damping), ("<dynamics> friction", d.friction)]);
+        }
+        if let Some(m) = &j.mimic {
+            values.extend(m.multiplier.map(|x| ("<mimic> multiplier", x)));
+            values.extend(m.offset.map(|x| ("<mimic> offset", x)));
+        }
+        if let Some(c) = &j.safety_controller {
+            values.extend([
+                ("<safety_controller> soft_lower_limit", c.soft_lower_limit),
+                ("<safety_controller> soft_upper_limit", c.soft_upper_limit),
+                ("<safety_controller> k_position", c.k_position),
+                ("<safety_controller> k_velocity", c.k_velocity),
+            ]);
+        }
+        if let Some(c) = &j.calibration {
+            values.extend(c.rising.map(|x| ("<calibration> rising", x)));
+            values.extend(c.falling.map(|x| ("<calibration> falling", x)));
+        }
+        match values.into_iter().find(|(_, x)| !x.is_finite()) {
+            Some((what, x)) => Err(self.err(UrdfErrorKind::NotFinite, format!("joint '{}': {what} = {x} is not finite", j.name))),
+            None => Ok(()),
+        }
     }
 
     fn axis(&self, j: &urdf_rs::Joint) -> Result<Vector3<f64>, UrdfError> {
