@@ -51,7 +51,10 @@ fn ltdl_in_place(h: &mut [f64], n: usize, lambda: &[usize]) {
 /// `L^-1` has the branch pattern of `L`: from `L L^-1 = I`,
 /// `L^-1[i, j] = -sum_{k on the branch from i (excluded) to j (included)} L[i, k] L^-1[k, j]`.
 /// Then `M^-1[a, b] = sum_{k common ancestor of a and b} L^-1[a, k] L^-1[b, k] / D_k`.
-fn minv_from_ltdl(h: &[f64], n: usize, lambda: &[usize], linv: &mut [f64], out: &mut [f64]) {
+fn minv_from_ltdl(h: &[f64], n: usize, lambda: &[usize], linv: &mut [f64], d_inv: &mut [f64], out: &mut [f64]) {
+    for k in 0..n {
+        d_inv[k] = 1.0 / h[k + k * n];
+    }
     linv.fill(0.0);
     for i in 0..n {
         linv[i + i * n] = 1.0;
@@ -72,7 +75,7 @@ fn minv_from_ltdl(h: &[f64], n: usize, lambda: &[usize], linv: &mut [f64], out: 
             let mut acc = 0.0;
             let mut k = b;
             while k != ROOT {
-                acc += linv[a + k * n] * linv[b + k * n] / h[k + k * n];
+                acc += linv[a + k * n] * linv[b + k * n] * d_inv[k];
                 k = lambda[k];
             }
             out[a + b * n] = acc;
@@ -93,7 +96,14 @@ fn invert_mass_matrix(model: &Model, data: &mut Data) {
     let n = model.nv;
     data.ltdl.copy_from(&data.mass_matrix);
     ltdl_in_place(data.ltdl.as_mut_slice(), n, &model.dof_parent);
-    minv_from_ltdl(data.ltdl.as_slice(), n, &model.dof_parent, data.linv.as_mut_slice(), data.minv.as_mut_slice());
+    minv_from_ltdl(
+        data.ltdl.as_slice(),
+        n,
+        &model.dof_parent,
+        data.linv.as_mut_slice(),
+        data.tmp_nv.as_mut_slice(),
+        data.minv.as_mut_slice(),
+    );
 }
 
 /// Partial derivatives of forward dynamics `qdd = ABA(q, v, tau)`: `data.ddq_dq`,

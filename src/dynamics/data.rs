@@ -58,6 +58,9 @@ pub struct Data {
     // --- cached from the model ---
     /// Body inertias of the model as mass moments about each joint origin.
     pub(crate) body_moments: Vec<InertiaMoments>,
+    /// For one-degree-of-freedom revolute joints, `(Rp [a]x, Rp [a]x^2)` with `Rp` the
+    /// placement rotation and `a` the axis: then `Rp Exp(a t) = Rp + sin t Rp[a]x + (1 - cos t) Rp[a]x^2`.
+    pub(crate) revolute_terms: Vec<(Matrix3<f64>, Matrix3<f64>)>,
     // --- scratch of the algorithms ---
     pub(crate) c: Vec<Motion>,
     pub(crate) y_aba: Vec<Matrix6>,
@@ -123,6 +126,17 @@ impl Data {
             dtau_dq: DMatrix::zeros(nv, nv),
             dtau_dv: DMatrix::zeros(nv, nv),
             body_moments: model.inertias.iter().map(InertiaMoments::from_inertia).collect(),
+            revolute_terms: model
+                .joints
+                .iter()
+                .map(|j| match j.kind {
+                    crate::model::JointKind::Revolute { axis } => {
+                        let a = crate::spatial::skew(&axis);
+                        (j.placement.rotation * a, j.placement.rotation * a * a)
+                    }
+                    _ => (Matrix3::zeros(), Matrix3::zeros()),
+                })
+                .collect(),
             c: vec![Motion::zero(); n],
             y_aba: vec![Matrix6::zeros(); n],
             p_a: vec![Force::zero(); n],

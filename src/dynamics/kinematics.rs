@@ -57,12 +57,23 @@ fn axis_rotation(a: &Vector3<f64>, s: f64, c: f64) -> Matrix3<f64> {
     }
 }
 
-/// `liMi = placement * joint_transform(q_i)`.
+/// `liMi = placement * joint_transform(q_i)`. For a revolute joint, with the terms cached in
+/// `Data` (Rodrigues' formula premultiplied by the placement rotation):
+/// `R = Rp + sin(t) Rp[a]x + (1 - cos t) Rp[a]x^2`, `p = p_placement`.
 #[inline]
-pub(crate) fn local_placement(model: &Model, i: usize, q: &DVector<f64>) -> SE3 {
+pub(crate) fn local_placement(model: &Model, data: &Data, i: usize, q: &DVector<f64>) -> SE3 {
     let j = &model.joints[i];
-    let qj = &q.as_slice()[j.idx_q..j.idx_q + j.nq];
-    &j.placement * &joint_transform(&j.kind, qj)
+    match j.kind {
+        JointKind::Revolute { .. } => {
+            let (s, c) = q[j.idx_q].sin_cos();
+            let (a, b) = &data.revolute_terms[i];
+            SE3::new(j.placement.rotation + a * s + b * (1.0 - c), j.placement.translation)
+        }
+        _ => {
+            let qj = &q.as_slice()[j.idx_q..j.idx_q + j.nq];
+            &j.placement * &joint_transform(&j.kind, qj)
+        }
+    }
 }
 
 /// Joint velocity `S qd` of joint `i` in its own frame.
@@ -79,7 +90,7 @@ pub(crate) fn joint_motion(model: &Model, i: usize, x: &DVector<f64>) -> Motion 
 /// Forward kinematics: `data.li_m_i` and `data.o_m_i` for every joint.
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &DVector<f64>) {
     for i in 1..model.njoints() {
-        let li = local_placement(model, i, q);
+        let li = local_placement(model, data, i, q);
         let p = model.joints[i].parent;
         data.o_m_i[i] = if p > 0 { &data.o_m_i[p] * &li } else { li };
         data.li_m_i[i] = li;
@@ -90,7 +101,7 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &DVector<f64>) {
 /// in its own frame, `v_i = iXp v_p + S_i qd_i`.
 pub fn forward_kinematics_velocity(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>) {
     for i in 1..model.njoints() {
-        let li = local_placement(model, i, q);
+        let li = local_placement(model, data, i, q);
         let p = model.joints[i].parent;
         let vj = joint_motion(model, i, v);
         if p > 0 {

@@ -20,7 +20,7 @@ use nalgebra::DVector;
 pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>) -> &'d DVector<f64> {
     let a0 = -model.gravity;
     for i in 1..model.njoints() {
-        let li = local_placement(model, i, q);
+        let li = local_placement(model, data, i, q);
         let p = model.joints[i].parent;
         let vj = joint_motion(model, i, v);
         let aj = joint_motion(model, i, a);

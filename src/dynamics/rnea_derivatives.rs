@@ -91,7 +91,7 @@ pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>
     for i in 1..n {
         let jnt = &model.joints[i];
         let p = jnt.parent;
-        let li = local_placement(model, i, q);
+        let li = local_placement(model, data, i, q);
         let vj = joint_motion(model, i, v);
         let aj = joint_motion(model, i, a);
         let (vi, ai, omi) = if p > 0 {

@@ -95,7 +95,7 @@ impl Inertia {
     #[inline]
     pub fn transformed(&self, a_m_b: &SE3) -> Inertia {
         let r = &a_m_b.rotation;
-        Inertia { mass: self.mass, com: a_m_b.act_point(&self.com), inertia_com: r * self.inertia_com * r.transpose() }
+        Inertia { mass: self.mass, com: a_m_b.act_point(&self.com), inertia_com: rotate_symmetric(r, &self.inertia_com) }
     }
     /// Inverse of [`Inertia::transformed`]: the inertia in `b`, given `aMb` and the inertia in `a`.
     #[inline]
@@ -114,6 +114,21 @@ impl Inertia {
     pub fn is_finite(&self) -> bool {
         self.mass.is_finite() && self.com.iter().chain(self.inertia_com.iter()).all(|x| x.is_finite())
     }
+}
+
+/// `R S R^T` for a symmetric `S`, computing the six distinct entries only.
+#[inline]
+pub(crate) fn rotate_symmetric(r: &Matrix3<f64>, s: &Matrix3<f64>) -> Matrix3<f64> {
+    let a = r * s; // A = R S; (R S R^T)_ij = A_i . R_j
+    let mut out = Matrix3::zeros();
+    for i in 0..3 {
+        for j in i..3 {
+            let x = a[(i, 0)] * r[(j, 0)] + a[(i, 1)] * r[(j, 1)] + a[(i, 2)] * r[(j, 2)];
+            out[(i, j)] = x;
+            out[(j, i)] = x;
+        }
+    }
+    out
 }
 
 /// Lumping two bodies expressed in the same frame (parallel-axis theorem).
@@ -199,16 +214,28 @@ impl InertiaMoments {
         Inertia { mass: self.mass, com: c, inertia_com: self.second + s * s * self.mass }
     }
     /// The moments in frame `a`, given `aMb` and the moments in `b` (`r' = R r + p`):
-    /// `h' = R h + m p`, `I' = R I R^T - [p]x [R h]x - [R h]x [p]x - m [p]x [p]x`.
+    /// `h' = R h + m p`, `I' = R I R^T - [p]x [g]x - [g]x [p]x - m [p]x [p]x` with `g = R h`,
+    /// which by `[a]x [b]x = b a^T - (a.b) I` is
+    /// `I' = R I R^T - g p^T - p g^T - m p p^T + (2 p.g + m |p|^2) I`.
     #[inline]
     pub fn transformed(&self, a_m_b: &SE3) -> InertiaMoments {
         let r = &a_m_b.rotation;
         let p = &a_m_b.translation;
-        let rh = r * self.first;
-        let sp = skew(p);
-        let srh = skew(&rh);
-        let second = r * self.second * r.transpose() - sp * srh - srh * sp - sp * sp * self.mass;
-        InertiaMoments { mass: self.mass, first: rh + p * self.mass, second }
+        let g = r * self.first;
+        let m = self.mass;
+        let mut second = rotate_symmetric(r, &self.second);
+        let diag = 2.0 * p.dot(&g) + m * p.norm_squared();
+        for i in 0..3 {
+            for j in i..3 {
+                let mut x = second[(i, j)] - g[i] * p[j] - p[i] * g[j] - m * p[i] * p[j];
+                if i == j {
+                    x += diag;
+                }
+                second[(i, j)] = x;
+                second[(j, i)] = x;
+            }
+        }
+        InertiaMoments { mass: m, first: g + p * m, second }
     }
     /// Momentum of a twist: `f = m v - h x w`, `n = h x v + I_o w`.
     #[inline]
