@@ -22,6 +22,9 @@
 //! assert!(tau_back.norm() < 1e-9);
 //! ```
 
+pub mod contact;
 pub mod dynamics;
+pub mod io;
 pub mod model;
 pub mod spatial;
+pub mod terrain;
