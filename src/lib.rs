@@ -23,8 +23,10 @@
 //! ```
 
 pub mod contact;
+pub mod control;
 pub mod dynamics;
 pub mod io;
 pub mod model;
+pub mod sim;
 pub mod spatial;
 pub mod terrain;

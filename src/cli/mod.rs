@@ -2,6 +2,7 @@
 //! `anyhow` here, at the edge, and printed with their causes.
 
 mod robot;
+mod simulate;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -19,6 +20,9 @@ enum Command {
     /// Robot models: list the embedded robots, inspect one.
     #[command(subcommand)]
     Robot(robot::RobotCommand),
+    /// Simulate a robot on the ground with a controller; writes the trajectory and prints
+    /// a summary.
+    Simulate(simulate::SimulateArgs),
 }
 
 /// Parses the command line, runs the command, prints an error with its causes on failure.
@@ -26,6 +30,7 @@ pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Robot(cmd) => robot::run(cmd),
+        Command::Simulate(args) => simulate::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

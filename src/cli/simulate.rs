@@ -1,0 +1,176 @@
+//! `legwork simulate`: a robot on a terrain with a controller, written to a folder.
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use legwork::control::{JointPd, TrackingController};
+use legwork::io::Trajectory;
+use legwork::sim::{standing_on_ground, Controller, Integrator, Push, SimConfig, Simulator};
+use legwork::terrain::{HeightMap, Plane, Terrain};
+use serde_json::json;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum ControllerKind {
+    /// Joint PD to the standing pose (no feedforward).
+    Stand,
+    /// Neunert 2017's tracking controller on a planned trajectory (`--reference`).
+    Track,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum IntegratorKind {
+    /// Semi-implicit (symplectic) Euler.
+    Euler,
+    /// Runge-Kutta 4.
+    Rk4,
+}
+
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// Embedded robot name (`legwork robot list`), a URDF file or a legwork description.
+    #[arg(long, default_value = "hyq")]
+    robot: String,
+    /// The controller.
+    #[arg(long, value_enum, default_value = "stand")]
+    controller: ControllerKind,
+    /// Planned trajectory (trajectory.json) for `--controller track`.
+    #[arg(long)]
+    reference: Option<PathBuf>,
+    /// Simulated time (s).
+    #[arg(long, default_value_t = 3.0)]
+    duration: f64,
+    /// A push on the base: X,Y,Z@T:DUR (N in the world frame, start and duration in s),
+    /// e.g. 0,50,0@1:0.2. Repeatable.
+    #[arg(long, value_name = "X,Y,Z@T:DUR")]
+    push: Vec<String>,
+    /// Start with the feet this far (m) above the ground (standing pose).
+    #[arg(long, default_value_t = 0.0)]
+    drop_height: f64,
+    /// Ground: a height-map file (TOML, see `legwork::terrain::HeightMapFile`); flat
+    /// ground at z = 0 if absent.
+    #[arg(long)]
+    terrain: Option<PathBuf>,
+    #[arg(long, value_enum, default_value = "euler")]
+    integrator: IntegratorKind,
+    /// Physics rate (Hz).
+    #[arg(long, default_value_t = 2000.0)]
+    physics_rate: f64,
+    /// Control rate (Hz), a whole divisor of the physics rate.
+    #[arg(long, default_value_t = 1000.0)]
+    control_rate: f64,
+    /// Output folder (created).
+    #[arg(long, default_value = "out/simulate")]
+    out: PathBuf,
+}
+
+pub fn run(args: SimulateArgs) -> Result<()> {
+    let (model, _) = super::robot::load(&args.robot)?;
+    let terrain: Box<dyn Terrain> = match &args.terrain {
+        Some(path) => Box::new(HeightMap::load_file(path)?),
+        None => Box::new(Plane::flat(0.0)),
+    };
+    let pushes = args.push.iter().map(|p| Push::parse(p).map_err(anyhow::Error::msg)).collect::<Result<Vec<_>>>()?;
+    let config = SimConfig {
+        physics_dt: 1.0 / args.physics_rate,
+        control_dt: 1.0 / args.control_rate,
+        record_dt: 1.0 / args.control_rate,
+        integrator: match args.integrator {
+            IntegratorKind::Euler => Integrator::SemiImplicitEuler,
+            IntegratorKind::Rk4 => Integrator::Rk4,
+        },
+        ..SimConfig::default()
+    };
+    let mut controller: Box<dyn Controller> = match (args.controller, &args.reference) {
+        (ControllerKind::Stand, None) => Box::new(JointPd::standing(&model, config.control_dt)?),
+        (ControllerKind::Stand, Some(_)) => bail!("--reference is for --controller track"),
+        (ControllerKind::Track, None) => bail!("--controller track needs --reference <trajectory.json>"),
+        (ControllerKind::Track, Some(path)) => {
+            let reference = Trajectory::load_file(path)?;
+            Box::new(TrackingController::with_default_gains(&model, &reference, config.control_dt)?)
+        }
+    };
+    let (q0, v0) = match (args.controller, &args.reference) {
+        (ControllerKind::Track, Some(path)) => {
+            let reference = Trajectory::load_file(path)?;
+            let k = &reference.knots[0];
+            (nalgebra::DVector::from_column_slice(&k.q), Some(nalgebra::DVector::from_column_slice(&k.v)))
+        }
+        _ => (standing_on_ground(&model, terrain.as_ref(), args.drop_height)?, None),
+    };
+    let standing_height = standing_on_ground(&model, terrain.as_ref(), 0.0)?[2];
+    let mut sim = Simulator::new(&model, terrain.as_ref(), config.clone(), q0.clone(), v0)?;
+    for p in pushes {
+        sim.add_push(p);
+    }
+
+    // A progress bar, shown only once the run has taken more than a second.
+    let bar = ProgressBar::with_draw_target(Some(1000), ProgressDrawTarget::hidden());
+    bar.set_style(ProgressStyle::with_template("{msg} [{bar:40}] {percent}% ({eta} left)").expect("static template"));
+    bar.set_message(format!("simulating {} s", args.duration));
+    let started = Instant::now();
+    let mut shown = false;
+    let result = sim.run(args.duration, controller.as_mut(), |fraction| {
+        if !shown && started.elapsed() > Duration::from_secs(1) {
+            bar.set_draw_target(ProgressDrawTarget::stderr());
+            shown = true;
+        }
+        bar.set_position((fraction * 1000.0) as u64);
+    });
+    bar.finish_and_clear();
+    let run = result?;
+    let stats = &run.stats;
+    let last = run.trajectory.knots.last().context("empty trajectory")?;
+    let final_height = last.q[2];
+    let drift = ((last.q[0] - q0[0]).powi(2) + (last.q[1] - q0[1]).powi(2)).sqrt();
+    let steps_per_second = stats.steps as f64 / stats.wall_time;
+    let mut traj = run.trajectory;
+    traj.metadata.scenario = format!(
+        "legwork simulate --robot {} --controller {:?} --duration {}{}{}",
+        args.robot,
+        args.controller,
+        args.duration,
+        if args.drop_height > 0.0 { format!(" --drop-height {}", args.drop_height) } else { String::new() },
+        args.push.iter().map(|p| format!(" --push {p}")).collect::<String>()
+    )
+    .to_lowercase();
+    let summary = json!({
+        "robot": model.name,
+        "controller": controller.name(),
+        "duration_s": args.duration,
+        "physics_rate_hz": args.physics_rate,
+        "control_rate_hz": args.control_rate,
+        "final_base_height_m": final_height,
+        "standing_height_m": standing_height,
+        "final_horizontal_drift_m": drift,
+        "max_penetration_m": stats.max_penetration,
+        "max_torque_nm": stats.max_torque,
+        "max_friction_ratio": stats.max_friction_ratio,
+        "friction_coefficient": config.contact.friction,
+        "slipping_steps": stats.slipping_steps,
+        "saturated_control_periods": stats.saturated_controls,
+        "physics_steps": stats.steps,
+        "wall_time_s": stats.wall_time,
+        "steps_per_second": steps_per_second,
+        "real_time_factor": args.duration / stats.wall_time,
+    });
+    if let serde_json::Value::Object(map) = summary {
+        traj.summary = map;
+    }
+    std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create the output folder {}", args.out.display()))?;
+    let json_path = args.out.join("trajectory.json");
+    let csv_path = args.out.join("trajectory.csv");
+    traj.save_file(&json_path)?;
+    traj.save_csv(&csv_path)?;
+
+    println!("Simulated {} for {} s with the {} controller ({} physics steps).", model.name, args.duration, controller.name(), stats.steps);
+    println!("  final base height     {:.4} m (standing height {:.4} m, difference {:+.1} mm)", final_height, standing_height, (final_height - standing_height) * 1e3);
+    println!("  horizontal drift      {:.1} mm", drift * 1e3);
+    println!("  max penetration       {:.2} mm", stats.max_penetration * 1e3);
+    println!("  max torque            {:.1} N m", stats.max_torque);
+    println!("  max |F_t| / F_n       {:.3} (friction coefficient {})", stats.max_friction_ratio, config.contact.friction);
+    println!("  speed                 {:.0} steps/s, {:.1}x real time", steps_per_second, args.duration / stats.wall_time);
+    println!("Wrote {} and {}", json_path.display(), csv_path.display());
+    Ok(())
+}

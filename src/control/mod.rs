@@ -1,0 +1,9 @@
+//! Controllers that run inside the simulator (and on a robot): the joint PD that holds a
+//! pose, and the tracking controller of Neunert 2017 (sec. IV-B) that executes a planned
+//! motion.
+
+mod joint_pd;
+mod tracking;
+
+pub use joint_pd::{JointPd, PdGains};
+pub use tracking::{BaseGains, TrackingController};
