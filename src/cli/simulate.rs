@@ -39,14 +39,14 @@ pub struct SimulateArgs {
     #[arg(long)]
     reference: Option<PathBuf>,
     /// Simulated time (s).
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
     duration: f64,
     /// A push on the base: X,Y,Z@T:DUR (N in the world frame, start and duration in s),
     /// e.g. 0,50,0@1:0.2. Repeatable.
     #[arg(long, value_name = "X,Y,Z@T:DUR")]
     push: Vec<String>,
     /// Start with the feet this far (m) above the ground (standing pose).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     drop_height: f64,
     /// Ground: a height-map file (TOML, see `legwork::terrain::HeightMapFile`); flat
     /// ground at z = 0 if absent.
@@ -66,6 +66,11 @@ pub struct SimulateArgs {
 }
 
 pub fn run(args: SimulateArgs) -> Result<()> {
+    for (flag, rate) in [("--physics-rate", args.physics_rate), ("--control-rate", args.control_rate)] {
+        if !(rate.is_finite() && rate > 0.0) {
+            bail!("{flag}: expected a positive rate in Hz, got {rate}");
+        }
+    }
     let (model, _) = super::robot::load(&args.robot)?;
     let terrain: Box<dyn Terrain> = match &args.terrain {
         Some(path) => Box::new(HeightMap::load_file(path)?),

@@ -107,8 +107,8 @@ pub struct Trajectory {
 /// (where there is one) the knot.
 #[derive(Debug, thiserror::Error)]
 pub enum TrajectoryError {
-    #[error("{path}: {source}")]
-    Io { path: String, source: std::io::Error },
+    #[error("{path}: {error}")]
+    Io { path: String, error: std::io::Error },
     #[error("{origin}: {path}: {message}")]
     Parse { origin: String, path: String, message: String },
     #[error("{origin}: {field}: {problem}")]
@@ -158,14 +158,14 @@ impl Trajectory {
     pub fn load_file(path: impl AsRef<Path>) -> Result<Self, TrajectoryError> {
         let path = path.as_ref();
         let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| TrajectoryError::Io { path: name.clone(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|error| TrajectoryError::Io { path: name.clone(), error })?;
         Self::from_json(&text, &name)
     }
 
     /// Writes the file as JSON.
     pub fn save_file(&self, path: impl AsRef<Path>) -> Result<(), TrajectoryError> {
         let path = path.as_ref();
-        let io = |source| TrajectoryError::Io { path: path.display().to_string(), source };
+        let io = |error| TrajectoryError::Io { path: path.display().to_string(), error };
         let file = std::fs::File::create(path).map_err(io)?;
         let mut w = std::io::BufWriter::new(file);
         serde_json::to_writer(&mut w, self).map_err(|e| io(e.into()))?;
@@ -293,7 +293,7 @@ impl Trajectory {
     /// Writes [`Trajectory::write_csv`] to a file.
     pub fn save_csv(&self, path: impl AsRef<Path>) -> Result<(), TrajectoryError> {
         let path = path.as_ref();
-        let io = |source| TrajectoryError::Io { path: path.display().to_string(), source };
+        let io = |error| TrajectoryError::Io { path: path.display().to_string(), error };
         let mut w = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
         self.write_csv(&mut w).map_err(io)?;
         w.flush().map_err(io)

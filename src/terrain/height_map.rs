@@ -139,7 +139,7 @@ impl HeightMap {
     pub fn load_file(path: impl AsRef<Path>) -> Result<Self, TerrainError> {
         let path = path.as_ref();
         let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| TerrainError::Io { path: name.clone(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|error| TerrainError::Io { path: name.clone(), error })?;
         let file: HeightMapFile =
             toml::from_str(&text).map_err(|e| TerrainError::Parse { path: name.clone(), message: e.to_string() })?;
         Self::from_file_data(file, &name)

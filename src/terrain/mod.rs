@@ -37,8 +37,8 @@ pub trait Terrain: Send + Sync {
 /// Problems with a terrain description; each names the file or field at fault.
 #[derive(Debug, thiserror::Error)]
 pub enum TerrainError {
-    #[error("{path}: cannot read the height map: {source}")]
-    Io { path: String, source: std::io::Error },
+    #[error("{path}: cannot read the height map: {error}")]
+    Io { path: String, error: std::io::Error },
     #[error("{path}: {message}")]
     Parse { path: String, message: String },
     #[error("{origin}: field `{field}`: {problem}")]

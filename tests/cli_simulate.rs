@@ -1,0 +1,64 @@
+//! `legwork simulate`, run as a user would: files written, summary printed, a tracked
+//! replay of its own output, and bad input refused with a named error.
+
+use legwork::io::Trajectory;
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn legwork(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_legwork")).args(args).current_dir(env!("CARGO_MANIFEST_DIR")).output().unwrap()
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8(bytes.to_vec()).unwrap()
+}
+
+fn out_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("legwork-cli-sim-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+#[test]
+fn simulate_writes_the_trajectory_and_prints_a_summary() {
+    let dir = out_dir("drop");
+    let o = legwork(&["simulate", "--robot", "a1", "--duration", "0.6", "--drop-height", "0.05", "--push", "5,0,0@0.3:0.1", "--out", dir.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let out = text(&o.stdout);
+    for needle in ["Simulated a1 for 0.6 s", "final base height", "max penetration", "max torque", "steps/s", "real time", "trajectory.json"] {
+        assert!(out.contains(needle), "missing {needle:?} in:\n{out}");
+    }
+    let traj = Trajectory::load_file(dir.join("trajectory.json")).unwrap();
+    assert_eq!(traj.knots.len(), 601);
+    assert_eq!(traj.metadata.robot, "a1");
+    assert!(traj.metadata.scenario.contains("--push 5,0,0@0.3:0.1"));
+    assert!(traj.summary["max_penetration_m"].as_f64().unwrap() < 0.02);
+    assert!(traj.summary["steps_per_second"].as_f64().unwrap() > 0.0);
+    let csv = std::fs::read_to_string(dir.join("trajectory.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 602);
+
+    // Track that motion with Neunert's tracking controller.
+    let tracked = out_dir("track");
+    let reference = dir.join("trajectory.json");
+    let o = legwork(&["simulate", "--robot", "a1", "--controller", "track", "--reference", reference.to_str().unwrap(), "--duration", "0.5", "--out", tracked.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(text(&o.stdout).contains("with the track controller"));
+}
+
+#[test]
+fn bad_simulate_input_is_refused_with_a_named_error() {
+    let cases: [(&[&str], &str); 6] = [
+        (&["simulate", "--push", "1,2@3"], "X,Y,Z@T:DUR"),
+        (&["simulate", "--duration", "-1"], "`duration`"),
+        (&["simulate", "--physics-rate", "0"], "--physics-rate"),
+        (&["simulate", "--terrain", "/no/such/map.toml"], "/no/such/map.toml"),
+        (&["simulate", "--controller", "track"], "--reference"),
+        (&["simulate", "--robot", "hyq", "--controller", "track", "--reference", "Cargo.toml"], "Cargo.toml"),
+    ];
+    for (args, needle) in cases {
+        let o = legwork(args);
+        assert!(!o.status.success(), "{args:?} should fail");
+        let err = text(&o.stderr);
+        assert!(err.contains(needle) && !err.contains("panicked"), "{args:?}: {err}");
+    }
+}
