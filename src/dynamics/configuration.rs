@@ -1,8 +1,8 @@
 //! Operations on the configuration manifold `R^3 x SO(3) x R^n` (SE(3) base).
 
 use crate::model::{JointKind, Model};
-use crate::spatial::{exp6, log6, Motion, SE3};
-use nalgebra::{DVector, Quaternion, UnitQuaternion, Vector3};
+use crate::spatial::{exp6, jexp6, log6, Motion, SE3};
+use nalgebra::{DMatrix, DVector, Quaternion, UnitQuaternion, Vector3};
 
 fn base_pose(q: &[f64]) -> SE3 {
     super::kinematics::joint_transform(&JointKind::FreeFlyer, q)
@@ -34,6 +34,32 @@ pub fn integrate(model: &Model, q: &DVector<f64>, v: &DVector<f64>, q_out: &mut 
             }
             JointKind::Universe => {}
             _ => q_out[iq] = q[iq] + v[iv],
+        }
+    }
+}
+
+/// Jacobians of `q' = integrate(q, v)` in the tangent spaces (Pinocchio's `dIntegrate`):
+/// `dq' = Jq dq + Jv dv`. Joints: identities. Free-flyer (`M' = M Exp(v)`, Sola et al. 2018,
+/// eq. 170-171): `Jq = Ad(Exp(v))^-1`, `Jv = Jr(v)` ([`crate::spatial::jexp6`]).
+/// `jq` and `jv` are `nv x nv`, overwritten.
+pub fn integrate_jacobians(model: &Model, v: &DVector<f64>, jq: &mut DMatrix<f64>, jv: &mut DMatrix<f64>) {
+    jq.fill(0.0);
+    jv.fill(0.0);
+    for j in model.joints.iter().skip(1) {
+        let iv = j.idx_v;
+        match j.kind {
+            JointKind::FreeFlyer => {
+                let step = Motion::from_slice(&v.as_slice()[iv..iv + 6]);
+                jq.fixed_view_mut::<6, 6>(iv, iv).copy_from(&exp6(&step).inverse().action_matrix());
+                jv.fixed_view_mut::<6, 6>(iv, iv).copy_from(&jexp6(&step));
+            }
+            JointKind::Universe => {}
+            _ => {
+                for k in iv..iv + j.nv {
+                    jq[(k, k)] = 1.0;
+                    jv[(k, k)] = 1.0;
+                }
+            }
         }
     }
 }

@@ -26,8 +26,10 @@
 //! assert!(run.trajectory.knots.len() > 400);
 //! ```
 
+mod step_derivatives;
 mod workspace;
 
+pub use step_derivatives::StepDerivatives;
 pub use workspace::{ContactModelWorkspace, FootState};
 
 use crate::contact::{ContactParams, ContactParamsError};

@@ -23,20 +23,20 @@ pub struct FootState {
 /// Everything one physics step needs, allocated once: a dynamics [`Data`], the external
 /// forces per body, the feet, and integrator scratch.
 pub struct ContactModelWorkspace<'a> {
-    model: &'a Model,
-    terrain: &'a dyn Terrain,
-    params: ContactParams,
-    data: Data,
-    f_ext: Vec<Force>,
-    feet: Vec<FootState>,
+    pub(super) model: &'a Model,
+    pub(super) terrain: &'a dyn Terrain,
+    pub(super) params: ContactParams,
+    pub(super) data: Data,
+    pub(super) f_ext: Vec<Force>,
+    pub(super) feet: Vec<FootState>,
     feet_at_start: Vec<FootState>,
     // RK4 scratch.
     q_stage: DVector<f64>,
     v_stage: DVector<f64>,
-    dv: [DVector<f64>; 4],
+    pub(super) dv: [DVector<f64>; 4],
     vs: [DVector<f64>; 4],
-    step_v: DVector<f64>,
-    q_next: DVector<f64>,
+    pub(super) step_v: DVector<f64>,
+    pub(super) q_next: DVector<f64>,
 }
 
 impl<'a> ContactModelWorkspace<'a> {
@@ -122,7 +122,7 @@ impl<'a> ContactModelWorkspace<'a> {
 
     /// `qdd = ABA(q, v, tau, f_ext)` with the contact forces of the last evaluation plus the
     /// push; into `out`.
-    fn acceleration(&mut self, q: &DVector<f64>, v: &DVector<f64>, tau: &DVector<f64>, push: &Vector3<f64>, out_index: usize) {
+    pub(super) fn acceleration(&mut self, q: &DVector<f64>, v: &DVector<f64>, tau: &DVector<f64>, push: &Vector3<f64>, out_index: usize) {
         self.add_base_push(q, push);
         let ddq = aba_with_external_forces(self.model, &mut self.data, q, v, tau, &self.f_ext);
         self.dv[out_index].copy_from(ddq);
@@ -194,7 +194,7 @@ impl<'a> ContactModelWorkspace<'a> {
         self.update_anchors(anchors);
     }
 
-    fn update_anchors(&self, anchors: &mut [Option<Vector3<f64>>]) {
+    pub(super) fn update_anchors(&self, anchors: &mut [Option<Vector3<f64>>]) {
         for (foot, anchor) in self.feet.iter().zip(anchors.iter_mut()) {
             update_anchor(&self.params, &foot.contact, anchor);
         }

@@ -17,7 +17,7 @@ pub use force::Force;
 pub use inertia::{Inertia, InertiaError, InertiaMoments};
 pub use motion::Motion;
 pub use se3::SE3;
-pub use so3::{exp3, exp6, log3, log6, skew, jlog3, jexp3};
+pub use so3::{exp3, exp6, jexp3, jexp6, jlog3, log3, log6, skew};
 
 /// A 6x6 matrix in the spatial layout (linear rows/columns first).
 pub type Matrix6 = nalgebra::Matrix6<f64>;

@@ -1,7 +1,7 @@
 //! Exponential and logarithm maps of SO(3) and SE(3) (Murray, Li & Sastry 1994, ch. 2;
 //! Sola et al. 2018, "A micro Lie theory", appendices), with Taylor expansions near zero.
 
-use super::{Matrix3, Motion, Vector3, SE3};
+use super::{Matrix3, Matrix6, Motion, Vector3, SE3};
 
 /// The skew-symmetric matrix `[v]x` with `[v]x u = v x u`.
 #[inline]
@@ -95,6 +95,48 @@ pub fn exp6(m: &Motion) -> SE3 {
     SE3::new(exp3(w), v_mat * m.v)
 }
 
+/// Right Jacobian of `Exp` on SE(3) for a twist `[v; w]` (linear first, as [`exp6`]):
+/// `exp6(m + dm) = exp6(m) exp6(Jr(m) dm)` to first order.
+///
+/// `Jr(v, w) = Jl(-v, -w)`, `Jl = [[Jl3(w), Q(v, w)], [0, Jl3(w)]]` with (Barfoot & Furgale
+/// 2014, eq. 102; `t = |w|`, `V = [v]x`, `W = [w]x`)
+///
+/// ```text
+/// Q = V/2 + (t - sin t)/t^3 (W V + V W + W V W)
+///         + (t^2 + 2 cos t - 2)/(2 t^4) (W W V + V W W - 3 W V W)
+///         + (2 t - 3 sin t + t cos t)/(2 t^5) (W V W W + W W V W)
+/// ```
+///
+/// The three coefficients are evaluated by their Taylor series below `t = 0.1`, where the
+/// closed forms cancel catastrophically.
+pub fn jexp6(m: &Motion) -> Matrix6 {
+    let v = -m.v;
+    let w = -m.w;
+    let t2 = w.norm_squared();
+    let (c1, c2, c3) = if t2 < 1e-2 {
+        (
+            1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0,
+            1.0 / 24.0 - t2 / 720.0 + t2 * t2 / 40320.0,
+            1.0 / 120.0 - t2 / 2520.0 + t2 * t2 / 120960.0,
+        )
+    } else {
+        let t = t2.sqrt();
+        let (s, c) = t.sin_cos();
+        ((t - s) / (t2 * t), (t2 + 2.0 * c - 2.0) / (2.0 * t2 * t2), (2.0 * t - 3.0 * s + t * c) / (2.0 * t2 * t2 * t))
+    };
+    let vv = skew(&v);
+    let ww = skew(&w);
+    let wvw = ww * vv * ww;
+    let q = vv * 0.5 + (ww * vv + vv * ww + wvw) * c1 + (ww * ww * vv + vv * ww * ww - wvw * 3.0) * c2 + (wvw * ww + ww * wvw) * c3;
+    // Jl3(-w) = Jr3(w).
+    let jr3 = jexp3(&m.w);
+    let mut out = Matrix6::zeros();
+    out.fixed_view_mut::<3, 3>(0, 0).copy_from(&jr3);
+    out.fixed_view_mut::<3, 3>(3, 3).copy_from(&jr3);
+    out.fixed_view_mut::<3, 3>(0, 3).copy_from(&q);
+    out
+}
+
 /// SE(3) logarithm: the twist `[v; w]` with `exp6(twist) = M`.
 pub fn log6(m: &SE3) -> Motion {
     let w = log3(&m.rotation);
@@ -114,6 +156,7 @@ pub fn log6(m: &SE3) -> Motion {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::spatial::Vector6;
 
     #[test]
     fn exp_log_roundtrip() {
@@ -130,6 +173,27 @@ mod tests {
             let m = Motion::new(Vector3::new(0.1, 0.7, -0.4), w);
             let back = log6(&exp6(&m));
             assert!((back.to_vector() - m.to_vector()).norm() < 1e-11);
+        }
+    }
+
+    #[test]
+    fn se3_right_jacobian_matches_finite_differences() {
+        let h = 1e-6;
+        for m in [
+            Motion::new(Vector3::new(0.3, -0.2, 0.5), Vector3::new(0.4, -0.9, 0.3)),
+            Motion::new(Vector3::new(-1.0, 0.4, 0.2), Vector3::new(0.01, 0.03, -0.02)), // series branch
+            Motion::new(Vector3::new(0.5, 0.1, -0.3), Vector3::new(0.0, 0.0, 0.0)),
+        ] {
+            let jr = jexp6(&m);
+            let base_inv = exp6(&m).inverse();
+            for k in 0..6 {
+                let mut d = Vector6::zeros();
+                d[k] = h;
+                let plus = log6(&(&base_inv * &exp6(&Motion::from_vector(&(m.to_vector() + d))))).to_vector();
+                let minus = log6(&(&base_inv * &exp6(&Motion::from_vector(&(m.to_vector() - d))))).to_vector();
+                let col = (plus - minus) / (2.0 * h);
+                assert!((col - jr.column(k)).norm() < 1e-8, "column {k} of Jr({m:?}): {col} vs {}", jr.column(k));
+            }
         }
     }
 
