@@ -28,5 +28,6 @@ pub mod dynamics;
 pub mod io;
 pub mod model;
 pub mod sim;
+pub mod slq;
 pub mod spatial;
 pub mod terrain;

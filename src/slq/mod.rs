@@ -1,0 +1,449 @@
+//! Sequential Linear Quadratic control (SLQ), Neunert 2017, Algorithm 1.
+//!
+//! One loop that reads like the algorithm ([`Slq::solve`]), calling named parts:
+//!
+//! 1. [`rollout`](Slq::rollout): simulate the system with the current control law;
+//! 2. [`linearize`](Slq::linearize): `A_k`, `B_k` and the cost's quadratic model along the
+//!    trajectory, knots in parallel (rayon), one problem workspace per thread;
+//! 3. [`backward_pass`](Slq::backward_pass): the Riccati-like difference equations, with
+//!    Levenberg-Marquardt regularization of `H` when it is not positive definite;
+//! 4. [`line_search`](Slq::line_search): `u = u_n + alpha l + K (x - x_n)`, `alpha <- alpha /
+//!    alpha_d`, until the cost decreases.
+//!
+//! It stops when the feedforward increments are small (`||l|| < l_t`), when the cost no
+//! longer changes, or after the maximum number of iterations; a line search that cannot
+//! decrease the cost, or a non-finite cost, ends the run with the best iterate kept and the
+//! reason reported. Every iteration records its cost, step size and time per part.
+
+mod cholesky;
+mod problem;
+
+pub use problem::{KnotDerivatives, Policy, Problem};
+
+use cholesky::SmallCholesky;
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Solver settings (defaults in parentheses).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SlqSettings {
+    /// Maximum iterations (40, the upper end of the paper's "10-40").
+    pub max_iterations: usize,
+    /// Stop when the RMS over knots of the feedforward increment `l_k` is below this (1e-4).
+    pub feedforward_tolerance: f64,
+    /// Stop when an iteration changes the cost by less than this fraction (1e-6).
+    pub relative_cost_tolerance: f64,
+    /// Step-size divisor `alpha_d` (2).
+    pub alpha_divisor: f64,
+    /// Line-search trials per iteration (12).
+    pub max_line_search_steps: usize,
+    /// Initial and minimum Levenberg-Marquardt regularization of `H` (1e-8, 1e-10).
+    pub initial_regularization: f64,
+    pub min_regularization: f64,
+    /// Regularization above which the backward pass gives up (1e10).
+    pub max_regularization: f64,
+    /// Threads for the linearization (0 = rayon's default: one per core).
+    pub threads: usize,
+}
+
+impl Default for SlqSettings {
+    fn default() -> Self {
+        Self {
+            max_iterations: 40,
+            feedforward_tolerance: 1e-4,
+            relative_cost_tolerance: 1e-6,
+            alpha_divisor: 2.0,
+            max_line_search_steps: 12,
+            initial_regularization: 1e-8,
+            min_regularization: 1e-10,
+            max_regularization: 1e10,
+            threads: 0,
+        }
+    }
+}
+
+/// Why the solver stopped.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Termination {
+    /// `||l|| < l_t`.
+    Converged,
+    /// The cost changed by less than the relative tolerance.
+    CostStalled,
+    MaxIterations,
+    /// No step size decreased the cost (iteration number).
+    LineSearchFailed { iteration: usize },
+    /// `H` stayed indefinite up to the maximum regularization (iteration number).
+    BackwardPassFailed { iteration: usize },
+}
+
+/// Seconds spent in each part of one iteration.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct IterationTiming {
+    pub rollout: f64,
+    pub linearization: f64,
+    pub backward_pass: f64,
+    pub line_search: f64,
+}
+
+/// One iteration's record.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IterationLog {
+    pub iteration: usize,
+    /// Cost after the iteration.
+    pub cost: f64,
+    /// Accepted step size (0 when the line search failed).
+    pub alpha: f64,
+    /// RMS over knots of the feedforward increments `l_k`.
+    pub feedforward_norm: f64,
+    pub regularization: f64,
+    pub timing: IterationTiming,
+}
+
+/// The solver's answer: the best trajectory found and how it got there.
+#[derive(Clone, Debug)]
+pub struct SlqSolution<S> {
+    /// States `x_0 .. x_N`.
+    pub states: Vec<S>,
+    /// Inputs `u_0 .. u_{N-1}`.
+    pub inputs: Vec<DVector<f64>>,
+    /// Feedback gains `K_k` (`nu x nx`): `u = u_k + K_k (x (-) x_k)`.
+    pub gains: Vec<DMatrix<f64>>,
+    /// Cost of the initial rollout, then after each iteration.
+    pub cost_history: Vec<f64>,
+    pub iterations: Vec<IterationLog>,
+    pub termination: Termination,
+    /// Seconds for the initial rollout.
+    pub initial_rollout_time: f64,
+    pub total_time: f64,
+}
+
+/// A problem that cannot be started.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SlqError {
+    #[error("the initial rollout with the initial control law is not finite (step {step}): the initial policy does not stabilize the system")]
+    InitialRolloutDiverged { step: usize },
+    #[error("solver setting `{field}`: {problem}")]
+    Settings { field: &'static str, problem: String },
+}
+
+/// SLQ on one problem: the trajectory, gains and scratch, allocated once.
+pub struct Slq<'p, P: Problem> {
+    problem: &'p P,
+    settings: SlqSettings,
+    states: Vec<P::State>,
+    inputs: Vec<DVector<f64>>,
+    trial_states: Vec<P::State>,
+    trial_inputs: Vec<DVector<f64>>,
+    gains: Vec<DMatrix<f64>>,
+    feedforward: Vec<DVector<f64>>,
+    derivatives: Vec<KnotDerivatives>,
+    workspaces: Vec<P::Workspace>,
+    scratch_states: Vec<P::State>,
+    terminal_gradient: DVector<f64>,
+    terminal_hessian: DMatrix<f64>,
+    riccati: RiccatiScratch,
+    dx: DVector<f64>,
+    regularization: f64,
+    pool: rayon::ThreadPool,
+}
+
+/// Scratch of the backward pass.
+struct RiccatiScratch {
+    p_mat: DMatrix<f64>,
+    p_vec: DVector<f64>,
+    pa: DMatrix<f64>,
+    pb: DMatrix<f64>,
+    q_xx: DMatrix<f64>,
+    q_uu: DMatrix<f64>,
+    q_ux: DMatrix<f64>,
+    q_x: DVector<f64>,
+    q_u: DVector<f64>,
+    kt_quu: DMatrix<f64>,
+    chol: SmallCholesky,
+}
+
+impl<'p, P: Problem> Slq<'p, P> {
+    /// Sets up the solver: trajectories, gains and workspaces allocated once.
+    pub fn new(problem: &'p P, settings: SlqSettings) -> Result<Self, SlqError> {
+        if settings.alpha_divisor.is_nan() || settings.alpha_divisor <= 1.0 {
+            return Err(SlqError::Settings { field: "alpha_divisor", problem: format!("expected a number > 1, got {}", settings.alpha_divisor) });
+        }
+        let (nx, nu, n) = (problem.nx(), problem.nu(), problem.horizon());
+        if n == 0 {
+            return Err(SlqError::Settings { field: "horizon", problem: "the problem has no knots".into() });
+        }
+        let threads = if settings.threads == 0 { rayon::current_num_threads() } else { settings.threads };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| SlqError::Settings { field: "threads", problem: e.to_string() })?;
+        let x0 = problem.initial_state();
+        Ok(Self {
+            problem,
+            states: vec![x0.clone(); n + 1],
+            inputs: vec![DVector::zeros(nu); n],
+            trial_states: vec![x0.clone(); n + 1],
+            trial_inputs: vec![DVector::zeros(nu); n],
+            gains: vec![DMatrix::zeros(nu, nx); n],
+            feedforward: vec![DVector::zeros(nu); n],
+            derivatives: vec![KnotDerivatives::zeros(nx, nu); n],
+            workspaces: (0..threads).map(|_| problem.workspace()).collect(),
+            scratch_states: vec![x0; threads],
+            terminal_gradient: DVector::zeros(nx),
+            terminal_hessian: DMatrix::zeros(nx, nx),
+            riccati: RiccatiScratch {
+                p_mat: DMatrix::zeros(nx, nx),
+                p_vec: DVector::zeros(nx),
+                pa: DMatrix::zeros(nx, nx),
+                pb: DMatrix::zeros(nx, nu),
+                q_xx: DMatrix::zeros(nx, nx),
+                q_uu: DMatrix::zeros(nu, nu),
+                q_ux: DMatrix::zeros(nu, nx),
+                q_x: DVector::zeros(nx),
+                q_u: DVector::zeros(nu),
+                kt_quu: DMatrix::zeros(nx, nu),
+                chol: SmallCholesky::new(nu),
+            },
+            dx: DVector::zeros(nx),
+            regularization: settings.initial_regularization,
+            settings,
+            pool,
+        })
+    }
+
+    /// Step 1 (first iteration): `x_{k+1} = f(x_k, pi_k(x_k))` with the initial policy.
+    fn rollout(&mut self, policy: &dyn Policy<P>) -> Result<f64, SlqError> {
+        let problem = self.problem;
+        let ws = &mut self.workspaces[0];
+        let mut cost = 0.0;
+        for k in 0..problem.horizon() {
+            policy.control(problem, k, &self.states[k], &mut self.inputs[k]);
+            let (head, tail) = self.states.split_at_mut(k + 1);
+            cost += problem.step(ws, k, &head[k], &self.inputs[k], &mut tail[0]);
+            if !problem.is_valid(&tail[0]) || !cost.is_finite() {
+                return Err(SlqError::InitialRolloutDiverged { step: k });
+            }
+        }
+        Ok(cost + problem.terminal_cost(ws, &self.states[problem.horizon()]))
+    }
+
+    /// Step 2: linearize the dynamics and quadratize the cost at every knot, in parallel.
+    fn linearize(&mut self) {
+        let problem = self.problem;
+        let n = problem.horizon();
+        let threads = self.workspaces.len();
+        let chunk = n.div_ceil(threads);
+        let states = &self.states;
+        let inputs = &self.inputs;
+        let jobs = self.derivatives.chunks_mut(chunk).zip(self.workspaces.iter_mut().zip(self.scratch_states.iter_mut())).enumerate();
+        self.pool.install(|| {
+            jobs.par_bridge().for_each(|(c, (derivs, (ws, scratch)))| {
+                for (i, d) in derivs.iter_mut().enumerate() {
+                    let k = c * chunk + i;
+                    problem.step_with_derivatives(ws, k, &states[k], &inputs[k], scratch, d);
+                }
+            });
+        });
+        let ws = &mut self.workspaces[0];
+        problem.terminal_cost_derivatives(ws, &self.states[n], &mut self.terminal_gradient, &mut self.terminal_hessian);
+    }
+
+    /// Step 3: the Riccati-like difference equations of Algorithm 1, backwards from
+    /// `P_N = h_xx`, `p_N = h_x`:
+    ///
+    /// ```text
+    /// H = l_uu + B^T P' B,  G = l_ux + B^T P' A,  g = l_u + B^T p'
+    /// K = -H^-1 G,  l = -H^-1 g
+    /// P = l_xx + A^T P' A + K^T H K + K^T G + G^T K
+    /// p = l_x + A^T p' + K^T H l + K^T g + G^T l
+    /// ```
+    ///
+    /// `H` is regularized to `H + mu I` (mu grows tenfold and the pass restarts while a
+    /// Cholesky factorization fails). Returns false if `mu` exceeds its maximum.
+    fn backward_pass(&mut self) -> bool {
+        let n = self.problem.horizon();
+        'restart: loop {
+            if self.regularization > self.settings.max_regularization {
+                return false;
+            }
+            let r = &mut self.riccati;
+            r.p_mat.copy_from(&self.terminal_hessian);
+            r.p_vec.copy_from(&self.terminal_gradient);
+            for k in (0..n).rev() {
+                let d = &self.derivatives[k];
+                // P'A, P'B
+                r.pa.gemm(1.0, &r.p_mat, &d.a, 0.0);
+                r.pb.gemm(1.0, &r.p_mat, &d.b, 0.0);
+                // Q_xx = l_xx + A^T P' A;  H = l_uu + B^T P' B;  G = l_ux + B^T P' A
+                r.q_xx.copy_from(&d.l_xx);
+                r.q_xx.gemm_tr(1.0, &d.a, &r.pa, 1.0);
+                r.q_uu.copy_from(&d.l_uu);
+                r.q_uu.gemm_tr(1.0, &d.b, &r.pb, 1.0);
+                r.q_ux.copy_from(&d.l_ux);
+                r.q_ux.gemm_tr(1.0, &d.b, &r.pa, 1.0);
+                // Q_x = l_x + A^T p';  g = l_u + B^T p'
+                r.q_x.copy_from(&d.l_x);
+                r.q_x.gemv_tr(1.0, &d.a, &r.p_vec, 1.0);
+                r.q_u.copy_from(&d.l_u);
+                r.q_u.gemv_tr(1.0, &d.b, &r.p_vec, 1.0);
+                // Regularized factorization of H.
+                for i in 0..r.q_uu.nrows() {
+                    r.q_uu[(i, i)] += self.regularization;
+                }
+                if !r.chol.factor(&r.q_uu) {
+                    self.regularization = (self.regularization * 10.0).max(self.settings.min_regularization * 10.0);
+                    continue 'restart;
+                }
+                // K = -H^-1 G, l = -H^-1 g
+                let gain = &mut self.gains[k];
+                gain.copy_from(&r.q_ux);
+                r.chol.solve_in_place(gain);
+                gain.neg_mut();
+                let ff = &mut self.feedforward[k];
+                ff.copy_from(&r.q_u);
+                r.chol.solve_vector_in_place(ff);
+                ff.neg_mut();
+                // P = Q_xx + K^T H K + K^T G + G^T K; p = Q_x + K^T H l + K^T g + G^T l.
+                r.kt_quu.gemm_tr(1.0, gain, &r.q_uu, 0.0);
+                r.p_mat.copy_from(&r.q_xx);
+                r.p_mat.gemm(1.0, &r.kt_quu, gain, 1.0);
+                r.p_mat.gemm_tr(1.0, gain, &r.q_ux, 1.0);
+                r.p_mat.gemm_tr(1.0, &r.q_ux, gain, 1.0);
+                r.p_vec.copy_from(&r.q_x);
+                r.p_vec.gemv(1.0, &r.kt_quu, ff, 1.0);
+                r.p_vec.gemv_tr(1.0, gain, &r.q_u, 1.0);
+                r.p_vec.gemv_tr(1.0, &r.q_ux, ff, 1.0);
+                // Keep P symmetric against round-off.
+                let nx = r.p_mat.nrows();
+                for i in 0..nx {
+                    for j in (i + 1)..nx {
+                        let s = 0.5 * (r.p_mat[(i, j)] + r.p_mat[(j, i)]);
+                        r.p_mat[(i, j)] = s;
+                        r.p_mat[(j, i)] = s;
+                    }
+                }
+            }
+            return true;
+        }
+    }
+
+    /// Step 4: rollouts with `u = u_n + alpha l + K (x (-) x_n)`, `alpha = 1, 1/alpha_d, ...`
+    /// until the cost is below `cost`; the accepted trajectory replaces the nominal one.
+    /// Returns `(alpha, new cost)`, or `None` if no trial decreased the cost.
+    fn line_search(&mut self, cost: f64) -> Option<(f64, f64)> {
+        let problem = self.problem;
+        let n = problem.horizon();
+        let mut alpha = 1.0;
+        for _ in 0..self.settings.max_line_search_steps {
+            let ws = &mut self.workspaces[0];
+            self.trial_states[0] = self.states[0].clone();
+            let mut trial_cost = 0.0;
+            let mut valid = true;
+            for k in 0..n {
+                problem.difference(&self.states[k], &self.trial_states[k], &mut self.dx);
+                let u = &mut self.trial_inputs[k];
+                u.copy_from(&self.inputs[k]);
+                u.axpy(alpha, &self.feedforward[k], 1.0);
+                u.gemv(1.0, &self.gains[k], &self.dx, 1.0);
+                let (head, tail) = self.trial_states.split_at_mut(k + 1);
+                trial_cost += problem.step(ws, k, &head[k], u, &mut tail[0]);
+                if !problem.is_valid(&tail[0]) || !trial_cost.is_finite() {
+                    valid = false;
+                    break;
+                }
+            }
+            if valid {
+                trial_cost += problem.terminal_cost(ws, &self.trial_states[n]);
+                if trial_cost.is_finite() && trial_cost < cost {
+                    std::mem::swap(&mut self.states, &mut self.trial_states);
+                    std::mem::swap(&mut self.inputs, &mut self.trial_inputs);
+                    return Some((alpha, trial_cost));
+                }
+            }
+            alpha /= self.settings.alpha_divisor;
+        }
+        None
+    }
+
+    /// RMS over knots of the feedforward increments.
+    fn feedforward_norm(&self) -> f64 {
+        let sum: f64 = self.feedforward.iter().map(|l| l.norm_squared()).sum();
+        (sum / self.feedforward.len() as f64).sqrt()
+    }
+
+    /// Algorithm 1. `on_iteration` sees each iteration's record as it finishes (for a
+    /// progress line).
+    pub fn solve(mut self, initial_policy: &dyn Policy<P>, mut on_iteration: impl FnMut(&IterationLog)) -> Result<SlqSolution<P::State>, SlqError> {
+        let started = Instant::now();
+        let t = Instant::now();
+        let mut cost = self.rollout(initial_policy)?;
+        let initial_rollout_time = t.elapsed().as_secs_f64();
+        let mut cost_history = vec![cost];
+        let mut iterations = Vec::new();
+        let mut termination = Termination::MaxIterations;
+        for iteration in 1..=self.settings.max_iterations {
+            let mut timing = IterationTiming::default();
+            let t = Instant::now();
+            self.linearize();
+            timing.linearization = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let ok = self.backward_pass();
+            timing.backward_pass = t.elapsed().as_secs_f64();
+            if !ok {
+                termination = Termination::BackwardPassFailed { iteration };
+                break;
+            }
+            let feedforward_norm = self.feedforward_norm();
+            let t = Instant::now();
+            let accepted = self.line_search(cost);
+            timing.line_search = t.elapsed().as_secs_f64();
+            let (alpha, new_cost) = accepted.unwrap_or((0.0, cost));
+            let log = IterationLog { iteration, cost: new_cost, alpha, feedforward_norm, regularization: self.regularization, timing };
+            on_iteration(&log);
+            iterations.push(log);
+            if accepted.is_none() {
+                // Nothing better along this direction: more regularization next time (a
+                // shorter, more gradient-like step), unless the step was already negligible.
+                if feedforward_norm < self.settings.feedforward_tolerance {
+                    termination = Termination::Converged;
+                    break;
+                }
+                self.regularization = (self.regularization * 100.0).max(self.settings.min_regularization * 100.0);
+                if self.regularization > self.settings.max_regularization {
+                    termination = Termination::LineSearchFailed { iteration };
+                    break;
+                }
+                continue;
+            }
+            let change = (cost - new_cost).abs() / cost.abs().max(1e-300);
+            cost = new_cost;
+            cost_history.push(cost);
+            self.regularization = (self.regularization / 10.0).max(self.settings.min_regularization);
+            if feedforward_norm < self.settings.feedforward_tolerance {
+                termination = Termination::Converged;
+                break;
+            }
+            if change < self.settings.relative_cost_tolerance {
+                termination = Termination::CostStalled;
+                break;
+            }
+        }
+        // Feedback gains for the returned trajectory (the last backward pass was made at the
+        // trajectory before the last step).
+        if matches!(termination, Termination::Converged | Termination::CostStalled | Termination::MaxIterations) {
+            self.linearize();
+            self.backward_pass();
+        }
+        Ok(SlqSolution {
+            states: self.states,
+            inputs: self.inputs,
+            gains: self.gains,
+            cost_history,
+            iterations,
+            termination,
+            initial_rollout_time,
+            total_time: started.elapsed().as_secs_f64(),
+        })
+    }
+}
