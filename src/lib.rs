@@ -28,3 +28,4 @@ pub mod io;
 pub mod model;
 pub mod spatial;
 pub mod terrain;
+pub mod viz;

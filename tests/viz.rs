@@ -1,0 +1,141 @@
+//! The replay page and the plots without a browser (`tests/replay_browser.rs` opens the
+//! page in one).
+
+mod common;
+
+use legwork::terrain::{HeightMap, Terrain, TerrainSpec};
+use legwork::viz::{self, VizError};
+use std::path::PathBuf;
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("legwork-viz-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The JSON embedded in the page.
+fn embedded_data(html: &str) -> serde_json::Value {
+    let open = "<script type=\"application/json\" id=\"legwork-data\">";
+    let start = html.find(open).expect("data element") + open.len();
+    let end = start + html[start..].find("</script>").expect("end of data element");
+    serde_json::from_str(&html[start..end]).expect("the embedded data is JSON")
+}
+
+#[test]
+fn the_replay_loads_nothing_from_anywhere() {
+    let (model, traj) = common::hyq_trot(1.5);
+    let html = viz::replay_html(&model, &traj).unwrap();
+    let lower = html.to_lowercase();
+    for needle in ["http://", "https://", "src=", "href=", "@import", "url(", "//cdn", "fonts.g"] {
+        assert!(!lower.contains(needle), "the page references '{needle}'");
+    }
+    assert!(!html.contains("/*LEGWORK_DATA*/"), "the data slot was not filled");
+    assert!(html.contains("document.body.dataset.drawn = \"1\""));
+
+    let data = embedded_data(&html);
+    let frames = &data["frames"];
+    let n = frames["t"].as_array().unwrap().len();
+    // 1.5 s at most 100 frames per second (plus the last knot), from 751 knots.
+    assert!((140..=152).contains(&n), "{n} frames");
+    let n_points = data["skeleton"]["n_points"].as_u64().unwrap() as usize;
+    assert_eq!(n_points, model.njoints() + 4 + 8);
+    assert!(frames["points"].as_array().unwrap().iter().all(|p| p.as_array().unwrap().len() == 3 * n_points));
+    assert_eq!(frames["forces"][0].as_array().unwrap().len(), 12);
+    // 12 leg links (HAA-HFE, HFE-KFE, KFE-foot per leg), the hips on the trunk.
+    assert_eq!(data["skeleton"]["links"].as_array().unwrap().len(), 12);
+    assert_eq!(data["force_scale_label"], "1 mm per 2 N");
+    let plots: Vec<&str> = data["plots"].as_array().unwrap().iter().map(|p| p["title"].as_str().unwrap()).collect();
+    assert_eq!(plots.len(), 6, "{plots:?}");
+    assert!(plots[5].contains("normal forces"));
+    // The stance feet's normal force carries the weight: about 86.8 kg * 9.81 / 4 = 213 N.
+    let lf = data["plots"][5]["series"][0]["y"][0].as_f64().unwrap();
+    assert!((lf - 212.8).abs() < 3.0, "{lf}");
+}
+
+#[test]
+fn names_in_the_file_cannot_break_out_of_the_page() {
+    let (model, mut traj) = common::hyq_trot(0.2);
+    traj.metadata.scenario = "</script><script>alert('x')</script> <!--".into();
+    let html = viz::replay_html(&model, &traj).unwrap();
+    assert!(!html.contains("<script>alert"));
+    assert!(!html.contains("<!--\""));
+    assert_eq!(embedded_data(&html)["scenario"], traj.metadata.scenario.as_str());
+}
+
+#[test]
+fn a_height_map_is_drawn_as_a_mesh_of_bounded_size() {
+    let model = legwork::model::embedded::load("hyq").unwrap();
+    let mut map = HeightMap::flat([-3.0, -3.0], 0.01, 601, 601, 0.0);
+    map.set_rect([0.6, 1.2], [-0.5, 0.5], 0.1);
+    let traj = common::trot(&model, 0.3, map.spec());
+    let data = embedded_data(&viz::replay_html(&model, &traj).unwrap());
+    let t = &data["terrain"];
+    assert_eq!(t["kind"], "height_map");
+    let (nx, ny) = (t["nx"].as_u64().unwrap(), t["ny"].as_u64().unwrap());
+    assert!(nx <= 92 && ny <= 92 && nx > 10 && ny > 10, "{nx} x {ny}");
+    assert_eq!(t["z"].as_array().unwrap().len() as u64, nx * ny);
+    assert!(t["z"].as_array().unwrap().iter().any(|z| z.as_f64() == Some(0.1)), "the step is on the patch");
+}
+
+#[test]
+fn a_trajectory_that_does_not_fit_is_an_error_naming_the_field() {
+    let (model, traj) = common::hyq_trot(0.2);
+    let a1 = legwork::model::embedded::load("a1").unwrap();
+    let e = viz::replay_html(&a1, &traj).unwrap_err();
+    assert!(matches!(e, VizError::Trajectory(_)));
+    assert!(e.to_string().contains("metadata.joint_names[0]"), "{e}");
+
+    let mut bad = traj.clone();
+    bad.knots[5].q.pop();
+    let e = viz::replay_html(&model, &bad).unwrap_err().to_string();
+    assert!(e.contains("knots[5].q"), "{e}");
+    let e = viz::write_plots(&bad, temp_dir("bad-plots")).unwrap_err().to_string();
+    assert!(e.contains("knots[5].q"), "{e}");
+
+    let mut wall = traj;
+    wall.metadata.terrain = TerrainSpec::Plane { elevation: 0.0, normal: [1.0, 0.0, 0.0] };
+    let e = viz::replay_html(&model, &wall).unwrap_err().to_string();
+    assert!(e.starts_with("metadata.terrain") && e.contains("normal"), "{e}");
+}
+
+#[test]
+fn plots_are_nonempty_svg_files() {
+    let (_, traj) = common::hyq_trot(1.5);
+    let dir = temp_dir("plots");
+    let files = viz::write_plots(&traj, dir.join("figures")).unwrap();
+    let names: Vec<String> = files.iter().map(|f| f.file_name().unwrap().to_string_lossy().into_owned()).collect();
+    assert_eq!(names, ["base_pose.svg", "base_twist.svg", "joint_torques.svg", "contact_forces.svg", "gait.svg"]);
+    for (file, expected) in files.iter().zip(["Base roll, pitch, yaw", "Base linear velocity", "Joint torques, leg lf", "Contact force on rh_foot", "Contact schedule"]) {
+        let svg = std::fs::read_to_string(file).unwrap();
+        assert!(svg.len() > 5_000, "{} has {} bytes", file.display(), svg.len());
+        assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"), "{}", file.display());
+        assert!(svg.contains("<text") && svg.contains(expected), "{} lacks '{expected}'", file.display());
+        assert!(svg.contains("<polyline") || svg.contains("<rect"), "{} draws nothing", file.display());
+    }
+    // The gait diagram gives each foot's duty factor: trotting from 0.6 s to 1.1 s, each
+    // foot swings 0.2 s of the 1.5 s.
+    let gait = std::fs::read_to_string(&files[4]).unwrap();
+    assert!(gait.contains("lf_foot 87%") && gait.contains("rh_foot 87%"), "duty factors missing");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn the_synthetic_trajectory_is_valid_and_keeps_stance_feet_on_the_ground() {
+    let (model, traj) = common::hyq_trot(1.5);
+    traj.validate("synthetic").unwrap();
+    traj.check_against(&model, "synthetic").unwrap();
+    let ground = legwork::terrain::Plane::flat(0.0);
+    let mut data = legwork::dynamics::Data::new(&model);
+    for knot in traj.knots.iter().step_by(25) {
+        legwork::dynamics::forward_kinematics(&model, &mut data, &nalgebra::DVector::from_column_slice(&knot.q));
+        legwork::dynamics::update_frame_placements(&model, &mut data);
+        for (f, foot) in model.feet.iter().enumerate() {
+            let gap = data.o_m_f[foot.frame].translation.z - foot.radius - ground.height(0.0, 0.0);
+            if knot.in_contact[f] {
+                assert!(gap.abs() < 1e-6, "t = {}: foot {f} {gap} m off the ground", knot.t);
+            } else {
+                assert!(gap > 0.0, "t = {}: swing foot {f} in the ground", knot.t);
+            }
+        }
+    }
+}
