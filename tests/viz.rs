@@ -1,11 +1,12 @@
 //! The replay page and the plots without a browser (`tests/replay_browser.rs` opens the
-//! page in one).
+//! page in one), and `legwork view` run as a user would.
 
 mod common;
 
 use legwork::terrain::{HeightMap, Terrain, TerrainSpec};
 use legwork::viz::{self, VizError};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 
 fn temp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("legwork-viz-{name}-{}", std::process::id()));
@@ -116,6 +117,57 @@ fn plots_are_nonempty_svg_files() {
     // foot swings 0.2 s of the 1.5 s.
     let gait = std::fs::read_to_string(&files[4]).unwrap();
     assert!(gait.contains("lf_foot 87%") && gait.contains("rh_foot 87%"), "duty factors missing");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+fn legwork(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_legwork")).args(args).current_dir(dir).output().unwrap()
+}
+
+#[test]
+fn legwork_view_writes_the_replay_and_the_plots_and_says_where() {
+    let dir = temp_dir("cli");
+    let (_, traj) = common::hyq_trot(0.5);
+    traj.save_file(dir.join("trajectory.json")).unwrap();
+    let o = legwork(&["view", "trajectory.json", "--out", "out/replay.html", "--plots", "plots"], &dir);
+    let (stdout, stderr) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{stderr}");
+    assert!(stdout.contains("replay: out/replay.html") && stdout.contains("robot hyq") && stdout.contains("plot:   plots/gait.svg"), "{stdout}");
+    assert!(std::fs::read_to_string(dir.join("out/replay.html")).unwrap().contains("legwork-data"));
+    assert!(dir.join("plots/base_pose.svg").is_file());
+    // Default output name, robot given explicitly.
+    let o = legwork(&["view", "trajectory.json", "--robot", "hyq"], &dir);
+    assert!(o.status.success() && dir.join("replay.html").is_file(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn legwork_view_names_the_file_and_the_field_of_a_bad_trajectory() {
+    let dir = temp_dir("cli-bad");
+    let (_, traj) = common::hyq_trot(0.1);
+    let mut json: serde_json::Value = serde_json::to_value(&traj).unwrap();
+    json["knots"][3]["tau"] = serde_json::json!([1.0, 2.0]);
+    std::fs::write(dir.join("bad.json"), json.to_string()).unwrap();
+    let check = |args: &[&str], expected: &[&str]| {
+        let o = legwork(args, &dir);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+        for e in expected {
+            assert!(stderr.contains(e), "{args:?}: '{e}' missing in: {stderr}");
+        }
+    };
+    check(&["view", "bad.json"], &["bad.json", "knots[3].tau", "expected 12 numbers"]);
+    check(&["view", "missing.json"], &["missing.json"]);
+
+    let mut other = traj.clone();
+    other.metadata.robot = "my_dog".into();
+    other.save_file(dir.join("other.json")).unwrap();
+    check(&["view", "other.json"], &["other.json", "metadata.robot", "'my_dog' is not an embedded robot", "--robot"]);
+    traj.save_file(dir.join("hyq.json")).unwrap();
+    check(&["view", "hyq.json", "--robot", "a1"], &["hyq.json", "metadata.joint_names[0]"]);
+    check(&["view", "hyq.json", "--robot", "spot"], &["'spot' is neither an embedded robot"]);
+    assert!(!dir.join("replay.html").exists());
     std::fs::remove_dir_all(&dir).ok();
 }
 

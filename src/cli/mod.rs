@@ -2,6 +2,7 @@
 //! `anyhow` here, at the edge, and printed with their causes.
 
 mod robot;
+mod view;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -19,6 +20,9 @@ enum Command {
     /// Robot models: list the embedded robots, inspect one.
     #[command(subcommand)]
     Robot(robot::RobotCommand),
+    /// Replay a trajectory: write a self-contained HTML page (3D robot, plots) and,
+    /// optionally, static SVG plots.
+    View(view::ViewArgs),
 }
 
 /// Parses the command line, runs the command, prints an error with its causes on failure.
@@ -26,6 +30,7 @@ pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Robot(cmd) => robot::run(cmd),
+        Command::View(args) => view::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
