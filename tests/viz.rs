@@ -100,6 +100,32 @@ fn a_trajectory_that_does_not_fit_is_an_error_naming_the_field() {
 }
 
 #[test]
+fn a_single_knot_and_a_fixed_base_robot() {
+    let (model, mut traj) = common::hyq_trot(0.1);
+    traj.knots.truncate(1);
+    let data = embedded_data(&viz::replay_html(&model, &traj).unwrap());
+    assert_eq!(data["frames"]["t"].as_array().unwrap().len(), 1);
+    let dir = temp_dir("one-knot");
+    assert_eq!(viz::write_plots(&traj, &dir).unwrap().len(), 5);
+    std::fs::remove_dir_all(&dir).ok();
+
+    // A robot arm (no free flyer) with the same joint names cannot play a legged motion.
+    let mut arm = legwork::model::Model::new("arm");
+    let mut parent = 0;
+    for name in &traj.metadata.joint_names {
+        let axis = nalgebra::Vector3::y();
+        parent = arm.add_joint(parent, name, legwork::model::JointKind::revolute(axis), legwork::spatial::SE3::identity(), legwork::model::JointLimits::unbounded(1)).unwrap();
+    }
+    let feet: Vec<&str> = traj.metadata.foot_names.iter().map(String::as_str).collect();
+    for f in &feet {
+        arm.add_frame(legwork::model::Frame { name: f.to_string(), kind: legwork::model::FrameKind::Operational, parent_joint: parent, placement: legwork::spatial::SE3::identity() }).unwrap();
+    }
+    arm.set_feet(&feet, 0.02).unwrap();
+    let e = viz::replay_html(&arm, &traj).unwrap_err().to_string();
+    assert!(e.contains("metadata.robot") && e.contains("no free-flying base"), "{e}");
+}
+
+#[test]
 fn plots_are_nonempty_svg_files() {
     let (_, traj) = common::hyq_trot(1.5);
     let dir = temp_dir("plots");

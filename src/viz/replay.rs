@@ -29,7 +29,7 @@
 use super::signals::{self, Panel};
 use super::VizError;
 use crate::dynamics::{forward_kinematics, update_frame_placements, Data};
-use crate::io::Trajectory;
+use crate::io::{Trajectory, TrajectoryError};
 use crate::model::{Model, STANDARD_GRAVITY};
 use crate::terrain::Terrain;
 use nalgebra::{DVector, Vector3};
@@ -55,6 +55,14 @@ const MAX_TERRAIN_CELLS: usize = 90;
 pub fn replay_html(model: &Model, traj: &Trajectory) -> Result<String, VizError> {
     traj.validate("trajectory")?;
     traj.check_against(model, "trajectory")?;
+    if !model.has_free_flyer() || model.nq != traj.knots[0].q.len() {
+        return Err(TrajectoryError::Invalid {
+            origin: "trajectory".into(),
+            field: "metadata.robot".into(),
+            problem: format!("robot '{}' has no free-flying base, and trajectory files describe floating-base robots (q = [base position, quaternion, joints])", model.name),
+        }
+        .into());
+    }
     let terrain = traj.metadata.terrain.build("metadata.terrain")?;
     let data = ReplayData::new(model, traj, terrain.as_ref());
     let json = serde_json::to_string(&data).map_err(|e| VizError::Io { path: "replay data".into(), source: e.into() })?;
