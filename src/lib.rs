@@ -31,3 +31,4 @@ pub mod sim;
 pub mod slq;
 pub mod spatial;
 pub mod terrain;
+pub mod viz;

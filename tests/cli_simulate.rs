@@ -34,6 +34,9 @@ fn simulate_writes_the_trajectory_and_prints_a_summary() {
     assert!(traj.metadata.scenario.contains("--push 5,0,0@0.3:0.1"));
     assert!(traj.summary["max_penetration_m"].as_f64().unwrap() < 0.02);
     assert!(traj.summary["steps_per_second"].as_f64().unwrap() > 0.0);
+    let replay = std::fs::read_to_string(dir.join("replay.html")).unwrap();
+    assert!(replay.len() > 10_000 && !replay.contains("https://"));
+    assert!(dir.join("plots").join("gait.svg").exists() && dir.join("plots").join("base_pose.svg").exists());
     let csv = std::fs::read_to_string(dir.join("trajectory.csv")).unwrap();
     assert_eq!(csv.lines().count(), 602);
 

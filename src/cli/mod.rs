@@ -3,6 +3,7 @@
 
 mod robot;
 mod simulate;
+mod view;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -23,6 +24,9 @@ enum Command {
     /// Simulate a robot on the ground with a controller; writes the trajectory and prints
     /// a summary.
     Simulate(simulate::SimulateArgs),
+    /// Replay a trajectory: write a self-contained HTML page (3D robot, plots) and,
+    /// optionally, static SVG plots.
+    View(view::ViewArgs),
 }
 
 /// Parses the command line, runs the command, prints an error with its causes on failure.
@@ -31,6 +35,7 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Robot(cmd) => robot::run(cmd),
         Command::Simulate(args) => simulate::run(args),
+        Command::View(args) => view::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -45,14 +45,14 @@ fn print_out(text: &str) -> Result<()> {
 }
 
 /// Where a robot came from, for the header of `robot info`.
-pub(crate) enum Origin {
+pub(super) enum Origin {
     Embedded { summary: String },
     File,
 }
 
 /// Loads an embedded robot by name, or a `.urdf` / `.toml` file by path. The library's
 /// errors already name the file, the field and the problem.
-pub(crate) fn load(spec: &str) -> Result<(Model, Origin)> {
+pub(super) fn load(spec: &str) -> Result<(Model, Origin)> {
     let path = Path::new(spec);
     if embedded::names().contains(&spec) && !path.exists() {
         let model = embedded::load(spec)?;

@@ -168,6 +168,9 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     let csv_path = args.out.join("trajectory.csv");
     traj.save_file(&json_path)?;
     traj.save_csv(&csv_path)?;
+    let replay_path = args.out.join("replay.html");
+    legwork::viz::write_replay(&model, &traj, &replay_path)?;
+    let plots = legwork::viz::write_plots(&traj, args.out.join("plots"))?;
 
     println!("Simulated {} for {} s with the {} controller ({} physics steps).", model.name, args.duration, controller.name(), stats.steps);
     println!("  final base height     {:.4} m (standing height {:.4} m, difference {:+.1} mm)", final_height, standing_height, (final_height - standing_height) * 1e3);
@@ -176,6 +179,6 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     println!("  max torque            {:.1} N m", stats.max_torque);
     println!("  max |F_t| / F_n       {:.3} (friction coefficient {})", stats.max_friction_ratio, config.contact.friction);
     println!("  speed                 {:.0} steps/s, {:.1}x real time", steps_per_second, args.duration / stats.wall_time);
-    println!("Wrote {} and {}", json_path.display(), csv_path.display());
+    println!("Wrote {}, {}, {} and {} plots in {}", json_path.display(), csv_path.display(), replay_path.display(), plots.len(), args.out.join("plots").display());
     Ok(())
 }

@@ -1,0 +1,55 @@
+//! Looking at a motion: the HTML replay of a trajectory and static plots of it.
+//!
+//! * [`replay_html`] / [`write_replay`]: one self-contained HTML page (no network, no
+//!   external file) with the robot in 3D (links drawn from the kinematic tree, feet, contact
+//!   forces as arrows, the terrain), play/pause, a time slider, the playback speed, a camera
+//!   that orbits (drag) and zooms (wheel) and follows the base; beside it, plots of the base
+//!   pose and twist, the joint torques and the contact normal forces with a cursor at the
+//!   current time. All geometry is computed here with legwork's own forward kinematics;
+//!   the page only projects and draws.
+//! * [`write_plots`]: static SVG figures for papers and reports (base pose, base twist,
+//!   joint torques, contact forces, the gait diagram).
+//!
+//! ```no_run
+//! use legwork::{io::Trajectory, model::embedded, viz};
+//! let traj = Trajectory::load_file("trajectory.json")?;
+//! let model = embedded::load(&traj.metadata.robot)?;
+//! traj.check_against(&model, "trajectory.json")?;
+//! viz::write_replay(&model, &traj, "replay.html")?;
+//! let svgs = viz::write_plots(&traj, "plots")?;
+//! println!("{} plots", svgs.len());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+pub mod plots;
+pub mod replay;
+mod signals;
+
+pub use plots::write_plots;
+pub use replay::{replay_html, write_replay};
+
+use crate::io::TrajectoryError;
+use crate::terrain::TerrainError;
+
+/// What can go wrong drawing a trajectory; each names the file or the field at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum VizError {
+    /// A file or folder cannot be written.
+    #[error("{path}: {source}")]
+    Io { path: String, source: std::io::Error },
+    /// The trajectory is inconsistent, or does not fit the robot model.
+    #[error(transparent)]
+    Trajectory(#[from] TrajectoryError),
+    /// The terrain stored in the trajectory cannot be built.
+    #[error("metadata.terrain: {0}")]
+    Terrain(#[from] TerrainError),
+    /// The plotting library failed on a figure.
+    #[error("{path}: cannot draw the figure: {message}")]
+    Plot { path: String, message: String },
+}
+
+impl VizError {
+    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+        VizError::Io { path: path.display().to_string(), source }
+    }
+}
