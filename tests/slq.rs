@@ -1,0 +1,237 @@
+//! The SLQ solver on problems with known answers: a linear-quadratic problem (the optimum
+//! is one linear solve away, and SLQ must reach it in one full step) and a nonlinear
+//! pendulum swing (cost decreasing, convergence, target reached).
+
+use legwork::slq::{KnotDerivatives, Policy, Problem, Slq, SlqSettings, Termination};
+use nalgebra::{DMatrix, DVector};
+
+/// `x_{k+1} = A x + B u`, `l = x^T Q x + u^T R u`, `h = x^T H x`, in R^nx.
+struct Linear {
+    a: DMatrix<f64>,
+    b: DMatrix<f64>,
+    q: DMatrix<f64>,
+    r: DMatrix<f64>,
+    h: DMatrix<f64>,
+    x0: DVector<f64>,
+    n: usize,
+}
+
+impl Problem for Linear {
+    type State = DVector<f64>;
+    type Workspace = ();
+    fn nx(&self) -> usize {
+        self.a.nrows()
+    }
+    fn nu(&self) -> usize {
+        self.b.ncols()
+    }
+    fn horizon(&self) -> usize {
+        self.n
+    }
+    fn workspace(&self) {}
+    fn initial_state(&self) -> DVector<f64> {
+        self.x0.clone()
+    }
+    fn difference(&self, y: &DVector<f64>, x: &DVector<f64>, dx: &mut DVector<f64>) {
+        dx.copy_from(&(x - y));
+    }
+    fn step(&self, _: &mut (), _: usize, x: &DVector<f64>, u: &DVector<f64>, next: &mut DVector<f64>) -> f64 {
+        next.copy_from(&(&self.a * x + &self.b * u));
+        (x.transpose() * &self.q * x)[0] + (u.transpose() * &self.r * u)[0]
+    }
+    fn step_with_derivatives(&self, ws: &mut (), k: usize, x: &DVector<f64>, u: &DVector<f64>, next: &mut DVector<f64>, d: &mut KnotDerivatives) -> f64 {
+        d.a.copy_from(&self.a);
+        d.b.copy_from(&self.b);
+        d.l_x.copy_from(&(&self.q * x * 2.0));
+        d.l_u.copy_from(&(&self.r * u * 2.0));
+        d.l_xx.copy_from(&(&self.q * 2.0));
+        d.l_uu.copy_from(&(&self.r * 2.0));
+        d.l_ux.fill(0.0);
+        self.step(ws, k, x, u, next)
+    }
+    fn terminal_cost(&self, _: &mut (), x: &DVector<f64>) -> f64 {
+        (x.transpose() * &self.h * x)[0]
+    }
+    fn terminal_cost_derivatives(&self, ws: &mut (), x: &DVector<f64>, h_x: &mut DVector<f64>, h_xx: &mut DMatrix<f64>) -> f64 {
+        h_x.copy_from(&(&self.h * x * 2.0));
+        h_xx.copy_from(&(&self.h * 2.0));
+        self.terminal_cost(ws, x)
+    }
+    fn is_valid(&self, x: &DVector<f64>) -> bool {
+        x.iter().all(|v| v.is_finite())
+    }
+}
+
+struct Zero;
+impl<P: Problem> Policy<P> for Zero {
+    fn control(&self, _: &P, _: usize, _: &P::State, u: &mut DVector<f64>) {
+        u.fill(0.0);
+    }
+}
+
+/// The optimum of the linear problem by condensing: `X = Sx x0 + Su U`, minimise a
+/// quadratic in U (normal equations).
+fn condensed_optimum(p: &Linear) -> DVector<f64> {
+    let (nx, nu, n) = (p.nx(), p.nu(), p.n);
+    // X = [x_0 .. x_N] stacked.
+    let mut sx = DMatrix::zeros(nx * (n + 1), nx);
+    let mut su = DMatrix::zeros(nx * (n + 1), nu * n);
+    let mut ak = DMatrix::identity(nx, nx);
+    for k in 0..=n {
+        sx.view_mut((k * nx, 0), (nx, nx)).copy_from(&ak);
+        for j in 0..k {
+            // x_k contains A^{k-1-j} B u_j
+            let mut m = DMatrix::identity(nx, nx);
+            for _ in 0..(k - 1 - j) {
+                m = &p.a * m;
+            }
+            su.view_mut((k * nx, j * nu), (nx, nu)).copy_from(&(m * &p.b));
+        }
+        ak = &p.a * ak;
+    }
+    let mut qbar = DMatrix::zeros(nx * (n + 1), nx * (n + 1));
+    for k in 0..n {
+        qbar.view_mut((k * nx, k * nx), (nx, nx)).copy_from(&p.q);
+    }
+    qbar.view_mut((n * nx, n * nx), (nx, nx)).copy_from(&p.h);
+    let mut rbar = DMatrix::zeros(nu * n, nu * n);
+    for k in 0..n {
+        rbar.view_mut((k * nu, k * nu), (nu, nu)).copy_from(&p.r);
+    }
+    let lhs = su.transpose() * &qbar * &su + rbar;
+    let rhs = -(su.transpose() * &qbar * &sx * &p.x0);
+    lhs.lu().solve(&rhs).unwrap()
+}
+
+#[test]
+fn linear_quadratic_optimum_in_one_full_step() {
+    // A double integrator per axis, two axes coupled by the cost.
+    let dt = 0.05;
+    let a = DMatrix::from_row_slice(4, 4, &[1.0, dt, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, dt, 0.0, 0.0, 0.0, 1.0]);
+    let b = DMatrix::from_row_slice(4, 2, &[0.0, 0.0, dt, 0.0, 0.0, 0.0, 0.0, dt]);
+    let q = DMatrix::from_row_slice(4, 4, &[1.0, 0.0, 0.3, 0.0, 0.0, 0.1, 0.0, 0.0, 0.3, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.1]);
+    let p = Linear { a, b, q: q.clone(), r: DMatrix::identity(2, 2) * 0.01, h: q * 50.0, x0: DVector::from_row_slice(&[1.0, 0.0, -0.5, 0.3]), n: 40 };
+    let settings = SlqSettings { threads: 2, ..Default::default() };
+    let sol = Slq::new(&p, settings).unwrap().solve(&Zero, |_| {}).unwrap();
+    assert_eq!(sol.iterations[0].alpha, 1.0, "a linear-quadratic problem takes the full step");
+    let exact = condensed_optimum(&p);
+    let ours = DVector::from_iterator(80, sol.inputs.iter().flat_map(|u| u.iter().copied()));
+    assert!((&ours - &exact).norm() < 1e-8 * (1.0 + exact.norm()), "SLQ {ours} vs exact {exact}");
+    assert!(matches!(sol.termination, Termination::Converged), "{:?}", sol.termination);
+    assert!(sol.iterations.len() <= 2);
+    // The gains are the LQR gains: the feedback law reproduces the optimum from a
+    // perturbed start to first order (here exactly, the problem being linear).
+    assert_eq!(sol.gains.len(), 40);
+    assert!(sol.gains[0].iter().any(|g| g.abs() > 1e-3));
+}
+
+/// A torque-driven pendulum, `theta'' = -g/l sin(theta) - c theta' + u / (m l^2)`,
+/// explicit Euler, state (theta, theta'); cost drives theta to `target`.
+struct Pendulum {
+    n: usize,
+    dt: f64,
+    target: f64,
+}
+
+impl Pendulum {
+    fn f(&self, x: &DVector<f64>, u: f64) -> DVector<f64> {
+        let acc = -9.81 * x[0].sin() - 0.1 * x[1] + u;
+        DVector::from_row_slice(&[x[0] + self.dt * x[1], x[1] + self.dt * acc])
+    }
+}
+
+impl Problem for Pendulum {
+    type State = DVector<f64>;
+    type Workspace = ();
+    fn nx(&self) -> usize {
+        2
+    }
+    fn nu(&self) -> usize {
+        1
+    }
+    fn horizon(&self) -> usize {
+        self.n
+    }
+    fn workspace(&self) {}
+    fn initial_state(&self) -> DVector<f64> {
+        DVector::zeros(2)
+    }
+    fn difference(&self, y: &DVector<f64>, x: &DVector<f64>, dx: &mut DVector<f64>) {
+        dx.copy_from(&(x - y));
+    }
+    fn step(&self, _: &mut (), _: usize, x: &DVector<f64>, u: &DVector<f64>, next: &mut DVector<f64>) -> f64 {
+        next.copy_from(&self.f(x, u[0]));
+        self.dt * (0.1 * (x[0] - self.target).powi(2) + 0.01 * x[1] * x[1] + 0.001 * u[0] * u[0])
+    }
+    fn step_with_derivatives(&self, ws: &mut (), k: usize, x: &DVector<f64>, u: &DVector<f64>, next: &mut DVector<f64>, d: &mut KnotDerivatives) -> f64 {
+        d.a.copy_from(&DMatrix::from_row_slice(2, 2, &[1.0, self.dt, -self.dt * 9.81 * x[0].cos(), 1.0 - self.dt * 0.1]));
+        d.b.copy_from(&DMatrix::from_row_slice(2, 1, &[0.0, self.dt]));
+        d.l_x.copy_from(&DVector::from_row_slice(&[self.dt * 0.2 * (x[0] - self.target), self.dt * 0.02 * x[1]]));
+        d.l_u[0] = self.dt * 0.002 * u[0];
+        d.l_xx.copy_from(&DMatrix::from_row_slice(2, 2, &[self.dt * 0.2, 0.0, 0.0, self.dt * 0.02]));
+        d.l_uu[(0, 0)] = self.dt * 0.002;
+        d.l_ux.fill(0.0);
+        self.step(ws, k, x, u, next)
+    }
+    fn terminal_cost(&self, _: &mut (), x: &DVector<f64>) -> f64 {
+        10.0 * (x[0] - self.target).powi(2) + x[1] * x[1]
+    }
+    fn terminal_cost_derivatives(&self, ws: &mut (), x: &DVector<f64>, h_x: &mut DVector<f64>, h_xx: &mut DMatrix<f64>) -> f64 {
+        h_x.copy_from(&DVector::from_row_slice(&[20.0 * (x[0] - self.target), 2.0 * x[1]]));
+        h_xx.copy_from(&DMatrix::from_row_slice(2, 2, &[20.0, 0.0, 0.0, 2.0]));
+        self.terminal_cost(ws, x)
+    }
+    fn is_valid(&self, x: &DVector<f64>) -> bool {
+        x.iter().all(|v| v.is_finite() && v.abs() < 1e3)
+    }
+}
+
+/// A PD that holds the pendulum down: the "initial stable control law".
+struct HoldDown;
+impl Policy<Pendulum> for HoldDown {
+    fn control(&self, _: &Pendulum, _: usize, x: &DVector<f64>, u: &mut DVector<f64>) {
+        u[0] = -5.0 * x[0] - 1.0 * x[1];
+    }
+}
+
+#[test]
+fn pendulum_swings_to_its_target_and_the_cost_decreases() {
+    let p = Pendulum { n: 300, dt: 0.01, target: 2.5 };
+    let mut seen = Vec::new();
+    let sol = Slq::new(&p, SlqSettings { threads: 2, max_iterations: 100, ..Default::default() })
+        .unwrap()
+        .solve(&HoldDown, |log| seen.push(log.cost))
+        .unwrap();
+    assert!(sol.cost_history.windows(2).all(|w| w[1] < w[0]), "cost must decrease: {:?}", sol.cost_history);
+    assert!(sol.cost_history.last().unwrap() < &(0.1 * sol.cost_history[0]));
+    let last = sol.states.last().unwrap();
+    assert!((last[0] - p.target).abs() < 0.05, "final angle {} (target {})", last[0], p.target);
+    assert!(matches!(sol.termination, Termination::Converged | Termination::CostStalled), "{:?}", sol.termination);
+    assert_eq!(seen.len(), sol.iterations.len());
+    for log in &sol.iterations {
+        assert!(log.timing.linearization >= 0.0 && log.timing.backward_pass >= 0.0 && log.timing.line_search >= 0.0);
+    }
+    // Re-running the returned policy from the start reproduces the returned states.
+    let mut x = p.initial_state();
+    for (k, u) in sol.inputs.iter().enumerate() {
+        let mut next = x.clone();
+        p.step(&mut (), k, &x, u, &mut next);
+        x = next;
+    }
+    assert!((&x - last).norm() < 1e-12);
+}
+
+#[test]
+fn a_diverging_initial_policy_is_reported() {
+    struct Explode;
+    impl Policy<Pendulum> for Explode {
+        fn control(&self, _: &Pendulum, _: usize, x: &DVector<f64>, u: &mut DVector<f64>) {
+            u[0] = 1e4 * (1.0 + x[1].abs());
+        }
+    }
+    let p = Pendulum { n: 300, dt: 0.01, target: 1.0 };
+    let err = Slq::new(&p, SlqSettings::default()).unwrap().solve(&Explode, |_| {}).unwrap_err();
+    assert!(err.to_string().contains("initial rollout"), "{err}");
+    let bad = SlqSettings { alpha_divisor: 1.0, ..Default::default() };
+    assert!(Slq::new(&p, bad).err().unwrap().to_string().contains("alpha_divisor"));
+}
