@@ -27,6 +27,7 @@ pub mod control;
 pub mod dynamics;
 pub mod io;
 pub mod model;
+pub mod ocp;
 pub mod sim;
 pub mod slq;
 pub mod spatial;

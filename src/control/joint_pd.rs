@@ -118,6 +118,17 @@ impl JointPd {
     }
 }
 
+impl JointPd {
+    /// The same torques for the actuated joints only (`u`, length `nv - 6`, in `v` order
+    /// after the free-flyer base): the optimizer's input vector.
+    pub fn actuated_torques(&self, model: &Model, q: &DVector<f64>, v: &DVector<f64>, u: &mut DVector<f64>) {
+        for j in actuated(model) {
+            let (iq, iv) = (j.idx_q, j.idx_v);
+            u[iv - 6] = self.gains.kp[iv] * (self.target[iq] - q[iq]) - self.gains.kd[iv] * v[iv];
+        }
+    }
+}
+
 impl Controller for JointPd {
     fn name(&self) -> &str {
         "stand"

@@ -67,6 +67,12 @@ pub fn integrate_jacobians(model: &Model, v: &DVector<f64>, jq: &mut DMatrix<f64
 /// `v = q1 (-) q0`, the velocity with `integrate(q0, v) = q1`.
 /// Base: `log6(M0^-1 M1)`; other joints: `q1 - q0`.
 pub fn difference(model: &Model, q0: &DVector<f64>, q1: &DVector<f64>, v_out: &mut DVector<f64>) {
+    difference_into(model, q0, q1, v_out.as_mut_slice());
+}
+
+/// [`difference`] into a slice of length `nv` (for example the top half of a state
+/// tangent `[dq; dv]`).
+pub fn difference_into(model: &Model, q0: &DVector<f64>, q1: &DVector<f64>, v_out: &mut [f64]) {
     for j in model.joints.iter().skip(1) {
         let (iq, iv) = (j.idx_q, j.idx_v);
         match j.kind {
@@ -74,7 +80,7 @@ pub fn difference(model: &Model, q0: &DVector<f64>, q1: &DVector<f64>, v_out: &m
                 let m0 = base_pose(&q0.as_slice()[iq..iq + 7]);
                 let m1 = base_pose(&q1.as_slice()[iq..iq + 7]);
                 let tw = log6(&m0.inv_mul(&m1)).to_vector();
-                v_out.as_mut_slice()[iv..iv + 6].copy_from_slice(tw.as_slice());
+                v_out[iv..iv + 6].copy_from_slice(tw.as_slice());
             }
             JointKind::Universe => {}
             _ => v_out[iv] = q1[iq] - q0[iq],

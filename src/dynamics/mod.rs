@@ -35,7 +35,7 @@ pub use aba::{aba, aba_with_external_forces};
 pub use aba_derivatives::{compute_aba_derivatives, compute_minverse};
 pub use centroidal::{centroidal_map, centroidal_momentum};
 pub use com::{center_of_mass, com_jacobian};
-pub use configuration::{difference, integrate, integrate_jacobians, random_configuration};
+pub use configuration::{difference, difference_into, integrate, integrate_jacobians, random_configuration};
 pub use crba::crba;
 pub use data::Data;
 pub use frames::{frame_placement, update_frame_placements};

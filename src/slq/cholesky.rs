@@ -38,7 +38,8 @@ impl SmallCholesky {
         true
     }
 
-    /// `x <- H^-1 x` for one column.
+    /// `x <- H^-1 x` for one column (forward then backward substitution).
+    #[allow(clippy::needless_range_loop)] // the triangular solves read clearest with indices
     fn solve_column(&self, x: &mut [f64]) {
         let n = x.len();
         for i in 0..n {

@@ -1,0 +1,236 @@
+//! The whole-body optimal-control problem of Neunert 2017 for a legged robot: the
+//! simulator's discrete contact dynamics ([`crate::sim::ContactModelWorkspace`], one source
+//! of truth with simulation), joint torques as inputs, and the cost of eq. (4) with the
+//! Gaussian-windowed waypoints of eq. (5):
+//!
+//! ```text
+//! J = xb(t_f)^T H xb(t_f) + sum_k dt [ xb_k^T Q xb_k + ub_k^T R ub_k + W(x_k, t_k) ]
+//! W(x, t) = sum_p xh_p^T W_p xh_p sqrt(rho_p / (2 pi)) exp(-rho_p / 2 (t - t_p)^2)
+//! ```
+//!
+//! `xb` is the deviation of the state from the desired state in intuitive coordinates
+//! ([`StateDeviation`]): base position in the world, base orientation error
+//! `log(R*^T R)` (roll, pitch, yaw about the desired base axes for small errors), joint
+//! angles, base linear and angular velocity in the base frame (as the paper's eq. 7), joint
+//! velocities. No contact, gait or timing appears anywhere: contacts emerge from the
+//! dynamics. Derivatives are Gauss-Newton (`l_xx = 2 dt E^T Q E`, `E = d xb / d dx`, exact).
+
+mod deviation;
+
+pub use deviation::StateDeviation;
+
+use crate::contact::ContactParams;
+use crate::control::JointPd;
+use crate::model::Model;
+use crate::sim::{ContactModelWorkspace, StepDerivatives};
+use crate::slq::{KnotDerivatives, Policy, Problem};
+use crate::terrain::Terrain;
+use nalgebra::{DMatrix, DVector, Vector3};
+
+/// A state of the optimization: configuration, velocity and the contact anchors (hidden
+/// states, Neunert 2017 sec. III-B).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RobotState {
+    pub q: DVector<f64>,
+    pub v: DVector<f64>,
+    pub anchors: Vec<Option<Vector3<f64>>>,
+}
+
+/// A quadratic cost on the deviation from a desired state: `xb^T diag(weights) xb`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StateCost {
+    /// The desired configuration (`nq`) and velocity (`nv`).
+    pub q: DVector<f64>,
+    pub v: DVector<f64>,
+    /// Diagonal weights on the deviation coordinates (`2 nv`, see [`StateDeviation`]).
+    pub weights: DVector<f64>,
+}
+
+/// A waypoint of eq. (5): a state cost active around `time`, with a Gaussian window of
+/// precision `rho` (1/s^2; its standard deviation is `1/sqrt(rho)`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Waypoint {
+    pub time: f64,
+    pub rho: f64,
+    pub cost: StateCost,
+}
+
+impl Waypoint {
+    /// The window `sqrt(rho / 2 pi) exp(-rho / 2 (t - t_p)^2)` (integrates to one over time).
+    pub fn window(&self, t: f64) -> f64 {
+        (self.rho / (2.0 * std::f64::consts::PI)).sqrt() * (-0.5 * self.rho * (t - self.time).powi(2)).exp()
+    }
+}
+
+/// The problem: robot, terrain, contact model, horizon, costs.
+pub struct WholeBodyProblem<'a> {
+    pub model: &'a Model,
+    pub terrain: &'a dyn Terrain,
+    pub contact: ContactParams,
+    /// Time between knots (s): also the integration step of the dynamics.
+    pub dt: f64,
+    /// Number of transitions.
+    pub knots: usize,
+    pub initial: RobotState,
+    /// `Q` with the desired state of the running cost.
+    pub running: StateCost,
+    /// `H` with the desired final state.
+    pub terminal: StateCost,
+    /// `R` (diagonal, `nv - 6`) and the desired torques.
+    pub input_weights: DVector<f64>,
+    pub input_desired: DVector<f64>,
+    pub waypoints: Vec<Waypoint>,
+}
+
+/// What one thread needs: the contact dynamics, its linearization and cost scratch.
+pub struct WholeBodyWorkspace<'a> {
+    dynamics: ContactModelWorkspace<'a>,
+    derivatives: StepDerivatives,
+    deviation: StateDeviation,
+    tau: DVector<f64>,
+    e: DVector<f64>,
+    we: DVector<f64>,
+    jac: DMatrix<f64>,
+    wj: DMatrix<f64>,
+}
+
+impl<'a> WholeBodyProblem<'a> {
+    fn nu_(&self) -> usize {
+        self.model.nv - 6
+    }
+
+    /// `sum over costs of weight * xb^T W xb` (no derivatives).
+    fn state_cost(&self, ws: &mut WholeBodyWorkspace<'a>, cost: &StateCost, scale: f64, x: &RobotState) -> f64 {
+        ws.deviation.evaluate(self.model, (&x.q, &x.v), (&cost.q, &cost.v), &mut ws.e, None);
+        scale * ws.e.iter().zip(cost.weights.iter()).map(|(e, w)| w * e * e).sum::<f64>()
+    }
+
+    /// Adds `scale xb^T W xb` and its Gauss-Newton derivatives to `(l_x, l_xx)`.
+    fn add_state_cost_derivatives(&self, ws: &mut WholeBodyWorkspace<'a>, cost: &StateCost, scale: f64, x: &RobotState, l_x: &mut DVector<f64>, l_xx: &mut DMatrix<f64>) -> f64 {
+        ws.deviation.evaluate(self.model, (&x.q, &x.v), (&cost.q, &cost.v), &mut ws.e, Some(&mut ws.jac));
+        // we = W e; wj = W E
+        for i in 0..ws.e.len() {
+            ws.we[i] = cost.weights[i] * ws.e[i];
+        }
+        ws.wj.copy_from(&ws.jac);
+        for (i, mut row) in ws.wj.row_iter_mut().enumerate() {
+            row *= cost.weights[i];
+        }
+        // l_x += 2 s E^T W e; l_xx += 2 s E^T W E
+        l_x.gemv_tr(2.0 * scale, &ws.jac, &ws.we, 1.0);
+        l_xx.gemm_tr(2.0 * scale, &ws.jac, &ws.wj, 1.0);
+        scale * ws.e.dot(&ws.we)
+    }
+
+    fn running_cost(&self, ws: &mut WholeBodyWorkspace<'a>, k: usize, x: &RobotState, u: &DVector<f64>) -> f64 {
+        let t = k as f64 * self.dt;
+        let mut cost = self.state_cost(ws, &self.running, self.dt, x);
+        for w in &self.waypoints {
+            cost += self.state_cost(ws, &w.cost, self.dt * w.window(t), x);
+        }
+        cost + self.dt * u.iter().zip(&self.input_desired).zip(&self.input_weights).map(|((u, d), r)| r * (u - d) * (u - d)).sum::<f64>()
+    }
+
+    fn torques(&self, ws: &mut WholeBodyWorkspace<'a>, u: &DVector<f64>) {
+        ws.tau.fill(0.0);
+        ws.tau.rows_mut(6, self.nu_()).copy_from(u);
+    }
+}
+
+impl<'a> Problem for WholeBodyProblem<'a> {
+    type State = RobotState;
+    type Workspace = WholeBodyWorkspace<'a>;
+
+    fn nx(&self) -> usize {
+        2 * self.model.nv
+    }
+    fn nu(&self) -> usize {
+        self.nu_()
+    }
+    fn horizon(&self) -> usize {
+        self.knots
+    }
+    fn workspace(&self) -> WholeBodyWorkspace<'a> {
+        let (model, nv) = (self.model, self.model.nv);
+        WholeBodyWorkspace {
+            dynamics: ContactModelWorkspace::new(model, self.terrain, self.contact),
+            derivatives: StepDerivatives::new(model),
+            deviation: StateDeviation::new(model),
+            tau: DVector::zeros(nv),
+            e: DVector::zeros(2 * nv),
+            we: DVector::zeros(2 * nv),
+            jac: DMatrix::zeros(2 * nv, 2 * nv),
+            wj: DMatrix::zeros(2 * nv, 2 * nv),
+        }
+    }
+    fn initial_state(&self) -> RobotState {
+        self.initial.clone()
+    }
+    /// `dx = [q_x (-) q_y; v_x - v_y]`.
+    fn difference(&self, y: &RobotState, x: &RobotState, dx: &mut DVector<f64>) {
+        let nv = self.model.nv;
+        crate::dynamics::difference_into(self.model, &y.q, &x.q, &mut dx.as_mut_slice()[..nv]);
+        for i in 0..nv {
+            dx[nv + i] = x.v[i] - y.v[i];
+        }
+    }
+    fn step(&self, ws: &mut WholeBodyWorkspace<'a>, k: usize, x: &RobotState, u: &DVector<f64>, next: &mut RobotState) -> f64 {
+        let cost = self.running_cost(ws, k, x, u);
+        self.torques(ws, u);
+        next.q.copy_from(&x.q);
+        next.v.copy_from(&x.v);
+        next.anchors.clone_from(&x.anchors);
+        ws.dynamics.step(&mut next.q, &mut next.v, &mut next.anchors, &ws.tau, self.dt);
+        cost
+    }
+    fn step_with_derivatives(&self, ws: &mut WholeBodyWorkspace<'a>, k: usize, x: &RobotState, u: &DVector<f64>, next: &mut RobotState, d: &mut KnotDerivatives) -> f64 {
+        self.torques(ws, u);
+        next.q.copy_from(&x.q);
+        next.v.copy_from(&x.v);
+        next.anchors.clone_from(&x.anchors);
+        ws.derivatives.step(&mut ws.dynamics, &mut next.q, &mut next.v, &mut next.anchors, &ws.tau, self.dt);
+        d.a.copy_from(&ws.derivatives.a);
+        d.b.copy_from(&ws.derivatives.b);
+        d.l_x.fill(0.0);
+        d.l_xx.fill(0.0);
+        d.l_ux.fill(0.0);
+        let t = k as f64 * self.dt;
+        let mut cost = self.add_state_cost_derivatives(ws, &self.running, self.dt, x, &mut d.l_x, &mut d.l_xx);
+        for w in &self.waypoints {
+            let scale = self.dt * w.window(t);
+            if scale > 1e-12 * self.dt {
+                cost += self.add_state_cost_derivatives(ws, &w.cost, scale, x, &mut d.l_x, &mut d.l_xx);
+            }
+        }
+        d.l_uu.fill(0.0);
+        for i in 0..self.nu_() {
+            let r = self.input_weights[i];
+            let du = u[i] - self.input_desired[i];
+            d.l_u[i] = 2.0 * self.dt * r * du;
+            d.l_uu[(i, i)] = 2.0 * self.dt * r;
+            cost += self.dt * r * du * du;
+        }
+        cost
+    }
+    fn terminal_cost(&self, ws: &mut WholeBodyWorkspace<'a>, x: &RobotState) -> f64 {
+        self.state_cost(ws, &self.terminal, 1.0, x)
+    }
+    fn terminal_cost_derivatives(&self, ws: &mut WholeBodyWorkspace<'a>, x: &RobotState, h_x: &mut DVector<f64>, h_xx: &mut DMatrix<f64>) -> f64 {
+        h_x.fill(0.0);
+        h_xx.fill(0.0);
+        self.add_state_cost_derivatives(ws, &self.terminal, 1.0, x, h_x, h_xx)
+    }
+    fn is_valid(&self, x: &RobotState) -> bool {
+        x.q.iter().all(|v| v.is_finite()) && x.v.iter().all(|v| v.is_finite() && v.abs() < 200.0)
+    }
+}
+
+/// The initial stable control law of Neunert 2017 (sec. V): joint PD around the default
+/// stance, no feedforward.
+pub struct PdPolicy<'a>(pub &'a JointPd);
+
+impl<'a> Policy<WholeBodyProblem<'a>> for PdPolicy<'_> {
+    fn control(&self, problem: &WholeBodyProblem<'a>, _k: usize, x: &RobotState, u: &mut DVector<f64>) {
+        self.0.actuated_torques(problem.model, &x.q, &x.v, u);
+    }
+}
