@@ -3,6 +3,7 @@
 
 mod robot;
 mod simulate;
+mod solve;
 mod view;
 
 use clap::{Parser, Subcommand};
@@ -24,6 +25,10 @@ enum Command {
     /// Simulate a robot on the ground with a controller; writes the trajectory and prints
     /// a summary.
     Simulate(simulate::SimulateArgs),
+    /// Optimize a motion for a task with SLQ (Neunert 2017), then re-run it in closed loop.
+    Solve(solve::SolveArgs),
+    /// List the embedded tasks.
+    Tasks,
     /// Replay a trajectory: write a self-contained HTML page (3D robot, plots) and,
     /// optionally, static SVG plots.
     View(view::ViewArgs),
@@ -35,6 +40,8 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Robot(cmd) => robot::run(cmd),
         Command::Simulate(args) => simulate::run(args),
+        Command::Solve(args) => solve::run(args),
+        Command::Tasks => solve::list(),
         Command::View(args) => view::run(args),
     };
     match result {

@@ -16,8 +16,14 @@
 //! dynamics. Derivatives are Gauss-Newton (`l_xx = 2 dt E^T Q E`, `E = d xb / d dx`, exact).
 
 mod deviation;
+mod metrics;
+mod run;
+mod task;
 
 pub use deviation::StateDeviation;
+pub use metrics::MotionMetrics;
+pub use run::{solution_trajectory, solve_task, Rerun, SlqPolicyController, SolveError, SolveOptions, TaskRun};
+pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, TaskError, TaskSpec, WaypointSpec, WeightSpec, EMBEDDED_TASKS};
 
 use crate::contact::ContactParams;
 use crate::control::JointPd;
@@ -34,6 +40,23 @@ pub struct RobotState {
     pub q: DVector<f64>,
     pub v: DVector<f64>,
     pub anchors: Vec<Option<Vector3<f64>>>,
+}
+
+/// The robot standing still on `terrain`: the `standing` pose put on the ground and
+/// simulated for `seconds` with the standing controller and the contact model `contact`, so
+/// that an optimization starts from rest (its first knots do not fall or bounce).
+pub fn settled_stance(model: &Model, terrain: &dyn Terrain, contact: ContactParams, seconds: f64) -> Result<RobotState, crate::sim::SimError> {
+    use crate::sim::{standing_on_ground, SimConfig, Simulator};
+    let q0 = standing_on_ground(model, terrain, 0.0)?;
+    let config = SimConfig { contact, ..SimConfig::default() };
+    let mut sim = Simulator::new(model, terrain, config.clone(), q0, None)?;
+    let mut stand = JointPd::standing(model, config.control_dt).map_err(|source| crate::sim::SimError::Controller { t: 0.0, source })?;
+    let steps = (seconds / config.physics_dt).round() as usize;
+    for _ in 0..steps {
+        sim.step(&mut stand)?;
+    }
+    let s = sim.state();
+    Ok(RobotState { q: s.q.clone(), v: s.v.clone(), anchors: s.anchors.clone() })
 }
 
 /// A quadratic cost on the deviation from a desired state: `xb^T diag(weights) xb`.

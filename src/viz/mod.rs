@@ -25,7 +25,7 @@ pub mod plots;
 pub mod replay;
 mod signals;
 
-pub use plots::write_plots;
+pub use plots::{write_cost_plot, write_plots};
 pub use replay::{replay_html, write_replay};
 
 use crate::io::TrajectoryError;

@@ -256,3 +256,37 @@ mod tests {
         assert_eq!(time_range(&[0.5]), 0.5..0.501);
     }
 }
+
+/// The convergence figure of Neunert 2017 (Fig. 12): the cost after each optimizer
+/// iteration divided by the initial cost (`costs[0]`, the initial rollout), against the
+/// iteration number, into the SVG file `path`.
+pub fn write_cost_plot(costs: &[f64], title: &str, path: impl AsRef<Path>) -> Result<(), VizError> {
+    let path = path.as_ref();
+    let err = |e: &dyn std::fmt::Display| plot_error(path, e);
+    let first = costs.first().copied().filter(|c| c.is_finite() && *c > 0.0).unwrap_or(1.0);
+    let normalized: Vec<(f64, f64)> = costs.iter().enumerate().map(|(i, c)| (i as f64, c / first)).collect();
+    let root = SVGBackend::new(path, (WIDTH, 2 * PANEL_HEIGHT)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let last = (costs.len().max(2) - 1) as f64;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, (FONT, 20))
+        .margin(8)
+        .margin_right(20)
+        .x_label_area_size(38)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..last, 0.0..1.05)
+        .map_err(|e| err(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc("iteration")
+        .y_desc("cost / initial cost")
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 15))
+        .light_line_style(RGBColor(238, 240, 243))
+        .bold_line_style(RGBColor(214, 218, 224))
+        .draw()
+        .map_err(|e| err(&e))?;
+    chart.draw_series(LineSeries::new(normalized.iter().copied(), PALETTE[0].stroke_width(2))).map_err(|e| err(&e))?;
+    chart.draw_series(normalized.iter().map(|&p| Circle::new(p, 3, PALETTE[0].filled()))).map_err(|e| err(&e))?;
+    root.present().map_err(|e| err(&e))
+}

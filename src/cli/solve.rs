@@ -1,0 +1,134 @@
+//! `legwork solve <task>` and `legwork tasks`: Neunert 2017's trajectory optimization.
+
+use anyhow::{Context, Result};
+use clap::Args;
+use legwork::model::embedded;
+use legwork::ocp::{solve_task, MotionMetrics, Rerun, SolveOptions, TaskSpec, EMBEDDED_TASKS};
+use legwork::terrain::Plane;
+use serde_json::json;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Debug, Args)]
+pub struct SolveArgs {
+    /// An embedded task (`legwork tasks`) or a task file (`.toml`).
+    task: String,
+    /// The robot (embedded name, URDF or legwork description); default: the task's.
+    #[arg(long)]
+    robot: Option<String>,
+    /// Output folder (created); default `out/<task>`.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Threads for the linearization (default: one per core).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Overrides the task's iteration limit.
+    #[arg(long)]
+    iterations: Option<usize>,
+}
+
+fn load_task(spec: &str) -> Result<(TaskSpec, String)> {
+    let path = Path::new(spec);
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml")) || path.exists() {
+        return Ok((TaskSpec::load_file(path)?, spec.to_string()));
+    }
+    Ok((TaskSpec::embedded(spec)?, format!("embedded task {spec}")))
+}
+
+/// `legwork tasks`: one line per embedded task.
+pub fn list() -> Result<()> {
+    let width = EMBEDDED_TASKS.iter().map(|(n, _)| n.len()).max().unwrap_or(0);
+    for (name, _) in EMBEDDED_TASKS {
+        let spec = TaskSpec::embedded(name)?;
+        println!("{name:<width$}  {} ({}, {} s)", spec.summary, spec.robot, spec.duration);
+    }
+    Ok(())
+}
+
+fn metrics_json(m: &MotionMetrics) -> serde_json::Value {
+    serde_json::to_value(m).unwrap_or(serde_json::Value::Null)
+}
+
+fn rerun_json(r: &Rerun) -> serde_json::Value {
+    match r {
+        Rerun::Completed { metrics, .. } => metrics_json(metrics),
+        Rerun::Failed { reason } => json!({ "failed": reason }),
+    }
+}
+
+pub fn run(args: SolveArgs) -> Result<()> {
+    let (spec, origin) = load_task(&args.task)?;
+    let robot = args.robot.clone().unwrap_or_else(|| spec.robot.clone());
+    let model = if embedded::names().contains(&robot.as_str()) && !Path::new(&robot).exists() { embedded::load(&robot)? } else { super::robot::load(&robot)?.0 };
+    let terrain = Plane::flat(0.0);
+    let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&spec.name));
+    println!("Solving {} ({}) for {}: {} s, {} knots of {} s", spec.name, spec.summary, model.name, spec.duration, spec.knots(), spec.dt);
+    let started = Instant::now();
+    let options = SolveOptions { threads: args.threads, max_iterations: args.iterations };
+    let run = solve_task(&spec, &model, &terrain, &origin, &options, |log| {
+        let t = &log.timing;
+        println!(
+            "  iteration {:2}  cost {:11.5e}  step {:<9}  |l| {:9.3e}  {:6.1} ms (linearize {:5.1}, backward {:5.1}, line search {:5.1})",
+            log.iteration,
+            log.cost,
+            if log.alpha > 0.0 { format!("{:.4}", log.alpha) } else { "rejected".into() },
+            log.feedforward_norm,
+            (t.linearization + t.backward_pass + t.line_search) * 1e3,
+            t.linearization * 1e3,
+            t.backward_pass * 1e3,
+            t.line_search * 1e3
+        );
+    })?;
+    let sol = &run.solution;
+    let solve_time = sol.total_time;
+    let plan = &run.plan_metrics;
+    let mut traj = run.plan.clone();
+    let summary = json!({
+        "task": spec.name,
+        "robot": model.name,
+        "knots": spec.knots(),
+        "dt_s": spec.dt,
+        "iterations": sol.iterations.len(),
+        "termination": format!("{:?}", sol.termination),
+        "initial_cost": sol.cost_history[0],
+        "final_cost": sol.cost_history.last(),
+        "solve_time_s": solve_time,
+        "mean_iteration_ms": if sol.iterations.is_empty() { 0.0 } else { sol.iterations.iter().map(|l| l.timing.linearization + l.timing.backward_pass + l.timing.line_search).sum::<f64>() / sol.iterations.len() as f64 * 1e3 },
+        "plan": metrics_json(plan),
+        "slq_policy_rerun": rerun_json(&run.policy_rerun),
+        "tracking_controller_rerun": rerun_json(&run.tracking_rerun),
+    });
+    if let serde_json::Value::Object(map) = summary {
+        traj.summary = map;
+    }
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create the output folder {}", out.display()))?;
+    traj.save_file(out.join("trajectory.json"))?;
+    for (rerun, file) in [(&run.policy_rerun, "rerun_slq_policy.json"), (&run.tracking_rerun, "rerun_tracking.json")] {
+        if let Rerun::Completed { trajectory, .. } = rerun {
+            trajectory.save_file(out.join(file))?;
+        }
+    }
+    legwork::viz::write_replay(&model, &traj, out.join("replay.html"))?;
+    let plots = legwork::viz::write_plots(&traj, out.join("plots"))?;
+    legwork::viz::write_cost_plot(&sol.cost_history, &format!("{}: normalized cost per SLQ iteration", spec.name), out.join("plots").join("cost.svg"))?;
+
+    println!("{:?} after {} iterations in {:.2} s (cost {:.4e} -> {:.4e})", sol.termination, sol.iterations.len(), solve_time, sol.cost_history[0], sol.cost_history.last().unwrap_or(&f64::NAN));
+    println!("                         plan      SLQ policy   tracking ctrl");
+    let cell = |r: &Rerun, f: &dyn Fn(&MotionMetrics) -> String| r.metrics().map_or("failed".to_string(), f);
+    let row = |name: &str, f: &dyn Fn(&MotionMetrics) -> String| println!("  {name:<22} {:<10} {:<12} {}", f(plan), cell(&run.policy_rerun, f), cell(&run.tracking_rerun, f));
+    row("final base x [m]", &|m| format!("{:.3}", m.final_base_position[0]));
+    row("final base y [m]", &|m| format!("{:.3}", m.final_base_position[1]));
+    row("final yaw [deg]", &|m| format!("{:.1}", m.final_base_rpy_deg[2]));
+    row("apex height [m]", &|m| format!("{:.4}", m.apex_base_height));
+    row("apex pitch [deg]", &|m| format!("{:.1}", m.apex_pitch_deg));
+    row("flight time [s]", &|m| format!("{:.3}", m.flight_time));
+    row("lift-offs per foot", &|m| m.liftoffs.iter().map(|l| l.to_string()).collect::<Vec<_>>().join("/"));
+    row("diagonal correlation", &|m| m.diagonal_correlation.iter().map(|c| c.map_or("-".into(), |c| format!("{c:.2}"))).collect::<Vec<_>>().join("/"));
+    for (name, r) in [("SLQ policy re-run", &run.policy_rerun), ("tracking-controller re-run", &run.tracking_rerun)] {
+        if let Rerun::Failed { reason } = r {
+            println!("  {name} failed: {reason}");
+        }
+    }
+    println!("Wrote {} (trajectory.json, closed-loop re-runs, replay.html, {} plots) in {:.1} s", out.display(), plots.len() + 1, started.elapsed().as_secs_f64());
+    Ok(())
+}

@@ -1,0 +1,84 @@
+//! Figures of a motion that the targets of the paper's tasks are stated in: where the base
+//! ended, how high it went, when feet were off the ground, which feet moved together.
+
+use crate::io::Trajectory;
+use nalgebra::{Quaternion, UnitQuaternion};
+use serde::Serialize;
+
+/// Figures of one trajectory (a plan or a closed-loop re-run).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MotionMetrics {
+    /// Base position at the last knot (m, world).
+    pub final_base_position: [f64; 3],
+    /// Base roll, pitch, yaw at the last knot (deg).
+    pub final_base_rpy_deg: [f64; 3],
+    /// Highest base position and when (m, s).
+    pub apex_base_height: f64,
+    pub apex_time: f64,
+    /// Base pitch at the apex (deg).
+    pub apex_pitch_deg: f64,
+    /// Total time with all feet off the ground (s).
+    pub flight_time: f64,
+    /// Per foot: how many times it left the ground.
+    pub liftoffs: Vec<usize>,
+    /// Per foot: fraction of the time in contact.
+    pub duty_factor: Vec<f64>,
+    /// Correlation of the contact flags of the diagonal pairs (first with fourth foot, second
+    /// with third: LF-RH and RF-LH in legwork's leg order), `None` when a foot never changes.
+    pub diagonal_correlation: [Option<f64>; 2],
+}
+
+fn rpy(q: &[f64]) -> [f64; 3] {
+    let (r, p, y) = UnitQuaternion::from_quaternion(Quaternion::new(q[6], q[3], q[4], q[5])).euler_angles();
+    [r.to_degrees(), p.to_degrees(), y.to_degrees()]
+}
+
+/// Pearson correlation of two 0/1 sequences.
+fn correlation(a: &[f64], b: &[f64]) -> Option<f64> {
+    let n = a.len() as f64;
+    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        sab += (x - ma) * (y - mb);
+        saa += (x - ma) * (x - ma);
+        sbb += (y - mb) * (y - mb);
+    }
+    (saa > 0.0 && sbb > 0.0).then(|| sab / (saa * sbb).sqrt())
+}
+
+impl MotionMetrics {
+    /// The figures of `traj` (at least one knot).
+    pub fn of(traj: &Trajectory) -> Self {
+        let knots = &traj.knots;
+        let last = knots.last().expect("a trajectory has knots (validated)");
+        let apex = knots.iter().max_by(|a, b| a.q[2].total_cmp(&b.q[2])).unwrap_or(last);
+        let nfeet = traj.metadata.foot_names.len();
+        let mut liftoffs = vec![0; nfeet];
+        let mut in_contact = vec![0usize; nfeet];
+        let mut flight_time = 0.0;
+        for (k, knot) in knots.iter().enumerate() {
+            for f in 0..nfeet {
+                in_contact[f] += knot.in_contact[f] as usize;
+                if k > 0 && knots[k - 1].in_contact[f] && !knot.in_contact[f] {
+                    liftoffs[f] += 1;
+                }
+            }
+            if k + 1 < knots.len() && knot.in_contact.iter().all(|c| !c) {
+                flight_time += knots[k + 1].t - knot.t;
+            }
+        }
+        let flags = |f: usize| -> Vec<f64> { knots.iter().map(|k| k.in_contact[f] as u8 as f64).collect() };
+        let diagonal_correlation = if nfeet == 4 { [correlation(&flags(0), &flags(3)), correlation(&flags(1), &flags(2))] } else { [None, None] };
+        Self {
+            final_base_position: [last.q[0], last.q[1], last.q[2]],
+            final_base_rpy_deg: rpy(&last.q),
+            apex_base_height: apex.q[2],
+            apex_time: apex.t,
+            apex_pitch_deg: rpy(&apex.q)[1],
+            flight_time,
+            liftoffs,
+            duty_factor: in_contact.iter().map(|&c| c as f64 / knots.len() as f64).collect(),
+            diagonal_correlation,
+        }
+    }
+}

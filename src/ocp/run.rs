@@ -1,0 +1,163 @@
+//! A task end to end (Neunert 2017): settle the robot, solve with SLQ from the joint-PD
+//! initial policy, then check the motion in closed loop in the simulator, (a) with the SLQ
+//! policy `u = u_ff + K (x (-) x*)` and (b) with the tracking controller at 1 kHz.
+
+use super::{settled_stance, MotionMetrics, PdPolicy, RobotState, TaskSpec, WholeBodyProblem};
+use crate::control::{JointPd, TrackingController};
+use crate::io::{Knot, Trajectory};
+use crate::model::Model;
+use crate::sim::{ControlError, Controller, SimConfig, SimError, SimState, Simulator};
+use crate::slq::{IterationLog, Problem, Slq, SlqError, SlqSettings, SlqSolution};
+use crate::terrain::Terrain;
+use nalgebra::{DMatrix, DVector};
+
+/// Why a task could not be solved or checked.
+#[derive(Debug, thiserror::Error)]
+pub enum SolveError {
+    #[error(transparent)]
+    Task(#[from] super::TaskError),
+    #[error("settling the robot before the optimization: {0}")]
+    Settle(SimError),
+    #[error(transparent)]
+    Slq(#[from] SlqError),
+    #[error("{what} could not start")]
+    ClosedLoop {
+        what: &'static str,
+        #[source]
+        source: SimError,
+    },
+    #[error(transparent)]
+    Control(#[from] ControlError),
+}
+
+/// A closed-loop re-run: its trajectory and figures, or how it failed (a divergence is a
+/// result, reported, not an error of the whole solve).
+pub enum Rerun {
+    Completed { trajectory: Box<Trajectory>, metrics: MotionMetrics },
+    Failed { reason: String },
+}
+
+impl Rerun {
+    pub fn metrics(&self) -> Option<&MotionMetrics> {
+        match self {
+            Rerun::Completed { metrics, .. } => Some(metrics),
+            Rerun::Failed { .. } => None,
+        }
+    }
+}
+
+/// Everything a solved task produced.
+pub struct TaskRun {
+    /// The optimized motion, with feedback gains.
+    pub plan: Trajectory,
+    pub plan_metrics: MotionMetrics,
+    /// (a) The SLQ policy re-run in the simulator (2 kHz physics, policy at 1 kHz).
+    pub policy_rerun: Rerun,
+    /// (b) The tracking controller (Neunert 2017, sec. IV-B) at 1 kHz on the plan.
+    pub tracking_rerun: Rerun,
+    pub solution: SlqSolution<RobotState>,
+}
+
+/// The optimized states and inputs as a trajectory file: contact forces and flags
+/// evaluated at each state, the feedback gains at each knot (the last knot repeats the
+/// last input and gain).
+pub fn solution_trajectory(problem: &WholeBodyProblem<'_>, solution: &SlqSolution<RobotState>, scenario: &str) -> Trajectory {
+    let model = problem.model;
+    let mut traj = Trajectory::new(model, scenario, problem.dt, problem.terrain.spec());
+    let mut ws = crate::sim::ContactModelWorkspace::new(model, problem.terrain, problem.contact);
+    let n = solution.inputs.len();
+    for (k, x) in solution.states.iter().enumerate() {
+        ws.evaluate_contacts(&x.q, &x.v, &x.anchors);
+        let i = k.min(n - 1);
+        let gain: &DMatrix<f64> = &solution.gains[i];
+        traj.knots.push(Knot {
+            t: k as f64 * problem.dt,
+            q: x.q.iter().copied().collect(),
+            v: x.v.iter().copied().collect(),
+            tau: solution.inputs[i].iter().copied().collect(),
+            contact_force: ws.feet().iter().map(|f| f.contact.force.into()).collect(),
+            in_contact: ws.feet().iter().map(|f| f.contact.normal_force > 0.0).collect(),
+            feedback_gain: Some(gain.row_iter().map(|r| r.iter().copied().collect()).collect()),
+        });
+    }
+    traj
+}
+
+/// The SLQ policy as a simulator controller: at time `t`, knot `k = floor(t / dt)`,
+/// `u = u_k + K_k (x (-) x_k)` (Neunert 2017, eq. 2).
+pub struct SlqPolicyController<'p, 'a> {
+    problem: &'p WholeBodyProblem<'a>,
+    solution: &'p SlqSolution<RobotState>,
+    dx: DVector<f64>,
+    u: DVector<f64>,
+}
+
+impl<'p, 'a> SlqPolicyController<'p, 'a> {
+    pub fn new(problem: &'p WholeBodyProblem<'a>, solution: &'p SlqSolution<RobotState>) -> Self {
+        let (nx, nu) = (problem.nx(), problem.nu());
+        Self { problem, solution, dx: DVector::zeros(nx), u: DVector::zeros(nu) }
+    }
+}
+
+impl Controller for SlqPolicyController<'_, '_> {
+    fn name(&self) -> &str {
+        "slq_policy"
+    }
+    fn compute(&mut self, _model: &Model, state: &SimState, tau: &mut DVector<f64>) -> Result<(), ControlError> {
+        let n = self.solution.inputs.len();
+        let k = ((state.t / self.problem.dt + 1e-9).floor() as usize).min(n - 1);
+        let x = RobotState { q: state.q.clone(), v: state.v.clone(), anchors: state.anchors.clone() };
+        self.problem.difference(&self.solution.states[k], &x, &mut self.dx);
+        self.u.copy_from(&self.solution.inputs[k]);
+        self.u.gemv(1.0, &self.solution.gains[k], &self.dx, 1.0);
+        tau.rows_mut(6, self.u.len()).copy_from(&self.u);
+        Ok(())
+    }
+}
+
+/// Options of [`solve_task`].
+#[derive(Clone, Debug, Default)]
+pub struct SolveOptions {
+    /// Threads for the linearization (0 = one per core).
+    pub threads: usize,
+    /// Overrides the task's iteration limit.
+    pub max_iterations: Option<usize>,
+}
+
+/// Solves `spec` for `model` on `terrain` and re-runs it in closed loop; `on_iteration`
+/// sees each SLQ iteration.
+pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin: &str, options: &SolveOptions, on_iteration: impl FnMut(&IterationLog)) -> Result<TaskRun, SolveError> {
+    let contact = spec.contact.unwrap_or_default();
+    let initial = settled_stance(model, terrain, contact, 1.0).map_err(SolveError::Settle)?;
+    let problem = spec.problem(model, terrain, initial.clone(), origin)?;
+    let pd = JointPd::standing(model, spec.dt)?;
+    let settings = SlqSettings {
+        threads: options.threads,
+        max_iterations: options.max_iterations.or(spec.iterations).unwrap_or(SlqSettings::default().max_iterations),
+        ..SlqSettings::default()
+    };
+    let solution = Slq::new(&problem, settings)?.solve(&PdPolicy(&pd), on_iteration)?;
+    let plan = solution_trajectory(&problem, &solution, &format!("solve {}", spec.name));
+
+    // Closed loop: the simulator's own rates, the task's contact model.
+    let config = SimConfig { contact, ..SimConfig::default() };
+    let duration = problem.knots as f64 * problem.dt;
+    let rerun = |controller: &mut dyn Controller, what: &'static str| -> Result<Rerun, SolveError> {
+        let mut sim = Simulator::new(model, terrain, config.clone(), initial.q.clone(), Some(initial.v.clone())).map_err(|source| SolveError::ClosedLoop { what, source })?;
+        Ok(match sim.run(duration, controller, |_| {}) {
+            Ok(run) => {
+                let mut trajectory = run.trajectory;
+                trajectory.metadata.scenario = format!("{what}: {}", spec.name);
+                let metrics = MotionMetrics::of(&trajectory);
+                Rerun::Completed { trajectory: Box::new(trajectory), metrics }
+            }
+            Err(SimError::Diverged { step, t, reason, .. }) => Rerun::Failed { reason: format!("diverged at t = {t:.3} s (step {step}): {reason}") },
+            Err(e) => Rerun::Failed { reason: e.to_string() },
+        })
+    };
+    let policy_rerun = rerun(&mut SlqPolicyController::new(&problem, &solution), "SLQ policy re-run")?;
+    let mut tracking = TrackingController::with_default_gains(model, &plan, config.control_dt)?;
+    let tracking_rerun = rerun(&mut tracking, "tracking-controller re-run")?;
+    let plan_metrics = MotionMetrics::of(&plan);
+    Ok(TaskRun { plan, plan_metrics, policy_rerun, tracking_rerun, solution })
+}

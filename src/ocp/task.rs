@@ -1,0 +1,405 @@
+//! Task files: what a user asks of the robot, in the terms of Neunert 2017 (desired states,
+//! weights per coordinate group, waypoints) and nothing else: no contacts, gaits or timings.
+//!
+//! ```toml
+//! name = "squat_jump"
+//! summary = "jump to a 0.8 m apex and land in the default stance"
+//! robot = "hyq"
+//! duration = 1.5            # s
+//! dt = 0.002                # s: knot spacing and integration step
+//! iterations = 40           # SLQ iteration limit (optional)
+//!
+//! [contact]                 # optional: the optimizer's contact model (ContactParams fields)
+//! normal_stiffness = 90000.0
+//!
+//! [desired]                 # the desired state of the running and final costs
+//! base_position = [0.0, 0.0, "start"]   # m, world; "start" = the initial state's value
+//! base_rpy = [0.0, 0.0, 0.0]            # rad
+//! joints = "stance"                     # "stance", or { "*_hfe_joint" = 0.9, lf_kfe_joint = -1.6 }
+//! # base_linear_velocity, base_angular_velocity (base frame), joint_velocities: zero if absent
+//!
+//! [running]                 # Q: weights per coordinate group (absent = 0)
+//! base_position = [0.0, 0.0, 10.0]
+//! base_orientation = [50.0, 50.0, 50.0]
+//! joint_position = 1.0      # one number, or { "*_kfe_joint" = 2.0, ... }
+//! base_linear_velocity = [0.1, 0.1, 0.1]
+//! base_angular_velocity = [0.1, 0.1, 0.1]
+//! joint_velocity = 0.01
+//!
+//! [final]                   # H: the same keys
+//! base_position = [1000.0, 1000.0, 1000.0]
+//!
+//! [input]
+//! weight = 1e-4             # R (diagonal)
+//!
+//! [[waypoint]]              # eq. (5): any number of these
+//! time = 0.6                # s
+//! rho = 400.0               # 1/s^2: window exp(-rho/2 (t - time)^2)
+//! desired = { base_position = [0.0, 0.0, 0.8] }
+//! weights = { base_position = [0.0, 0.0, 2000.0] }
+//! ```
+//!
+//! Every field is checked; unknown fields, a joint name the robot does not have, a NaN or a
+//! negative weight are errors naming the file and the field.
+
+use super::{RobotState, StateCost, Waypoint, WholeBodyProblem};
+use crate::contact::ContactParams;
+use crate::model::{JointKind, Model};
+use crate::terrain::Terrain;
+use nalgebra::{DVector, UnitQuaternion};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+
+/// A number, or the keyword `"start"` (the initial state's value).
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum Coordinate {
+    Value(f64),
+    Keyword(String),
+}
+
+/// `"stance"` or a table `joint name (with an optional '*' wildcard) = value`.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum JointValues {
+    Keyword(String),
+    Table(BTreeMap<String, f64>),
+}
+
+/// One number for every joint, or a table by name pattern.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum JointWeights {
+    All(f64),
+    Table(BTreeMap<String, f64>),
+}
+
+/// A desired state in intuitive terms; absent fields keep the defaults (see module docs).
+#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DesiredSpec {
+    pub base_position: Option<[Coordinate; 3]>,
+    pub base_rpy: Option<[Coordinate; 3]>,
+    pub joints: Option<JointValues>,
+    pub base_linear_velocity: Option<[f64; 3]>,
+    pub base_angular_velocity: Option<[f64; 3]>,
+    pub joint_velocities: Option<f64>,
+}
+
+/// Weights per coordinate group; absent = 0.
+#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WeightSpec {
+    pub base_position: Option<[f64; 3]>,
+    pub base_orientation: Option<[f64; 3]>,
+    pub joint_position: Option<JointWeights>,
+    pub base_linear_velocity: Option<[f64; 3]>,
+    pub base_angular_velocity: Option<[f64; 3]>,
+    pub joint_velocity: Option<JointWeights>,
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputSpec {
+    /// `R`, the same for every joint.
+    pub weight: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WaypointSpec {
+    pub time: f64,
+    pub rho: f64,
+    #[serde(default)]
+    pub desired: DesiredSpec,
+    pub weights: WeightSpec,
+}
+
+/// A task file.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TaskSpec {
+    pub name: String,
+    pub summary: String,
+    pub robot: String,
+    pub duration: f64,
+    pub dt: f64,
+    #[serde(default)]
+    pub iterations: Option<usize>,
+    #[serde(default)]
+    pub contact: Option<ContactParams>,
+    #[serde(default)]
+    pub desired: DesiredSpec,
+    pub running: WeightSpec,
+    #[serde(rename = "final")]
+    pub terminal: WeightSpec,
+    pub input: InputSpec,
+    #[serde(default, rename = "waypoint")]
+    pub waypoints: Vec<WaypointSpec>,
+}
+
+/// A task file that cannot be used; names the file and the field.
+#[derive(Debug, thiserror::Error)]
+pub enum TaskError {
+    #[error("{path}: cannot read the task: {error}")]
+    Io { path: String, error: std::io::Error },
+    #[error("{origin}: {message}")]
+    Parse { origin: String, message: String },
+    #[error("{origin}: field `{field}`: {problem}")]
+    Invalid { origin: String, field: String, problem: String },
+    #[error("no embedded task named '{name}' (embedded tasks: {known})")]
+    UnknownTask { name: String, known: String },
+}
+
+/// The embedded tasks (Neunert 2017, sec. V), as `(name, TOML text)`.
+pub const EMBEDDED_TASKS: &[(&str, &str)] = &[("squat_jump", include_str!("../../tasks/squat_jump.toml"))];
+
+impl TaskSpec {
+    /// Parses TOML text; `origin` (a path or `embedded task NAME`) goes into errors.
+    pub fn from_toml(text: &str, origin: &str) -> Result<Self, TaskError> {
+        let spec: TaskSpec = toml::from_str(text).map_err(|e| TaskError::Parse { origin: origin.into(), message: e.to_string() })?;
+        spec.check_numbers(origin)?;
+        Ok(spec)
+    }
+
+    /// Reads a task file.
+    pub fn load_file(path: impl AsRef<std::path::Path>) -> Result<Self, TaskError> {
+        let path = path.as_ref();
+        let name = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|error| TaskError::Io { path: name.clone(), error })?;
+        Self::from_toml(&text, &name)
+    }
+
+    /// An embedded task by name.
+    pub fn embedded(name: &str) -> Result<Self, TaskError> {
+        let (_, text) = EMBEDDED_TASKS.iter().find(|(n, _)| *n == name).ok_or_else(|| TaskError::UnknownTask {
+            name: name.into(),
+            known: EMBEDDED_TASKS.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "),
+        })?;
+        Self::from_toml(text, &format!("embedded task {name}"))
+    }
+
+    /// Number of knots.
+    pub fn knots(&self) -> usize {
+        (self.duration / self.dt).round() as usize
+    }
+
+    fn check_numbers(&self, origin: &str) -> Result<(), TaskError> {
+        let bad = |field: String, problem: String| Err(TaskError::Invalid { origin: origin.into(), field, problem });
+        if !(self.duration.is_finite() && self.duration > 0.0) {
+            return bad("duration".into(), format!("expected a positive number of seconds, got {}", self.duration));
+        }
+        if !(self.dt.is_finite() && self.dt > 0.0 && self.dt <= self.duration) {
+            return bad("dt".into(), format!("expected a positive time step no longer than the duration, got {}", self.dt));
+        }
+        if self.iterations == Some(0) {
+            return bad("iterations".into(), "expected at least 1".into());
+        }
+        if let Some(c) = &self.contact {
+            c.validate().map_err(|e| TaskError::Invalid { origin: origin.into(), field: format!("contact.{}", e.field), problem: format!("expected {}, got {}", e.expected, e.value) })?;
+        }
+        if !(self.input.weight.is_finite() && self.input.weight >= 0.0) {
+            return bad("input.weight".into(), format!("expected a finite number >= 0, got {}", self.input.weight));
+        }
+        check_weights(&self.running, "running", origin)?;
+        check_weights(&self.terminal, "final", origin)?;
+        for (i, w) in self.waypoints.iter().enumerate() {
+            if !(w.time.is_finite() && w.time >= 0.0 && w.time <= self.duration) {
+                return bad(format!("waypoint[{i}].time"), format!("expected a time within [0, duration = {}] s, got {}", self.duration, w.time));
+            }
+            if !(w.rho.is_finite() && w.rho > 0.0) {
+                return bad(format!("waypoint[{i}].rho"), format!("expected a positive precision (1/s^2), got {}", w.rho));
+            }
+            check_weights(&w.weights, &format!("waypoint[{i}].weights"), origin)?;
+        }
+        Ok(())
+    }
+
+    /// The optimal-control problem for `model` on `terrain` from `initial`.
+    pub fn problem<'a>(&self, model: &'a Model, terrain: &'a dyn Terrain, initial: RobotState, origin: &str) -> Result<WholeBodyProblem<'a>, TaskError> {
+        let stance = model.reference_configuration("standing").cloned().unwrap_or_else(|| model.neutral());
+        let running_desired = desired_state(&self.desired, model, &initial, &stance, origin, "desired")?;
+        let running = StateCost { q: running_desired.0.clone(), v: running_desired.1.clone(), weights: weights(&self.running, model, origin, "running")? };
+        let terminal = StateCost { q: running_desired.0, v: running_desired.1, weights: weights(&self.terminal, model, origin, "final")? };
+        let mut waypoints = Vec::new();
+        for (i, w) in self.waypoints.iter().enumerate() {
+            // A waypoint's desired state starts from the task's desired state.
+            let merged = merge(&self.desired, &w.desired);
+            let (q, v) = desired_state(&merged, model, &initial, &stance, origin, &format!("waypoint[{i}].desired"))?;
+            waypoints.push(Waypoint { time: w.time, rho: w.rho, cost: StateCost { q, v, weights: weights(&w.weights, model, origin, &format!("waypoint[{i}].weights"))? } });
+        }
+        let nu = model.nv - 6;
+        Ok(WholeBodyProblem {
+            model,
+            terrain,
+            contact: self.contact.unwrap_or_default(),
+            dt: self.dt,
+            knots: self.knots(),
+            initial,
+            running,
+            terminal,
+            input_weights: DVector::from_element(nu, self.input.weight),
+            input_desired: DVector::zeros(nu),
+            waypoints,
+        })
+    }
+}
+
+/// A waypoint's desired state: its own fields over the task's.
+fn merge(base: &DesiredSpec, over: &DesiredSpec) -> DesiredSpec {
+    DesiredSpec {
+        base_position: over.base_position.clone().or_else(|| base.base_position.clone()),
+        base_rpy: over.base_rpy.clone().or_else(|| base.base_rpy.clone()),
+        joints: over.joints.clone().or_else(|| base.joints.clone()),
+        base_linear_velocity: over.base_linear_velocity.or(base.base_linear_velocity),
+        base_angular_velocity: over.base_angular_velocity.or(base.base_angular_velocity),
+        joint_velocities: over.joint_velocities.or(base.joint_velocities),
+    }
+}
+
+fn check_weights(w: &WeightSpec, section: &str, origin: &str) -> Result<(), TaskError> {
+    let bad = |field: &str, value: f64| Err(TaskError::Invalid { origin: origin.into(), field: format!("{section}.{field}"), problem: format!("expected finite weights >= 0, got {value}") });
+    for (field, values) in [("base_position", w.base_position), ("base_orientation", w.base_orientation), ("base_linear_velocity", w.base_linear_velocity), ("base_angular_velocity", w.base_angular_velocity)] {
+        if let Some(v) = values {
+            if let Some(x) = v.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
+                return bad(field, *x);
+            }
+        }
+    }
+    for (field, values) in [("joint_position", &w.joint_position), ("joint_velocity", &w.joint_velocity)] {
+        let numbers: Vec<f64> = match values {
+            Some(JointWeights::All(x)) => vec![*x],
+            Some(JointWeights::Table(t)) => t.values().copied().collect(),
+            None => vec![],
+        };
+        if let Some(x) = numbers.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
+            return bad(field, *x);
+        }
+    }
+    Ok(())
+}
+
+/// `pattern` with at most one `*` matches `name`.
+fn matches(pattern: &str, name: &str) -> bool {
+    match pattern.split_once('*') {
+        None => pattern == name,
+        Some((pre, post)) => name.len() >= pre.len() + post.len() && name.starts_with(pre) && name.ends_with(post),
+    }
+}
+
+/// The one-degree-of-freedom joints.
+fn joints(model: &Model) -> impl Iterator<Item = &crate::model::Joint> {
+    model.joints.iter().filter(|j| matches!(j.kind, JointKind::Revolute { .. } | JointKind::Prismatic { .. }))
+}
+
+/// Applies a name-pattern table to `out` (indexed by `index(joint)`); every pattern must
+/// match some joint.
+fn apply_table(table: &BTreeMap<String, f64>, model: &Model, origin: &str, field: &str, mut set: impl FnMut(&crate::model::Joint, f64)) -> Result<(), TaskError> {
+    for (pattern, value) in table {
+        if !value.is_finite() {
+            return Err(TaskError::Invalid { origin: origin.into(), field: format!("{field}.{pattern}"), problem: format!("expected a finite number, got {value}") });
+        }
+        let mut any = false;
+        for j in joints(model).filter(|j| matches(pattern, &j.name)) {
+            set(j, *value);
+            any = true;
+        }
+        if !any {
+            let names: Vec<&str> = joints(model).map(|j| j.name.as_str()).collect();
+            return Err(TaskError::Invalid {
+                origin: origin.into(),
+                field: format!("{field}.{pattern}"),
+                problem: format!("matches no joint of robot '{}' (its joints: {})", model.name, names.join(", ")),
+            });
+        }
+    }
+    Ok(())
+}
+
+fn coordinate(c: &Coordinate, start: f64, origin: &str, field: String) -> Result<f64, TaskError> {
+    match c {
+        Coordinate::Value(x) if x.is_finite() => Ok(*x),
+        Coordinate::Keyword(k) if k == "start" => Ok(start),
+        other => Err(TaskError::Invalid { origin: origin.into(), field, problem: format!("expected a finite number or \"start\", got {other:?}") }),
+    }
+}
+
+/// The desired `(q, v)` of a spec.
+fn desired_state(spec: &DesiredSpec, model: &Model, initial: &RobotState, stance: &DVector<f64>, origin: &str, section: &str) -> Result<(DVector<f64>, DVector<f64>), TaskError> {
+    let mut q = stance.clone();
+    let start = &initial.q;
+    for i in 0..3 {
+        q[i] = match &spec.base_position {
+            Some(p) => coordinate(&p[i], start[i], origin, format!("{section}.base_position[{i}]"))?,
+            None => start[i],
+        };
+    }
+    let start_rpy = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(start[6], start[3], start[4], start[5])).euler_angles();
+    let start_rpy = [start_rpy.0, start_rpy.1, start_rpy.2];
+    let mut rpy = [0.0; 3];
+    if let Some(r) = &spec.base_rpy {
+        for i in 0..3 {
+            rpy[i] = coordinate(&r[i], start_rpy[i], origin, format!("{section}.base_rpy[{i}]"))?;
+        }
+    }
+    let quat = UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]);
+    q[3] = quat.i;
+    q[4] = quat.j;
+    q[5] = quat.k;
+    q[6] = quat.w;
+    match &spec.joints {
+        None => {}
+        Some(JointValues::Keyword(k)) if k == "stance" => {}
+        Some(JointValues::Keyword(k)) if k == "start" => {
+            for j in joints(model) {
+                q[j.idx_q] = start[j.idx_q];
+            }
+        }
+        Some(JointValues::Keyword(k)) => {
+            return Err(TaskError::Invalid { origin: origin.into(), field: format!("{section}.joints"), problem: format!("expected \"stance\", \"start\" or a table of joint angles, got \"{k}\"") });
+        }
+        Some(JointValues::Table(t)) => apply_table(t, model, origin, &format!("{section}.joints"), |j, x| q[j.idx_q] = x)?,
+    }
+    let mut v = DVector::zeros(model.nv);
+    for (offset, values) in [(0, spec.base_linear_velocity), (3, spec.base_angular_velocity)] {
+        if let Some(x) = values {
+            for i in 0..3 {
+                v[offset + i] = x[i];
+            }
+        }
+    }
+    if let Some(x) = spec.joint_velocities {
+        for j in joints(model) {
+            v[j.idx_v] = x;
+        }
+    }
+    if !v.iter().all(|x| x.is_finite()) {
+        return Err(TaskError::Invalid { origin: origin.into(), field: format!("{section}.velocities"), problem: "expected finite numbers".into() });
+    }
+    Ok((q, v))
+}
+
+/// The diagonal weights of a spec (`2 nv`, in [`super::StateDeviation`]'s order).
+fn weights(spec: &WeightSpec, model: &Model, origin: &str, section: &str) -> Result<DVector<f64>, TaskError> {
+    let nv = model.nv;
+    let mut w = DVector::zeros(2 * nv);
+    for (offset, values) in [(0, spec.base_position), (3, spec.base_orientation), (nv, spec.base_linear_velocity), (nv + 3, spec.base_angular_velocity)] {
+        if let Some(x) = values {
+            for i in 0..3 {
+                w[offset + i] = x[i];
+            }
+        }
+    }
+    for (offset, values, field) in [(0, &spec.joint_position, "joint_position"), (nv, &spec.joint_velocity, "joint_velocity")] {
+        match values {
+            None => {}
+            Some(JointWeights::All(x)) => {
+                for j in joints(model) {
+                    w[offset + j.idx_v] = *x;
+                }
+            }
+            Some(JointWeights::Table(t)) => apply_table(t, model, origin, &format!("{section}.{field}"), |j, x| w[offset + j.idx_v] = x)?,
+        }
+    }
+    Ok(w)
+}

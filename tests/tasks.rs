@@ -1,0 +1,119 @@
+//! Task files (parsing, named errors) and the embedded tasks' targets (Neunert 2017,
+//! sec. V), solved in full: each embedded task so far solves in about two seconds.
+
+use legwork::model::embedded;
+use legwork::ocp::{settled_stance, solve_task, Rerun, SolveOptions, TaskSpec, EMBEDDED_TASKS};
+use legwork::terrain::Plane;
+
+const MINIMAL: &str = r#"
+name = "shift"
+summary = "move the base 5 cm forward"
+robot = "hyq"
+duration = 0.5
+dt = 0.002
+[desired]
+base_position = [0.05, "start", "start"]
+joints = { "*_kfe_joint" = -1.4, "lh_kfe_joint" = 1.4 }
+[running]
+base_position = [100.0, 100.0, 100.0]
+joint_position = { "*_hfe_joint" = 2.0 }
+[final]
+base_position = [1000.0, 1000.0, 1000.0]
+[input]
+weight = 1e-4
+"#;
+
+#[test]
+fn a_task_file_becomes_a_problem() {
+    let spec = TaskSpec::from_toml(MINIMAL, "shift.toml").unwrap();
+    assert_eq!(spec.knots(), 250);
+    let model = embedded::load("hyq").unwrap();
+    let ground = Plane::flat(0.0);
+    let initial = settled_stance(&model, &ground, spec.contact.unwrap_or_default(), 0.3).unwrap();
+    let p = spec.problem(&model, &ground, initial.clone(), "shift.toml").unwrap();
+    // base x absolute, y and z from the start
+    assert_eq!(p.running.q[0], 0.05);
+    assert_eq!(p.running.q[1], initial.q[1]);
+    assert_eq!(p.running.q[2], initial.q[2]);
+    // joint patterns: every knee at -1.4 except lh at +1.4 (the later, more specific entry
+    // is applied after the wildcard in name order: "*_kfe_joint" < "lh_kfe_joint")
+    let kfe = |name: &str| p.running.q[model.q_index(name).unwrap()];
+    assert_eq!(kfe("lf_kfe_joint"), -1.4);
+    assert_eq!(kfe("lh_kfe_joint"), 1.4);
+    // weights: HFE joints 2, others 0
+    let w = |name: &str| p.running.weights[model.v_index(name).unwrap()];
+    assert_eq!(w("rh_hfe_joint"), 2.0);
+    assert_eq!(w("rh_haa_joint"), 0.0);
+    assert_eq!(&p.terminal.weights.as_slice()[..3], &[1000.0; 3]);
+}
+
+#[test]
+fn bad_task_files_are_named() {
+    let cases = [
+        (MINIMAL.replace("dt = 0.002", "dt = 0.002\ncolour = 1"), vec!["shift.toml", "colour"]),
+        (MINIMAL.replace("\"lh_kfe_joint\" = 1.4", "\"lh_elbow\" = 1.4"), vec!["shift.toml", "desired.joints.lh_elbow", "matches no joint"]),
+        (MINIMAL.replace("[100.0, 100.0, 100.0]", "[100.0, -1.0, 100.0]"), vec!["running.base_position", ">= 0"]),
+        (MINIMAL.replace("duration = 0.5", "duration = -0.5"), vec!["`duration`"]),
+        (MINIMAL.replace("[0.05, \"start\", \"start\"]", "[0.05, \"begin\", \"start\"]"), vec!["desired.base_position[1]", "\"start\""]),
+        (MINIMAL.replace("[input]", "[contact]\nalpha = 0.0\n[input]"), vec!["contact.alpha"]),
+        (format!("{MINIMAL}\n[[waypoint]]\ntime = 9.0\nrho = 10.0\nweights = {{}}\n"), vec!["waypoint[0].time"]),
+    ];
+    let model = embedded::load("hyq").unwrap();
+    let ground = Plane::flat(0.0);
+    let initial = settled_stance(&model, &ground, Default::default(), 0.05).unwrap();
+    for (text, needles) in cases {
+        let err = match TaskSpec::from_toml(&text, "shift.toml") {
+            Err(e) => e.to_string(),
+            Ok(spec) => spec.problem(&model, &ground, initial.clone(), "shift.toml").err().expect("should be refused").to_string(),
+        };
+        for n in &needles {
+            assert!(err.contains(n), "error should mention {n:?}: {err}");
+        }
+    }
+    assert!(TaskSpec::embedded("moonwalk").unwrap_err().to_string().contains("squat_jump"));
+}
+
+#[test]
+fn every_embedded_task_parses_and_names_itself() {
+    assert!(!EMBEDDED_TASKS.is_empty());
+    for (name, _) in EMBEDDED_TASKS {
+        let spec = TaskSpec::embedded(name).unwrap();
+        assert_eq!(&spec.name, name);
+        // No contacts, gaits or timings in a task: the format has no field for them, and the
+        // text does not smuggle them in as comments-turned-fields either.
+        let text = EMBEDDED_TASKS.iter().find(|(n, _)| n == name).unwrap().1;
+        for word in ["contact_schedule", "gait", "stance_phase", "swing"] {
+            assert!(!text.lines().filter(|l| !l.trim_start().starts_with('#')).any(|l| l.contains(word)), "{name} mentions {word}");
+        }
+    }
+}
+
+#[test]
+fn squat_jump_reaches_its_apex_with_a_flight_phase() {
+    let spec = TaskSpec::embedded("squat_jump").unwrap();
+    let model = embedded::load("hyq").unwrap();
+    let ground = Plane::flat(0.0);
+    let run = solve_task(&spec, &model, &ground, "squat_jump", &SolveOptions { threads: 2, max_iterations: None }, |_| {}).unwrap();
+    let plan = &run.plan_metrics;
+    eprintln!(
+        "squat_jump: {} iterations ({:?}), apex {:.4} m at {:.3} s, flight {:.3} s",
+        run.solution.iterations.len(),
+        run.solution.termination,
+        plan.apex_base_height,
+        plan.apex_time,
+        plan.flight_time
+    );
+    // Neunert 2017: apex 0.8004 m; target 0.80 +- 0.01 m with all four feet off the ground.
+    assert!((plan.apex_base_height - 0.80).abs() <= 0.01, "apex {}", plan.apex_base_height);
+    assert!(plan.flight_time > 0.1, "flight {} s", plan.flight_time);
+    // Back down in the default stance.
+    assert!(plan.final_base_position[0].abs() < 0.02 && plan.final_base_position[1].abs() < 0.02);
+    // The tracking controller reproduces it within twice the tolerance.
+    match &run.tracking_rerun {
+        Rerun::Completed { metrics, .. } => {
+            assert!((metrics.apex_base_height - 0.80).abs() <= 0.02, "tracking apex {}", metrics.apex_base_height);
+            assert!(metrics.flight_time > 0.1);
+        }
+        Rerun::Failed { reason } => panic!("tracking re-run failed: {reason}"),
+    }
+}
