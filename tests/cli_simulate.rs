@@ -65,3 +65,19 @@ fn bad_simulate_input_is_refused_with_a_named_error() {
         assert!(err.contains(needle) && !err.contains("panicked"), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn tasks_lists_the_embedded_tasks_and_bench_slq_reports_json() {
+    let o = legwork(&["tasks"]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(text(&o.stdout).lines().any(|l| l.starts_with("squat_jump ")));
+    // Structure only: the numbers are timings, checked by the benchmark itself, not here.
+    let o = legwork(&["bench", "slq", "--json", "--iterations", "1"]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(report["scaling"].as_array().unwrap().len(), 6);
+    assert!(report["linear_fit"]["r_squared"].is_number());
+    assert_eq!(report["tasks"].as_array().unwrap().len(), legwork::ocp::EMBEDDED_TASKS.len());
+    let o = legwork(&["solve", "no_such_task"]);
+    assert!(!o.status.success() && text(&o.stderr).contains("no embedded task named 'no_such_task'"));
+}

@@ -1,6 +1,7 @@
 //! Command-line interface (clap derive). One module per command group; errors are
 //! `anyhow` here, at the edge, and printed with their causes.
 
+mod bench;
 mod robot;
 mod simulate;
 mod solve;
@@ -29,6 +30,9 @@ enum Command {
     Solve(solve::SolveArgs),
     /// List the embedded tasks.
     Tasks,
+    /// Benchmarks: the SLQ solver's speed and the embedded tasks.
+    #[command(subcommand)]
+    Bench(bench::BenchCommand),
     /// Replay a trajectory: write a self-contained HTML page (3D robot, plots) and,
     /// optionally, static SVG plots.
     View(view::ViewArgs),
@@ -42,6 +46,7 @@ pub fn main() -> ExitCode {
         Command::Simulate(args) => simulate::run(args),
         Command::Solve(args) => solve::run(args),
         Command::Tasks => solve::list(),
+        Command::Bench(cmd) => bench::run(cmd),
         Command::View(args) => view::run(args),
     };
     match result {
