@@ -2,7 +2,7 @@
 //! sec. V), solved in full: each embedded task so far solves in about two seconds.
 
 use legwork::model::embedded;
-use legwork::ocp::{settled_stance, solve_task, Rerun, SolveOptions, TaskSpec, EMBEDDED_TASKS};
+use legwork::ocp::{settled_stance, solve_task, Rerun, Snapshot, SolveOptions, TaskRun, TaskSpec, EMBEDDED_TASKS};
 use legwork::terrain::Plane;
 
 const MINIMAL: &str = r#"
@@ -116,4 +116,45 @@ fn squat_jump_reaches_its_apex_with_a_flight_phase() {
         }
         Rerun::Failed { reason } => panic!("tracking re-run failed: {reason}"),
     }
+}
+
+fn solve(name: &str) -> (TaskSpec, TaskRun) {
+    let spec = TaskSpec::embedded(name).unwrap();
+    let model = embedded::load(&spec.robot).unwrap();
+    let run = solve_task(&spec, &model, &Plane::flat(0.0), name, &SolveOptions { threads: 2, max_iterations: None }, |_| {}).unwrap();
+    (spec, run)
+}
+
+/// The plan and the tracking-controller re-run at the task's waypoint.
+fn at_waypoint(spec: &TaskSpec, run: &TaskRun) -> (Snapshot, Snapshot) {
+    let t = spec.waypoints[0].time;
+    let tracking = match &run.tracking_rerun {
+        Rerun::Completed { trajectory, .. } => Snapshot::at(trajectory, t),
+        Rerun::Failed { reason } => panic!("{}: tracking re-run failed: {reason}", spec.name),
+    };
+    (Snapshot::at(&run.plan, t), tracking)
+}
+
+#[test]
+fn rearing_pitches_30_degrees_on_the_hind_feet() {
+    let (spec, run) = solve("rearing");
+    let (plan, tracking) = at_waypoint(&spec, &run);
+    eprintln!("rearing: plan {plan:?}\n         tracking {tracking:?}");
+    // Target: pitch 30 +- 3 deg (nose up: negative about y) with the hind feet down and
+    // the front feet up; the closed-loop re-run within twice the tolerance.
+    assert!((plan.base_rpy_deg[1] + 30.0).abs() <= 3.0, "pitch {}", plan.base_rpy_deg[1]);
+    assert_eq!(plan.in_contact, vec![false, false, true, true]);
+    assert!((tracking.base_rpy_deg[1] + 30.0).abs() <= 6.0, "tracking pitch {}", tracking.base_rpy_deg[1]);
+    assert_eq!(tracking.in_contact, vec![false, false, true, true]);
+}
+
+#[test]
+fn diagonal_balance_lifts_the_left_front_and_right_hind_feet() {
+    let (spec, run) = solve("diagonal_balance");
+    let (plan, tracking) = at_waypoint(&spec, &run);
+    eprintln!("diagonal_balance: plan {plan:?}\n                  tracking {tracking:?}");
+    // LF (0) and RH (3) off the ground at the waypoint, RF and LH carrying the robot.
+    assert_eq!(plan.in_contact, vec![false, true, true, false]);
+    assert_eq!(tracking.in_contact, vec![false, true, true, false]);
+    assert!(plan.base_rpy_deg[0].abs() < 5.0 && plan.base_rpy_deg[1].abs() < 5.0);
 }

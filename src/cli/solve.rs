@@ -3,7 +3,7 @@
 use anyhow::{Context, Result};
 use clap::Args;
 use legwork::model::embedded;
-use legwork::ocp::{solve_task, MotionMetrics, Rerun, SolveOptions, TaskSpec, EMBEDDED_TASKS};
+use legwork::ocp::{solve_task, MotionMetrics, Rerun, Snapshot, SolveOptions, TaskSpec, EMBEDDED_TASKS};
 use legwork::terrain::Plane;
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -47,6 +47,13 @@ pub fn list() -> Result<()> {
 
 fn metrics_json(m: &MotionMetrics) -> serde_json::Value {
     serde_json::to_value(m).unwrap_or(serde_json::Value::Null)
+}
+
+fn rerun_traj(r: &Rerun) -> Option<&legwork::io::Trajectory> {
+    match r {
+        Rerun::Completed { trajectory, .. } => Some(trajectory.as_ref()),
+        Rerun::Failed { .. } => None,
+    }
 }
 
 fn rerun_json(r: &Rerun) -> serde_json::Value {
@@ -121,9 +128,23 @@ pub fn run(args: SolveArgs) -> Result<()> {
     row("final yaw [deg]", &|m| format!("{:.1}", m.final_base_rpy_deg[2]));
     row("apex height [m]", &|m| format!("{:.4}", m.apex_base_height));
     row("apex pitch [deg]", &|m| format!("{:.1}", m.apex_pitch_deg));
+    row("feet down at apex", &|m| m.apex_in_contact.iter().map(|&c| if c { "1" } else { "0" }).collect::<String>());
     row("flight time [s]", &|m| format!("{:.3}", m.flight_time));
     row("lift-offs per foot", &|m| m.liftoffs.iter().map(|l| l.to_string()).collect::<Vec<_>>().join("/"));
     row("diagonal correlation", &|m| m.diagonal_correlation.iter().map(|c| c.map_or("-".into(), |c| format!("{c:.2}"))).collect::<Vec<_>>().join("/"));
+    for w in &spec.waypoints {
+        let show = |traj: Option<&legwork::io::Trajectory>| {
+            traj.map_or("failed".to_string(), |traj| {
+                let s = Snapshot::at(traj, w.time);
+                let feet: String = s.in_contact.iter().map(|&c| if c { '1' } else { '0' }).collect();
+                format!("z {:.3}, rpy ({:.1}, {:.1}, {:.1}), feet {feet}", s.base_position[2], s.base_rpy_deg[0], s.base_rpy_deg[1], s.base_rpy_deg[2])
+            })
+        };
+        println!("  at the waypoint t = {:.2} s:", w.time);
+        println!("    plan                {}", show(Some(&traj)));
+        println!("    SLQ policy          {}", show(rerun_traj(&run.policy_rerun)));
+        println!("    tracking ctrl       {}", show(rerun_traj(&run.tracking_rerun)));
+    }
     for (name, r) in [("SLQ policy re-run", &run.policy_rerun), ("tracking-controller re-run", &run.tracking_rerun)] {
         if let Rerun::Failed { reason } = r {
             println!("  {name} failed: {reason}");

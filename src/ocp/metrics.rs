@@ -17,6 +17,8 @@ pub struct MotionMetrics {
     pub apex_time: f64,
     /// Base pitch at the apex (deg).
     pub apex_pitch_deg: f64,
+    /// Which feet touch the ground at the apex.
+    pub apex_in_contact: Vec<bool>,
     /// Total time with all feet off the ground (s).
     pub flight_time: f64,
     /// Per foot: how many times it left the ground.
@@ -31,6 +33,23 @@ pub struct MotionMetrics {
 fn rpy(q: &[f64]) -> [f64; 3] {
     let (r, p, y) = UnitQuaternion::from_quaternion(Quaternion::new(q[6], q[3], q[4], q[5])).euler_angles();
     [r.to_degrees(), p.to_degrees(), y.to_degrees()]
+}
+
+/// The state of a trajectory at one time (the knot nearest to it).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Snapshot {
+    pub t: f64,
+    pub base_position: [f64; 3],
+    pub base_rpy_deg: [f64; 3],
+    pub in_contact: Vec<bool>,
+}
+
+impl Snapshot {
+    /// The knot of `traj` nearest to `t`.
+    pub fn at(traj: &Trajectory, t: f64) -> Self {
+        let knot = traj.knots.iter().min_by(|a, b| (a.t - t).abs().total_cmp(&(b.t - t).abs())).expect("a trajectory has knots (validated)");
+        Self { t: knot.t, base_position: [knot.q[0], knot.q[1], knot.q[2]], base_rpy_deg: rpy(&knot.q), in_contact: knot.in_contact.clone() }
+    }
 }
 
 /// Pearson correlation of two 0/1 sequences.
@@ -75,6 +94,7 @@ impl MotionMetrics {
             apex_base_height: apex.q[2],
             apex_time: apex.t,
             apex_pitch_deg: rpy(&apex.q)[1],
+            apex_in_contact: apex.in_contact.clone(),
             flight_time,
             liftoffs,
             duty_factor: in_contact.iter().map(|&c| c as f64 / knots.len() as f64).collect(),

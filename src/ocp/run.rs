@@ -51,7 +51,8 @@ pub struct TaskRun {
     /// The optimized motion, with feedback gains.
     pub plan: Trajectory,
     pub plan_metrics: MotionMetrics,
-    /// (a) The SLQ policy re-run in the simulator (2 kHz physics, policy at 1 kHz).
+    /// (a) The SLQ policy re-run in the simulator (2 kHz physics; the policy held over each
+    /// knot interval, the zero-order hold its gains were computed for).
     pub policy_rerun: Rerun,
     /// (b) The tracking controller (Neunert 2017, sec. IV-B) at 1 kHz on the plan.
     pub tracking_rerun: Rerun,
@@ -142,8 +143,9 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     // Closed loop: the simulator's own rates, the task's contact model.
     let config = SimConfig { contact, ..SimConfig::default() };
     let duration = problem.knots as f64 * problem.dt;
-    let rerun = |controller: &mut dyn Controller, what: &'static str| -> Result<Rerun, SolveError> {
-        let mut sim = Simulator::new(model, terrain, config.clone(), initial.q.clone(), Some(initial.v.clone())).map_err(|source| SolveError::ClosedLoop { what, source })?;
+    let rerun = |controller: &mut dyn Controller, what: &'static str, control_dt: f64| -> Result<Rerun, SolveError> {
+        let config = SimConfig { control_dt, record_dt: control_dt.min(config.record_dt), ..config.clone() };
+        let mut sim = Simulator::new(model, terrain, config, initial.q.clone(), Some(initial.v.clone())).map_err(|source| SolveError::ClosedLoop { what, source })?;
         Ok(match sim.run(duration, controller, |_| {}) {
             Ok(run) => {
                 let mut trajectory = run.trajectory;
@@ -155,9 +157,11 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
             Err(e) => Rerun::Failed { reason: e.to_string() },
         })
     };
-    let policy_rerun = rerun(&mut SlqPolicyController::new(&problem, &solution), "SLQ policy re-run")?;
+    // The SLQ gains are those of a discrete-time regulator for a zero-order hold over dt:
+    // apply them at that rate. The tracking controller runs at 1 kHz.
+    let policy_rerun = rerun(&mut SlqPolicyController::new(&problem, &solution), "SLQ policy re-run", problem.dt)?;
     let mut tracking = TrackingController::with_default_gains(model, &plan, config.control_dt)?;
-    let tracking_rerun = rerun(&mut tracking, "tracking-controller re-run")?;
+    let tracking_rerun = rerun(&mut tracking, "tracking-controller re-run", config.control_dt)?;
     let plan_metrics = MotionMetrics::of(&plan);
     Ok(TaskRun { plan, plan_metrics, policy_rerun, tracking_rerun, solution })
 }

@@ -152,7 +152,11 @@ pub enum TaskError {
 }
 
 /// The embedded tasks (Neunert 2017, sec. V), as `(name, TOML text)`.
-pub const EMBEDDED_TASKS: &[(&str, &str)] = &[("squat_jump", include_str!("../../tasks/squat_jump.toml"))];
+pub const EMBEDDED_TASKS: &[(&str, &str)] = &[
+    ("squat_jump", include_str!("../../tasks/squat_jump.toml")),
+    ("rearing", include_str!("../../tasks/rearing.toml")),
+    ("diagonal_balance", include_str!("../../tasks/diagonal_balance.toml")),
+];
 
 impl TaskSpec {
     /// Parses TOML text; `origin` (a path or `embedded task NAME`) goes into errors.
