@@ -43,8 +43,8 @@ fn hyq_shifts_its_base_forward() {
         dt,
         knots: 500,
         initial: RobotState { q: start.q.clone(), v: start.v.clone(), anchors: start.anchors.clone() },
-        running: StateCost { q: target.clone(), v: DVector::zeros(nv), weights: running },
-        terminal: StateCost { q: target.clone(), v: DVector::zeros(nv), weights: terminal },
+        running: StateCost { q: target.clone(), v: DVector::zeros(nv), weights: running, feet: vec![] },
+        terminal: StateCost { q: target.clone(), v: DVector::zeros(nv), weights: terminal, feet: vec![] },
         input_weights: DVector::from_element(nv - 6, 1e-4),
         input_desired: DVector::zeros(nv - 6),
         waypoints: vec![],
@@ -98,4 +98,61 @@ fn hyq_shifts_its_base_forward() {
     );
     assert!(largest > 1e-3, "the kick should move the robot off the plan ({largest} m), or the check proves nothing");
     assert!((x.q[0] - target[0]).abs() < 0.01 && err.rows(0, 3).norm() < 0.005);
+}
+
+#[test]
+fn cost_gradient_with_foot_targets_matches_finite_differences() {
+    use legwork::ocp::{FootTarget, Waypoint};
+    use legwork::slq::KnotDerivatives;
+    use nalgebra::Vector3;
+    let model = embedded::load("a1").unwrap();
+    let ground = Plane::flat(0.0);
+    let initial = legwork::ocp::settled_stance(&model, &ground, Default::default(), 0.2).unwrap();
+    let nv = model.nv;
+    let mut target = initial.q.clone();
+    target[0] += 0.1;
+    target[8] += 0.3;
+    let weights = DVector::from_fn(2 * nv, |i, _| 1.0 + 0.1 * i as f64);
+    let feet = vec![
+        FootTarget { foot: 0, position: Vector3::new(0.3, 0.15, 0.1), weights: Vector3::new(100.0, 50.0, 200.0) },
+        FootTarget { foot: 3, position: Vector3::new(-0.2, -0.1, 0.0), weights: Vector3::new(10.0, 10.0, 10.0) },
+    ];
+    let cost = StateCost { q: target.clone(), v: DVector::from_element(nv, 0.1), weights, feet };
+    let problem = WholeBodyProblem {
+        model: &model,
+        terrain: &ground,
+        contact: Default::default(),
+        dt: 0.002,
+        knots: 10,
+        initial: initial.clone(),
+        running: cost.clone(),
+        terminal: cost.clone(),
+        input_weights: DVector::from_element(nv - 6, 1e-3),
+        input_desired: DVector::zeros(nv - 6),
+        waypoints: vec![Waypoint { time: 0.004, rho: 1e4, cost }],
+    };
+    let mut ws = problem.workspace();
+    let mut x = initial.clone();
+    x.v = DVector::from_fn(nv, |i, _| 0.05 * (i as f64).sin());
+    let u = DVector::from_fn(nv - 6, |i, _| i as f64 - 4.0);
+    let mut next = x.clone();
+    let mut d = KnotDerivatives::zeros(2 * nv, nv - 6);
+    problem.step_with_derivatives(&mut ws, 2, &x, &u, &mut next, &mut d);
+    let h = 1e-6;
+    for k in 0..2 * nv {
+        let mut dx = DVector::zeros(nv);
+        let (mut plus, mut minus) = (x.clone(), x.clone());
+        if k < nv {
+            dx[k] = h;
+            legwork::dynamics::integrate(&model, &x.q, &dx, &mut plus.q);
+            legwork::dynamics::integrate(&model, &x.q, &(-&dx), &mut minus.q);
+        } else {
+            plus.v[k - nv] += h;
+            minus.v[k - nv] -= h;
+        }
+        let fp = problem.step(&mut ws, 2, &plus, &u, &mut next);
+        let fm = problem.step(&mut ws, 2, &minus, &u, &mut next);
+        let numeric = (fp - fm) / (2.0 * h);
+        assert!((numeric - d.l_x[k]).abs() < 1e-5 * (1.0 + numeric.abs()), "l_x[{k}]: {} vs {numeric}", d.l_x[k]);
+    }
 }

@@ -127,12 +127,13 @@ fn solve(name: &str) -> (TaskSpec, TaskRun) {
 
 /// The plan and the tracking-controller re-run at the task's waypoint.
 fn at_waypoint(spec: &TaskSpec, run: &TaskRun) -> (Snapshot, Snapshot) {
+    let model = embedded::load(&spec.robot).unwrap();
     let t = spec.waypoints[0].time;
     let tracking = match &run.tracking_rerun {
-        Rerun::Completed { trajectory, .. } => Snapshot::at(trajectory, t),
+        Rerun::Completed { trajectory, .. } => Snapshot::at(&model, trajectory, t),
         Rerun::Failed { reason } => panic!("{}: tracking re-run failed: {reason}", spec.name),
     };
-    (Snapshot::at(&run.plan, t), tracking)
+    (Snapshot::at(&model, &run.plan, t), tracking)
 }
 
 #[test]
@@ -157,4 +158,30 @@ fn diagonal_balance_lifts_the_left_front_and_right_hind_feet() {
     assert_eq!(plan.in_contact, vec![false, true, true, false]);
     assert_eq!(tracking.in_contact, vec![false, true, true, false]);
     assert!(plan.base_rpy_deg[0].abs() < 5.0 && plan.base_rpy_deg[1].abs() < 5.0);
+}
+
+#[test]
+fn pallet_push_reaches_the_push_point_on_three_feet() {
+    let (spec, run) = solve("pallet_push");
+    let (plan, tracking) = at_waypoint(&spec, &run);
+    // y is "start": the foot's own lateral position at the first knot.
+    let model = embedded::load(&spec.robot).unwrap();
+    let start = Snapshot::at(&model, &run.plan, 0.0);
+    let target = [0.65, start.feet[0][1], 0.2];
+    let miss = |s: &Snapshot| (0..3).map(|i| (s.feet[0][i] - target[i]).powi(2)).sum::<f64>().sqrt();
+    eprintln!("pallet_push: front-left foot {:?} (miss {:.1} mm), tracking {:?} (miss {:.1} mm)", plan.feet[0], miss(&plan) * 1e3, tracking.feet[0], miss(&tracking) * 1e3);
+    assert!(miss(&plan) < 0.03, "plan misses the push point by {} m", miss(&plan));
+    assert!(miss(&tracking) < 0.06, "tracking misses the push point by {} m", miss(&tracking));
+    // The three other feet stay on the ground (at least 99 % of the knots).
+    let traj = match &run.tracking_rerun {
+        Rerun::Completed { trajectory, .. } => trajectory.as_ref(),
+        Rerun::Failed { reason } => panic!("tracking re-run failed: {reason}"),
+    };
+    for t in [&run.plan, traj] {
+        for foot in 1..4 {
+            let down = t.knots.iter().filter(|k| k.in_contact[foot]).count() as f64 / t.knots.len() as f64;
+            assert!(down >= 0.99, "foot {foot} down only {down} of the time in {}", t.metadata.scenario);
+        }
+    }
+    assert!(!plan.in_contact[0] && plan.in_contact[1..].iter().all(|&c| c));
 }

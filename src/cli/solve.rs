@@ -135,9 +135,10 @@ pub fn run(args: SolveArgs) -> Result<()> {
     for w in &spec.waypoints {
         let show = |traj: Option<&legwork::io::Trajectory>| {
             traj.map_or("failed".to_string(), |traj| {
-                let s = Snapshot::at(traj, w.time);
+                let s = Snapshot::at(&model, traj, w.time);
                 let feet: String = s.in_contact.iter().map(|&c| if c { '1' } else { '0' }).collect();
-                format!("z {:.3}, rpy ({:.1}, {:.1}, {:.1}), feet {feet}", s.base_position[2], s.base_rpy_deg[0], s.base_rpy_deg[1], s.base_rpy_deg[2])
+                let foot_positions: Vec<String> = s.feet.iter().map(|p| format!("({:.2}, {:.2}, {:.2})", p[0], p[1], p[2])).collect();
+                format!("z {:.3}, rpy ({:.1}, {:.1}, {:.1}), feet down {feet} at {}", s.base_position[2], s.base_rpy_deg[0], s.base_rpy_deg[1], s.base_rpy_deg[2], foot_positions.join(" "))
             })
         };
         println!("  at the waypoint t = {:.2} s:", w.time);

@@ -1,7 +1,10 @@
 //! Figures of a motion that the targets of the paper's tasks are stated in: where the base
 //! ended, how high it went, when feet were off the ground, which feet moved together.
 
+use crate::dynamics::{forward_kinematics, Data};
 use crate::io::Trajectory;
+use crate::model::Model;
+use nalgebra::DVector;
 use nalgebra::{Quaternion, UnitQuaternion};
 use serde::Serialize;
 
@@ -42,13 +45,26 @@ pub struct Snapshot {
     pub base_position: [f64; 3],
     pub base_rpy_deg: [f64; 3],
     pub in_contact: Vec<bool>,
+    /// World positions of the foot-sphere centres, in `Model::feet` order.
+    pub feet: Vec<[f64; 3]>,
 }
 
 impl Snapshot {
-    /// The knot of `traj` nearest to `t`.
-    pub fn at(traj: &Trajectory, t: f64) -> Self {
+    /// The knot of `traj` (a motion of `model`) nearest to `t`.
+    pub fn at(model: &Model, traj: &Trajectory, t: f64) -> Self {
         let knot = traj.knots.iter().min_by(|a, b| (a.t - t).abs().total_cmp(&(b.t - t).abs())).expect("a trajectory has knots (validated)");
-        Self { t: knot.t, base_position: [knot.q[0], knot.q[1], knot.q[2]], base_rpy_deg: rpy(&knot.q), in_contact: knot.in_contact.clone() }
+        let mut data = Data::new(model);
+        let q = DVector::from_column_slice(&knot.q);
+        forward_kinematics(model, &mut data, &q);
+        let feet = model
+            .feet
+            .iter()
+            .map(|f| {
+                let frame = &model.frames[f.frame];
+                data.o_m_i[frame.parent_joint].act_point(&frame.placement.translation).into()
+            })
+            .collect();
+        Self { t: knot.t, base_position: [knot.q[0], knot.q[1], knot.q[2]], base_rpy_deg: rpy(&knot.q), in_contact: knot.in_contact.clone(), feet }
     }
 }
 

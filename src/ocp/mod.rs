@@ -59,7 +59,8 @@ pub fn settled_stance(model: &Model, terrain: &dyn Terrain, contact: ContactPara
     Ok(RobotState { q: s.q.clone(), v: s.v.clone(), anchors: s.anchors.clone() })
 }
 
-/// A quadratic cost on the deviation from a desired state: `xb^T diag(weights) xb`.
+/// A quadratic cost on the deviation from a desired state, `xb^T diag(weights) xb`, plus
+/// foot position targets `sum_f (p_f - p_f*)^T diag(w_f) (p_f - p_f*)`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StateCost {
     /// The desired configuration (`nq`) and velocity (`nv`).
@@ -67,6 +68,17 @@ pub struct StateCost {
     pub v: DVector<f64>,
     /// Diagonal weights on the deviation coordinates (`2 nv`, see [`StateDeviation`]).
     pub weights: DVector<f64>,
+    /// Targets for feet (world positions of the foot-sphere centres).
+    pub feet: Vec<FootTarget>,
+}
+
+/// A desired world position of a foot (index into `Model::feet`), weighted per axis.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FootTarget {
+    /// Index into `Model::feet`.
+    pub foot: usize,
+    pub position: Vector3<f64>,
+    pub weights: Vector3<f64>,
 }
 
 /// A waypoint of eq. (5): a state cost active around `time`, with a Gaussian window of
@@ -115,6 +127,8 @@ pub struct WholeBodyWorkspace<'a> {
     we: DVector<f64>,
     jac: DMatrix<f64>,
     wj: DMatrix<f64>,
+    kinematics: crate::dynamics::Data,
+    frame_jac: nalgebra::Matrix6xX<f64>,
 }
 
 impl<'a> WholeBodyProblem<'a> {
@@ -122,10 +136,49 @@ impl<'a> WholeBodyProblem<'a> {
         self.model.nv - 6
     }
 
-    /// `sum over costs of weight * xb^T W xb` (no derivatives).
+    /// `scale (xb^T W xb + foot terms)` (no derivatives).
     fn state_cost(&self, ws: &mut WholeBodyWorkspace<'a>, cost: &StateCost, scale: f64, x: &RobotState) -> f64 {
         ws.deviation.evaluate(self.model, (&x.q, &x.v), (&cost.q, &cost.v), &mut ws.e, None);
-        scale * ws.e.iter().zip(cost.weights.iter()).map(|(e, w)| w * e * e).sum::<f64>()
+        let mut c = ws.e.iter().zip(cost.weights.iter()).map(|(e, w)| w * e * e).sum::<f64>();
+        if !cost.feet.is_empty() {
+            crate::dynamics::forward_kinematics(self.model, &mut ws.kinematics, &x.q);
+            for target in &cost.feet {
+                let e = self.foot_position(ws, target.foot) - target.position;
+                c += e.component_mul(&target.weights).dot(&e);
+            }
+        }
+        scale * c
+    }
+
+    /// World position of foot `f` after forward kinematics in `ws.kinematics`.
+    fn foot_position(&self, ws: &WholeBodyWorkspace<'a>, f: usize) -> Vector3<f64> {
+        let frame = &self.model.frames[self.model.feet[f].frame];
+        ws.kinematics.o_m_i[frame.parent_joint].act_point(&frame.placement.translation)
+    }
+
+    /// Adds the foot terms' Gauss-Newton derivatives: `e = p_f - p*`, `J` the foot's
+    /// world-aligned linear Jacobian (`d p_f / d dq`): `l_x += 2 s J^T W e`,
+    /// `l_xx += 2 s J^T W J` (configuration block).
+    fn add_foot_cost_derivatives(&self, ws: &mut WholeBodyWorkspace<'a>, cost: &StateCost, scale: f64, x: &RobotState, l_x: &mut DVector<f64>, l_xx: &mut DMatrix<f64>) -> f64 {
+        if cost.feet.is_empty() {
+            return 0.0;
+        }
+        let nv = self.model.nv;
+        crate::dynamics::compute_joint_jacobians(self.model, &mut ws.kinematics, &x.q);
+        let mut c = 0.0;
+        for target in &cost.feet {
+            let e = self.foot_position(ws, target.foot) - target.position;
+            c += e.component_mul(&target.weights).dot(&e);
+            crate::dynamics::frame_jacobian(self.model, &ws.kinematics, self.model.feet[target.foot].frame, crate::dynamics::ReferenceFrame::LocalWorldAligned, &mut ws.frame_jac);
+            let jac = ws.frame_jac.fixed_rows::<3>(0);
+            let we = e.component_mul(&target.weights);
+            l_x.rows_mut(0, nv).gemv_tr(2.0 * scale, &jac, &we, 1.0);
+            for (r, w) in target.weights.iter().enumerate() {
+                let row = jac.row(r);
+                l_xx.view_mut((0, 0), (nv, nv)).ger(2.0 * scale * w, &row.transpose(), &row.transpose(), 1.0);
+            }
+        }
+        scale * c
     }
 
     /// Adds `scale xb^T W xb` and its Gauss-Newton derivatives to `(l_x, l_xx)`.
@@ -142,7 +195,7 @@ impl<'a> WholeBodyProblem<'a> {
         // l_x += 2 s E^T W e; l_xx += 2 s E^T W E
         l_x.gemv_tr(2.0 * scale, &ws.jac, &ws.we, 1.0);
         l_xx.gemm_tr(2.0 * scale, &ws.jac, &ws.wj, 1.0);
-        scale * ws.e.dot(&ws.we)
+        scale * ws.e.dot(&ws.we) + self.add_foot_cost_derivatives(ws, cost, scale, x, l_x, l_xx)
     }
 
     fn running_cost(&self, ws: &mut WholeBodyWorkspace<'a>, k: usize, x: &RobotState, u: &DVector<f64>) -> f64 {
@@ -184,6 +237,8 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             we: DVector::zeros(2 * nv),
             jac: DMatrix::zeros(2 * nv, 2 * nv),
             wj: DMatrix::zeros(2 * nv, 2 * nv),
+            kinematics: crate::dynamics::Data::new(model),
+            frame_jac: nalgebra::Matrix6xX::zeros(nv),
         }
     }
     fn initial_state(&self) -> RobotState {

@@ -84,6 +84,8 @@ pub struct DesiredSpec {
     pub base_linear_velocity: Option<[f64; 3]>,
     pub base_angular_velocity: Option<[f64; 3]>,
     pub joint_velocities: Option<f64>,
+    /// Foot positions (world, m) by foot name; `"start"` = the foot's initial coordinate.
+    pub feet: Option<BTreeMap<String, [Coordinate; 3]>>,
 }
 
 /// Weights per coordinate group; absent = 0.
@@ -96,6 +98,9 @@ pub struct WeightSpec {
     pub base_linear_velocity: Option<[f64; 3]>,
     pub base_angular_velocity: Option<[f64; 3]>,
     pub joint_velocity: Option<JointWeights>,
+    /// Weights on foot positions (x, y, z) by foot name; a weighted foot without a desired
+    /// position is held where it started.
+    pub feet: Option<BTreeMap<String, [f64; 3]>>,
 }
 
 #[derive(Clone, Debug, PartialEq, Deserialize)]
@@ -156,6 +161,7 @@ pub const EMBEDDED_TASKS: &[(&str, &str)] = &[
     ("squat_jump", include_str!("../../tasks/squat_jump.toml")),
     ("rearing", include_str!("../../tasks/rearing.toml")),
     ("diagonal_balance", include_str!("../../tasks/diagonal_balance.toml")),
+    ("pallet_push", include_str!("../../tasks/pallet_push.toml")),
 ];
 
 impl TaskSpec {
@@ -223,14 +229,26 @@ impl TaskSpec {
     pub fn problem<'a>(&self, model: &'a Model, terrain: &'a dyn Terrain, initial: RobotState, origin: &str) -> Result<WholeBodyProblem<'a>, TaskError> {
         let stance = model.reference_configuration("standing").cloned().unwrap_or_else(|| model.neutral());
         let running_desired = desired_state(&self.desired, model, &initial, &stance, origin, "desired")?;
-        let running = StateCost { q: running_desired.0.clone(), v: running_desired.1.clone(), weights: weights(&self.running, model, origin, "running")? };
-        let terminal = StateCost { q: running_desired.0, v: running_desired.1, weights: weights(&self.terminal, model, origin, "final")? };
+        let running = StateCost {
+            q: running_desired.0.clone(),
+            v: running_desired.1.clone(),
+            weights: weights(&self.running, model, origin, "running")?,
+            feet: foot_targets(&self.desired, &self.running, model, &initial, origin, "running")?,
+        };
+        let terminal = StateCost {
+            q: running_desired.0,
+            v: running_desired.1,
+            weights: weights(&self.terminal, model, origin, "final")?,
+            feet: foot_targets(&self.desired, &self.terminal, model, &initial, origin, "final")?,
+        };
         let mut waypoints = Vec::new();
         for (i, w) in self.waypoints.iter().enumerate() {
             // A waypoint's desired state starts from the task's desired state.
             let merged = merge(&self.desired, &w.desired);
             let (q, v) = desired_state(&merged, model, &initial, &stance, origin, &format!("waypoint[{i}].desired"))?;
-            waypoints.push(Waypoint { time: w.time, rho: w.rho, cost: StateCost { q, v, weights: weights(&w.weights, model, origin, &format!("waypoint[{i}].weights"))? } });
+            let section = format!("waypoint[{i}]");
+            let cost = StateCost { q, v, weights: weights(&w.weights, model, origin, &format!("{section}.weights"))?, feet: foot_targets(&merged, &w.weights, model, &initial, origin, &section)? };
+            waypoints.push(Waypoint { time: w.time, rho: w.rho, cost });
         }
         let nu = model.nv - 6;
         Ok(WholeBodyProblem {
@@ -258,6 +276,7 @@ fn merge(base: &DesiredSpec, over: &DesiredSpec) -> DesiredSpec {
         base_linear_velocity: over.base_linear_velocity.or(base.base_linear_velocity),
         base_angular_velocity: over.base_angular_velocity.or(base.base_angular_velocity),
         joint_velocities: over.joint_velocities.or(base.joint_velocities),
+        feet: over.feet.clone().or_else(|| base.feet.clone()),
     }
 }
 
@@ -381,6 +400,42 @@ fn desired_state(spec: &DesiredSpec, model: &Model, initial: &RobotState, stance
         return Err(TaskError::Invalid { origin: origin.into(), field: format!("{section}.velocities"), problem: "expected finite numbers".into() });
     }
     Ok((q, v))
+}
+
+/// Foot targets: every foot with weights, at its desired position (or where it started).
+fn foot_targets(desired: &DesiredSpec, w: &WeightSpec, model: &Model, initial: &RobotState, origin: &str, section: &str) -> Result<Vec<super::FootTarget>, TaskError> {
+    let mut data = crate::dynamics::Data::new(model);
+    crate::dynamics::forward_kinematics(model, &mut data, &initial.q);
+    let foot_index = |name: &str, field: String| {
+        model.feet.iter().position(|f| f.name == name).ok_or_else(|| TaskError::Invalid {
+            origin: origin.into(),
+            field,
+            problem: format!("robot '{}' has no foot '{name}' (its feet: {})", model.name, model.feet.iter().map(|f| f.name.as_str()).collect::<Vec<_>>().join(", ")),
+        })
+    };
+    if let Some(d) = &desired.feet {
+        for name in d.keys() {
+            foot_index(name, format!("{section}.desired.feet.{name}"))?;
+        }
+    }
+    let mut targets = Vec::new();
+    for (name, weights) in w.feet.iter().flatten() {
+        let field = format!("{section}.weights.feet.{name}");
+        let foot = foot_index(name, field.clone())?;
+        if let Some(x) = weights.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
+            return Err(TaskError::Invalid { origin: origin.into(), field, problem: format!("expected finite weights >= 0, got {x}") });
+        }
+        let frame = &model.frames[model.feet[foot].frame];
+        let start = data.o_m_i[frame.parent_joint].act_point(&frame.placement.translation);
+        let mut position = start;
+        if let Some(coords) = desired.feet.as_ref().and_then(|d| d.get(name)) {
+            for i in 0..3 {
+                position[i] = coordinate(&coords[i], start[i], origin, format!("{section}.desired.feet.{name}[{i}]"))?;
+            }
+        }
+        targets.push(super::FootTarget { foot, position, weights: nalgebra::Vector3::from(*weights) });
+    }
+    Ok(targets)
 }
 
 /// The diagonal weights of a spec (`2 nv`, in [`super::StateDeviation`]'s order).

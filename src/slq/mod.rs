@@ -43,6 +43,9 @@ pub struct SlqSettings {
     pub min_regularization: f64,
     /// Regularization above which the backward pass gives up (1e10).
     pub max_regularization: f64,
+    /// A small `||l||` counts as convergence only if the step was this little regularized
+    /// (1e-6): a large `mu` shrinks `l = -(H + mu I)^-1 g` without the gradient vanishing.
+    pub convergence_regularization: f64,
     /// Threads for the linearization (0 = rayon's default: one per core).
     pub threads: usize,
 }
@@ -58,6 +61,7 @@ impl Default for SlqSettings {
             initial_regularization: 1e-8,
             min_regularization: 1e-10,
             max_regularization: 1e10,
+            convergence_regularization: 1e-6,
             threads: 0,
         }
     }
@@ -395,6 +399,7 @@ impl<'p, P: Problem> Slq<'p, P> {
                 break;
             }
             let feedforward_norm = self.feedforward_norm();
+            let small_step = feedforward_norm < self.settings.feedforward_tolerance && self.regularization <= self.settings.convergence_regularization;
             let t = Instant::now();
             let accepted = self.line_search(cost);
             timing.line_search = t.elapsed().as_secs_f64();
@@ -404,8 +409,8 @@ impl<'p, P: Problem> Slq<'p, P> {
             iterations.push(log);
             if accepted.is_none() {
                 // Nothing better along this direction: more regularization next time (a
-                // shorter, more gradient-like step), unless the step was already negligible.
-                if feedforward_norm < self.settings.feedforward_tolerance {
+                // shorter, more gradient-like step), unless the Newton step was negligible.
+                if small_step {
                     termination = Termination::Converged;
                     break;
                 }
@@ -420,7 +425,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             cost = new_cost;
             cost_history.push(cost);
             self.regularization = (self.regularization / 10.0).max(self.settings.min_regularization);
-            if feedforward_norm < self.settings.feedforward_tolerance {
+            if small_step {
                 termination = Termination::Converged;
                 break;
             }
