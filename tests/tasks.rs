@@ -185,3 +185,30 @@ fn pallet_push_reaches_the_push_point_on_three_feet() {
     }
     assert!(!plan.in_contact[0] && plan.in_contact[1..].iter().all(|&c| c));
 }
+
+fn tracking_metrics<'r>(run: &'r TaskRun) -> &'r legwork::ocp::MotionMetrics {
+    run.tracking_rerun.metrics().unwrap_or_else(|| panic!("tracking re-run failed"))
+}
+
+#[test]
+fn turn_reaches_45_degrees_in_place() {
+    let (_, run) = solve("turn");
+    let (plan, tracking) = (&run.plan_metrics, tracking_metrics(&run));
+    eprintln!("turn: yaw {:.2} deg (tracking {:.2}), lift-offs {:?}", plan.final_base_rpy_deg[2], tracking.final_base_rpy_deg[2], plan.liftoffs);
+    assert!((plan.final_base_rpy_deg[2] - 45.0).abs() <= 5.0);
+    assert!((tracking.final_base_rpy_deg[2] - 45.0).abs() <= 10.0);
+    assert!(plan.final_base_position[0].hypot(plan.final_base_position[1]) < 0.05);
+    // It stepped: every foot left the ground at least once.
+    assert!(plan.liftoffs.iter().all(|&n| n >= 1), "{:?}", plan.liftoffs);
+}
+
+#[test]
+fn sidestep_reaches_30_cm_to_the_left() {
+    let (_, run) = solve("sidestep");
+    let (plan, tracking) = (&run.plan_metrics, tracking_metrics(&run));
+    eprintln!("sidestep: y {:.3} m (tracking {:.3}), lift-offs {:?}", plan.final_base_position[1], tracking.final_base_position[1], plan.liftoffs);
+    assert!((plan.final_base_position[1] - 0.3).abs() <= 0.05);
+    assert!((tracking.final_base_position[1] - 0.3).abs() <= 0.10);
+    assert!(plan.final_base_rpy_deg[2].abs() < 5.0);
+    assert!(plan.liftoffs.iter().all(|&n| n >= 1), "{:?}", plan.liftoffs);
+}

@@ -162,6 +162,8 @@ pub const EMBEDDED_TASKS: &[(&str, &str)] = &[
     ("rearing", include_str!("../../tasks/rearing.toml")),
     ("diagonal_balance", include_str!("../../tasks/diagonal_balance.toml")),
     ("pallet_push", include_str!("../../tasks/pallet_push.toml")),
+    ("sidestep", include_str!("../../tasks/sidestep.toml")),
+    ("turn", include_str!("../../tasks/turn.toml")),
 ];
 
 impl TaskSpec {
