@@ -131,6 +131,7 @@ pub fn run(args: SolveArgs) -> Result<()> {
     row("feet down at apex", &|m| m.apex_in_contact.iter().map(|&c| if c { "1" } else { "0" }).collect::<String>());
     row("flight time [s]", &|m| format!("{:.3}", m.flight_time));
     row("lift-offs per foot", &|m| m.liftoffs.iter().map(|l| l.to_string()).collect::<Vec<_>>().join("/"));
+    row("foot slide [mm]", &|m| m.slide.iter().map(|s| format!("{:.0}", s * 1e3)).collect::<Vec<_>>().join("/"));
     row("diagonal correlation", &|m| m.diagonal_correlation.iter().map(|c| c.map_or("-".into(), |c| format!("{c:.2}"))).collect::<Vec<_>>().join("/"));
     for w in &spec.waypoints {
         let show = |traj: Option<&legwork::io::Trajectory>| {

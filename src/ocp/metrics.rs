@@ -28,6 +28,10 @@ pub struct MotionMetrics {
     pub liftoffs: Vec<usize>,
     /// Per foot: fraction of the time in contact.
     pub duty_factor: Vec<f64>,
+    /// Per foot: how far it slid on the ground while loaded (load above 10 % of its share of
+    /// the weight): the net horizontal displacement from touch-down to lift-off, summed over
+    /// its loaded phases (m). Zero for feet that never slip.
+    pub slide: Vec<f64>,
     /// Correlation of the contact flags of the diagonal pairs (first with fourth foot, second
     /// with third: LF-RH and RF-LH in legwork's leg order), `None` when a foot never changes.
     pub diagonal_correlation: [Option<f64>; 2],
@@ -81,9 +85,21 @@ fn correlation(a: &[f64], b: &[f64]) -> Option<f64> {
     (saa > 0.0 && sbb > 0.0).then(|| sab / (saa * sbb).sqrt())
 }
 
+/// World positions of every foot at every knot.
+fn foot_positions(model: &Model, traj: &Trajectory) -> Vec<Vec<[f64; 3]>> {
+    let mut data = Data::new(model);
+    traj.knots
+        .iter()
+        .map(|k| {
+            forward_kinematics(model, &mut data, &DVector::from_column_slice(&k.q));
+            model.feet.iter().map(|f| data.o_m_i[model.frames[f.frame].parent_joint].act_point(&model.frames[f.frame].placement.translation).into()).collect()
+        })
+        .collect()
+}
+
 impl MotionMetrics {
-    /// The figures of `traj` (at least one knot).
-    pub fn of(traj: &Trajectory) -> Self {
+    /// The figures of `traj`, a motion of `model` (at least one knot).
+    pub fn of(model: &Model, traj: &Trajectory) -> Self {
         let knots = &traj.knots;
         let last = knots.last().expect("a trajectory has knots (validated)");
         let apex = knots.iter().max_by(|a, b| a.q[2].total_cmp(&b.q[2])).unwrap_or(last);
@@ -102,6 +118,25 @@ impl MotionMetrics {
                 flight_time += knots[k + 1].t - knot.t;
             }
         }
+        // Net slide per loaded phase.
+        let feet = foot_positions(model, traj);
+        let loaded_force = 0.1 * model.total_mass() * 9.81 / nfeet.max(1) as f64;
+        let mut slide = vec![0.0; nfeet];
+        for (f, total) in slide.iter_mut().enumerate() {
+            let mut start: Option<usize> = None;
+            for k in 0..=knots.len() {
+                let loaded = k < knots.len() && knots[k].contact_force[f][2] > loaded_force;
+                match (loaded, start) {
+                    (true, None) => start = Some(k),
+                    (false, Some(s)) => {
+                        let (a, b) = (feet[s][f], feet[k - 1][f]);
+                        *total += (b[0] - a[0]).hypot(b[1] - a[1]);
+                        start = None;
+                    }
+                    _ => {}
+                }
+            }
+        }
         let flags = |f: usize| -> Vec<f64> { knots.iter().map(|k| k.in_contact[f] as u8 as f64).collect() };
         let diagonal_correlation = if nfeet == 4 { [correlation(&flags(0), &flags(3)), correlation(&flags(1), &flags(2))] } else { [None, None] };
         Self {
@@ -114,6 +149,7 @@ impl MotionMetrics {
             flight_time,
             liftoffs,
             duty_factor: in_contact.iter().map(|&c| c as f64 / knots.len() as f64).collect(),
+            slide,
             diagonal_correlation,
         }
     }

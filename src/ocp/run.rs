@@ -150,7 +150,7 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
             Ok(run) => {
                 let mut trajectory = run.trajectory;
                 trajectory.metadata.scenario = format!("{what}: {}", spec.name);
-                let metrics = MotionMetrics::of(&trajectory);
+                let metrics = MotionMetrics::of(model, &trajectory);
                 Rerun::Completed { trajectory: Box::new(trajectory), metrics }
             }
             Err(SimError::Diverged { step, t, reason, .. }) => Rerun::Failed { reason: format!("diverged at t = {t:.3} s (step {step}): {reason}") },
@@ -162,6 +162,6 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     let policy_rerun = rerun(&mut SlqPolicyController::new(&problem, &solution), "SLQ policy re-run", problem.dt)?;
     let mut tracking = TrackingController::with_default_gains(model, &plan, config.control_dt)?;
     let tracking_rerun = rerun(&mut tracking, "tracking-controller re-run", config.control_dt)?;
-    let plan_metrics = MotionMetrics::of(&plan);
+    let plan_metrics = MotionMetrics::of(model, &plan);
     Ok(TaskRun { plan, plan_metrics, policy_rerun, tracking_rerun, solution })
 }
