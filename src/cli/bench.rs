@@ -105,13 +105,13 @@ fn slq(as_json: bool, threads: usize, iterations: usize) -> Result<()> {
         "tasks": tasks,
     });
     if as_json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        say!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
-    println!("SLQ time per iteration against knots (HyQ, dt = {} s, {threads_used} threads, {iterations} iterations each):", base.dt);
-    println!("  {:>6} {:>6} {:>12} {:>12} {:>12} {:>12} {:>14}", "T [s]", "knots", "iter [ms]", "linearize", "backward", "line search", "us/knot/iter");
+    say!("SLQ time per iteration against knots (HyQ, dt = {} s, {threads_used} threads, {iterations} iterations each):", base.dt);
+    say!("  {:>6} {:>6} {:>12} {:>12} {:>12} {:>12} {:>14}", "T [s]", "knots", "iter [ms]", "linearize", "backward", "line search", "us/knot/iter");
     for s in &scaling {
-        println!(
+        say!(
             "  {:>6.2} {:>6} {:>12.1} {:>12.1} {:>12.1} {:>12.1} {:>14.1}",
             s["horizon_s"].as_f64().unwrap_or(0.0),
             s["knots"],
@@ -122,10 +122,10 @@ fn slq(as_json: bool, threads: usize, iterations: usize) -> Result<()> {
             s["us_per_knot_per_iteration"].as_f64().unwrap_or(0.0)
         );
     }
-    println!("  linear fit: {intercept:.2} ms + {:.1} us x knots, R^2 = {r2:.4}", slope * 1e3);
-    println!("Embedded tasks solved in full:");
+    say!("  linear fit: {intercept:.2} ms + {:.1} us x knots, R^2 = {r2:.4}", slope * 1e3);
+    say!("Embedded tasks solved in full:");
     for t in &tasks {
-        println!(
+        say!(
             "  {:<14} {:>5} knots  {:>3} iterations ({})  {:>6.2} s  cost {:.4e} -> {:.4e}",
             t["task"].as_str().unwrap_or(""),
             t["knots"],

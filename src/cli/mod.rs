@@ -1,6 +1,28 @@
 //! Command-line interface (clap derive). One module per command group; errors are
 //! `anyhow` here, at the edge, and printed with their causes.
 
+/// `println!` for command output: when standard output is closed early (`legwork tasks |
+/// head`) the command ends quietly with success; any other write error ends it with the
+/// error printed.
+macro_rules! say {
+    ($($arg:tt)*) => {
+        $crate::cli::emit(format_args!($($arg)*))
+    };
+}
+
+/// The body of [`say!`].
+pub(crate) fn emit(args: std::fmt::Arguments) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = out.write_fmt(args).and_then(|_| out.write_all(b"\n")) {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+        eprintln!("error: cannot write to standard output: {e}");
+        std::process::exit(1);
+    }
+}
+
 mod bench;
 mod robot;
 mod simulate;

@@ -172,13 +172,13 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     legwork::viz::write_replay(&model, &traj, &replay_path)?;
     let plots = legwork::viz::write_plots(&traj, args.out.join("plots"))?;
 
-    println!("Simulated {} for {} s with the {} controller ({} physics steps).", model.name, args.duration, controller.name(), stats.steps);
-    println!("  final base height     {:.4} m (standing height {:.4} m, difference {:+.1} mm)", final_height, standing_height, (final_height - standing_height) * 1e3);
-    println!("  horizontal drift      {:.1} mm", drift * 1e3);
-    println!("  max penetration       {:.2} mm", stats.max_penetration * 1e3);
-    println!("  max torque            {:.1} N m", stats.max_torque);
-    println!("  max |F_t| / F_n       {:.3} (friction coefficient {})", stats.max_friction_ratio, config.contact.friction);
-    println!("  speed                 {:.0} steps/s, {:.1}x real time", steps_per_second, args.duration / stats.wall_time);
-    println!("Wrote {}, {}, {} and {} plots in {}", json_path.display(), csv_path.display(), replay_path.display(), plots.len(), args.out.join("plots").display());
+    say!("Simulated {} for {} s with the {} controller ({} physics steps).", model.name, args.duration, controller.name(), stats.steps);
+    say!("  final base height     {:.4} m (standing height {:.4} m, difference {:+.1} mm)", final_height, standing_height, (final_height - standing_height) * 1e3);
+    say!("  horizontal drift      {:.1} mm", drift * 1e3);
+    say!("  max penetration       {:.2} mm", stats.max_penetration * 1e3);
+    say!("  max torque            {:.1} N m", stats.max_torque);
+    say!("  max |F_t| / F_n       {:.3} (friction coefficient {})", stats.max_friction_ratio, config.contact.friction);
+    say!("  speed                 {:.0} steps/s, {:.1}x real time", steps_per_second, args.duration / stats.wall_time);
+    say!("Wrote {}, {}, {} and {} plots in {}", json_path.display(), csv_path.display(), replay_path.display(), plots.len(), args.out.join("plots").display());
     Ok(())
 }

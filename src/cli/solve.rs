@@ -40,7 +40,7 @@ pub fn list() -> Result<()> {
     let width = EMBEDDED_TASKS.iter().map(|(n, _)| n.len()).max().unwrap_or(0);
     for (name, _) in EMBEDDED_TASKS {
         let spec = TaskSpec::embedded(name)?;
-        println!("{name:<width$}  {} ({}, {} s)", spec.summary, spec.robot, spec.duration);
+        say!("{name:<width$}  {} ({}, {} s)", spec.summary, spec.robot, spec.duration);
     }
     Ok(())
 }
@@ -69,12 +69,12 @@ pub fn run(args: SolveArgs) -> Result<()> {
     let model = if embedded::names().contains(&robot.as_str()) && !Path::new(&robot).exists() { embedded::load(&robot)? } else { super::robot::load(&robot)?.0 };
     let terrain = Plane::flat(0.0);
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&spec.name));
-    println!("Solving {} ({}) for {}: {} s, {} knots of {} s", spec.name, spec.summary, model.name, spec.duration, spec.knots(), spec.dt);
+    say!("Solving {} ({}) for {}: {} s, {} knots of {} s", spec.name, spec.summary, model.name, spec.duration, spec.knots(), spec.dt);
     let started = Instant::now();
     let options = SolveOptions { threads: args.threads, max_iterations: args.iterations };
     let run = solve_task(&spec, &model, &terrain, &origin, &options, |log| {
         let t = &log.timing;
-        println!(
+        say!(
             "  iteration {:2}  cost {:11.5e}  step {:<9}  |l| {:9.3e}  {:6.1} ms (linearize {:5.1}, backward {:5.1}, line search {:5.1})",
             log.iteration,
             log.cost,
@@ -119,10 +119,10 @@ pub fn run(args: SolveArgs) -> Result<()> {
     let plots = legwork::viz::write_plots(&traj, out.join("plots"))?;
     legwork::viz::write_cost_plot(&sol.cost_history, &format!("{}: normalized cost per SLQ iteration", spec.name), out.join("plots").join("cost.svg"))?;
 
-    println!("{:?} after {} iterations in {:.2} s (cost {:.4e} -> {:.4e})", sol.termination, sol.iterations.len(), solve_time, sol.cost_history[0], sol.cost_history.last().unwrap_or(&f64::NAN));
-    println!("                         plan      SLQ policy   tracking ctrl");
+    say!("{:?} after {} iterations in {:.2} s (cost {:.4e} -> {:.4e})", sol.termination, sol.iterations.len(), solve_time, sol.cost_history[0], sol.cost_history.last().unwrap_or(&f64::NAN));
+    say!("                         plan      SLQ policy   tracking ctrl");
     let cell = |r: &Rerun, f: &dyn Fn(&MotionMetrics) -> String| r.metrics().map_or("failed".to_string(), f);
-    let row = |name: &str, f: &dyn Fn(&MotionMetrics) -> String| println!("  {name:<22} {:<10} {:<12} {}", f(plan), cell(&run.policy_rerun, f), cell(&run.tracking_rerun, f));
+    let row = |name: &str, f: &dyn Fn(&MotionMetrics) -> String| say!("  {name:<22} {:<10} {:<12} {}", f(plan), cell(&run.policy_rerun, f), cell(&run.tracking_rerun, f));
     row("final base x [m]", &|m| format!("{:.3}", m.final_base_position[0]));
     row("final base y [m]", &|m| format!("{:.3}", m.final_base_position[1]));
     row("final yaw [deg]", &|m| format!("{:.1}", m.final_base_rpy_deg[2]));
@@ -142,16 +142,16 @@ pub fn run(args: SolveArgs) -> Result<()> {
                 format!("z {:.3}, rpy ({:.1}, {:.1}, {:.1}), feet down {feet} at {}", s.base_position[2], s.base_rpy_deg[0], s.base_rpy_deg[1], s.base_rpy_deg[2], foot_positions.join(" "))
             })
         };
-        println!("  at the waypoint t = {:.2} s:", w.time);
-        println!("    plan                {}", show(Some(&traj)));
-        println!("    SLQ policy          {}", show(rerun_traj(&run.policy_rerun)));
-        println!("    tracking ctrl       {}", show(rerun_traj(&run.tracking_rerun)));
+        say!("  at the waypoint t = {:.2} s:", w.time);
+        say!("    plan                {}", show(Some(&traj)));
+        say!("    SLQ policy          {}", show(rerun_traj(&run.policy_rerun)));
+        say!("    tracking ctrl       {}", show(rerun_traj(&run.tracking_rerun)));
     }
     for (name, r) in [("SLQ policy re-run", &run.policy_rerun), ("tracking-controller re-run", &run.tracking_rerun)] {
         if let Rerun::Failed { reason } = r {
-            println!("  {name} failed: {reason}");
+            say!("  {name} failed: {reason}");
         }
     }
-    println!("Wrote {} (trajectory.json, closed-loop re-runs, replay.html, {} plots) in {:.1} s", out.display(), plots.len() + 1, started.elapsed().as_secs_f64());
+    say!("Wrote {} (trajectory.json, closed-loop re-runs, replay.html, {} plots) in {:.1} s", out.display(), plots.len() + 1, started.elapsed().as_secs_f64());
     Ok(())
 }

@@ -41,7 +41,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
     traj.check_against(&model, &origin)?;
     viz::write_replay(&model, &traj, &args.out)?;
     let size = std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0);
-    println!(
+    say!(
         "replay: {} ({:.1} kB): robot {}, '{}', {:.3} s, {} knots",
         args.out.display(),
         size as f64 / 1e3,
@@ -52,9 +52,9 @@ pub fn run(args: ViewArgs) -> Result<()> {
     );
     if let Some(dir) = &args.plots {
         for file in viz::write_plots(&traj, dir)? {
-            println!("plot:   {}", file.display());
+            say!("plot:   {}", file.display());
         }
     }
-    println!("done in {:.2} s; open {} in a web browser (works offline)", started.elapsed().as_secs_f64(), args.out.display());
+    say!("done in {:.2} s; open {} in a web browser (works offline)", started.elapsed().as_secs_f64(), args.out.display());
     Ok(())
 }
