@@ -186,7 +186,7 @@ fn pallet_push_reaches_the_push_point_on_three_feet() {
     assert!(!plan.in_contact[0] && plan.in_contact[1..].iter().all(|&c| c));
 }
 
-fn tracking_metrics<'r>(run: &'r TaskRun) -> &'r legwork::ocp::MotionMetrics {
+fn tracking_metrics(run: &TaskRun) -> &legwork::ocp::MotionMetrics {
     run.tracking_rerun.metrics().unwrap_or_else(|| panic!("tracking re-run failed"))
 }
 

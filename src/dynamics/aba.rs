@@ -57,7 +57,7 @@ fn aba_impl<'d>(
         let jnt = &model.joints[i];
         let p = jnt.parent;
         let li = local_placement(model, data, i, q);
-        let omi = if p > 0 { &data.o_m_i[p] * &li } else { li };
+        let omi = if p > 0 { data.o_m_i[p] * li } else { li };
         let ov_p = if p > 0 { data.ov[p] } else { Motion::zero() };
         let ov = match jnt.kind {
             JointKind::FreeFlyer => {

@@ -7,14 +7,14 @@ use crate::spatial::SE3;
 /// `oMf = oMi[parent] * placement` for every frame. Needs [`super::forward_kinematics`] first.
 pub fn update_frame_placements(model: &Model, data: &mut Data) {
     for (k, fr) in model.frames.iter().enumerate() {
-        data.o_m_f[k] = &data.o_m_i[fr.parent_joint] * &fr.placement;
+        data.o_m_f[k] = data.o_m_i[fr.parent_joint] * fr.placement;
     }
 }
 
 /// World placement of one frame (after forward kinematics); also stored in `data.o_m_f`.
 pub fn frame_placement(model: &Model, data: &mut Data, frame: usize) -> SE3 {
     let fr = &model.frames[frame];
-    let m = &data.o_m_i[fr.parent_joint] * &fr.placement;
+    let m = data.o_m_i[fr.parent_joint] * fr.placement;
     data.o_m_f[frame] = m;
     m
 }

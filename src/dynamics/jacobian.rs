@@ -45,7 +45,7 @@ pub fn compute_joint_jacobians(model: &Model, data: &mut Data, q: &DVector<f64>)
 pub fn frame_jacobian(model: &Model, data: &Data, frame: usize, reference: ReferenceFrame, out: &mut Matrix6xX<f64>) {
     out.fill(0.0);
     let fr = &model.frames[frame];
-    let o_m_f = &data.o_m_i[fr.parent_joint] * &fr.placement;
+    let o_m_f = data.o_m_i[fr.parent_joint] * fr.placement;
     let p = o_m_f.translation;
     let rt = o_m_f.rotation.transpose();
     let mut i = fr.parent_joint;

@@ -71,7 +71,7 @@ pub(crate) fn local_placement(model: &Model, data: &Data, i: usize, q: &DVector<
         }
         _ => {
             let qj = &q.as_slice()[j.idx_q..j.idx_q + j.nq];
-            &j.placement * &joint_transform(&j.kind, qj)
+            j.placement * joint_transform(&j.kind, qj)
         }
     }
 }
@@ -92,7 +92,7 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &DVector<f64>) {
     for i in 1..model.njoints() {
         let li = local_placement(model, data, i, q);
         let p = model.joints[i].parent;
-        data.o_m_i[i] = if p > 0 { &data.o_m_i[p] * &li } else { li };
+        data.o_m_i[i] = if p > 0 { data.o_m_i[p] * li } else { li };
         data.li_m_i[i] = li;
     }
 }
@@ -105,7 +105,7 @@ pub fn forward_kinematics_velocity(model: &Model, data: &mut Data, q: &DVector<f
         let p = model.joints[i].parent;
         let vj = joint_motion(model, i, v);
         if p > 0 {
-            data.o_m_i[i] = &data.o_m_i[p] * &li;
+            data.o_m_i[i] = data.o_m_i[p] * li;
             data.v[i] = li.act_inv(&data.v[p]) + vj;
         } else {
             data.o_m_i[i] = li;

@@ -31,7 +31,7 @@ pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &DVector<f64>, v: &DVector
         data.f[i] = inertia.mul_motion(&ai) + vi.cross_force(&inertia.mul_motion(&vi));
         data.v[i] = vi;
         data.a[i] = ai;
-        data.o_m_i[i] = if p > 0 { &data.o_m_i[p] * &li } else { li };
+        data.o_m_i[i] = if p > 0 { data.o_m_i[p] * li } else { li };
         data.li_m_i[i] = li;
     }
     for i in (1..model.njoints()).rev() {

@@ -96,7 +96,7 @@ pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>
         let aj = joint_motion(model, i, a);
         let (vi, ai, omi) = if p > 0 {
             let vi = li.act_inv(&data.v[p]) + vj;
-            (vi, li.act_inv(&data.a[p]) + aj + vi.cross(&vj), &data.o_m_i[p] * &li)
+            (vi, li.act_inv(&data.a[p]) + aj + vi.cross(&vj), data.o_m_i[p] * li)
         } else {
             (vj, aj + vj.cross(&vj), li)
         };

@@ -189,8 +189,8 @@ mod tests {
             for k in 0..6 {
                 let mut d = Vector6::zeros();
                 d[k] = h;
-                let plus = log6(&(&base_inv * &exp6(&Motion::from_vector(&(m.to_vector() + d))))).to_vector();
-                let minus = log6(&(&base_inv * &exp6(&Motion::from_vector(&(m.to_vector() - d))))).to_vector();
+                let plus = log6(&(base_inv * exp6(&Motion::from_vector(&(m.to_vector() + d))))).to_vector();
+                let minus = log6(&(base_inv * exp6(&Motion::from_vector(&(m.to_vector() - d))))).to_vector();
                 let col = (plus - minus) / (2.0 * h);
                 assert!((col - jr.column(k)).norm() < 1e-8, "column {k} of Jr({m:?}): {col} vs {}", jr.column(k));
             }

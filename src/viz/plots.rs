@@ -243,20 +243,6 @@ fn draw_gait(path: &Path, traj: &Trajectory, phases: &[Vec<(f64, f64)>]) -> Resu
     root.present().map_err(|e| err(&e))
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn ranges_never_collapse() {
-        let r = value_range([2.0, 2.0].iter());
-        assert!(r.start < 2.0 && r.end > 2.0);
-        let r = value_range([].iter());
-        assert_eq!(r, -1.0..1.0);
-        assert_eq!(time_range(&[0.5]), 0.5..0.501);
-    }
-}
-
 /// The convergence figure of Neunert 2017 (Fig. 12): the cost after each optimizer
 /// iteration divided by the initial cost (`costs[0]`, the initial rollout), against the
 /// iteration number, into the SVG file `path`.
@@ -289,4 +275,27 @@ pub fn write_cost_plot(costs: &[f64], title: &str, path: impl AsRef<Path>) -> Re
     chart.draw_series(LineSeries::new(normalized.iter().copied(), PALETTE[0].stroke_width(2))).map_err(|e| err(&e))?;
     chart.draw_series(normalized.iter().map(|&p| Circle::new(p, 3, PALETTE[0].filled()))).map_err(|e| err(&e))?;
     root.present().map_err(|e| err(&e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_never_collapse() {
+        let r = value_range([2.0, 2.0].iter());
+        assert!(r.start < 2.0 && r.end > 2.0);
+        let r = value_range([].iter());
+        assert_eq!(r, -1.0..1.0);
+        assert_eq!(time_range(&[0.5]), 0.5..0.501);
+    }
+
+    #[test]
+    fn cost_plot_is_written_normalized() {
+        let path = std::env::temp_dir().join(format!("legwork-cost-{}.svg", std::process::id()));
+        write_cost_plot(&[200.0, 50.0, 10.0, 9.0], "squat_jump: normalized cost", &path).unwrap();
+        let svg = std::fs::read_to_string(&path).unwrap();
+        assert!(svg.contains("squat_jump: normalized cost") && svg.contains("cost / initial cost") && svg.contains("<circle"));
+        std::fs::remove_file(&path).ok();
+    }
 }
