@@ -35,11 +35,29 @@ use nalgebra::{DMatrix, DVector, Vector3};
 
 /// A state of the optimization: configuration, velocity and the contact anchors (hidden
 /// states, Neunert 2017 sec. III-B).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub struct RobotState {
     pub q: DVector<f64>,
     pub v: DVector<f64>,
     pub anchors: Vec<Option<Vector3<f64>>>,
+}
+
+impl Clone for RobotState {
+    fn clone(&self) -> Self {
+        Self { q: self.q.clone(), v: self.v.clone(), anchors: self.anchors.clone() }
+    }
+    /// Copies into the existing buffers (no allocation when the sizes match): the solver's
+    /// line search and rollouts reuse their states.
+    fn clone_from(&mut self, source: &Self) {
+        if self.q.len() == source.q.len() && self.v.len() == source.v.len() {
+            self.q.copy_from(&source.q);
+            self.v.copy_from(&source.v);
+        } else {
+            self.q = source.q.clone();
+            self.v = source.v.clone();
+        }
+        self.anchors.clone_from(&source.anchors);
+    }
 }
 
 /// The robot standing still on `terrain`: the `standing` pose put on the ground and

@@ -91,12 +91,13 @@ pub struct SlqPolicyController<'p, 'a> {
     solution: &'p SlqSolution<RobotState>,
     dx: DVector<f64>,
     u: DVector<f64>,
+    x: RobotState,
 }
 
 impl<'p, 'a> SlqPolicyController<'p, 'a> {
     pub fn new(problem: &'p WholeBodyProblem<'a>, solution: &'p SlqSolution<RobotState>) -> Self {
         let (nx, nu) = (problem.nx(), problem.nu());
-        Self { problem, solution, dx: DVector::zeros(nx), u: DVector::zeros(nu) }
+        Self { problem, solution, dx: DVector::zeros(nx), u: DVector::zeros(nu), x: problem.initial_state() }
     }
 }
 
@@ -107,8 +108,10 @@ impl Controller for SlqPolicyController<'_, '_> {
     fn compute(&mut self, _model: &Model, state: &SimState, tau: &mut DVector<f64>) -> Result<(), ControlError> {
         let n = self.solution.inputs.len();
         let k = ((state.t / self.problem.dt + 1e-9).floor() as usize).min(n - 1);
-        let x = RobotState { q: state.q.clone(), v: state.v.clone(), anchors: state.anchors.clone() };
-        self.problem.difference(&self.solution.states[k], &x, &mut self.dx);
+        self.x.q.copy_from(&state.q);
+        self.x.v.copy_from(&state.v);
+        self.x.anchors.clone_from(&state.anchors);
+        self.problem.difference(&self.solution.states[k], &self.x, &mut self.dx);
         self.u.copy_from(&self.solution.inputs[k]);
         self.u.gemv(1.0, &self.solution.gains[k], &self.dx, 1.0);
         tau.rows_mut(6, self.u.len()).copy_from(&self.u);

@@ -198,7 +198,7 @@ impl StepDerivatives {
             }
             let body_velocity = sum;
             let is_base = |k: usize| model.joints[model.joint_of_dof[k]].nv == 6;
-            for &j in &self.chain {
+            for (j_pos, &j) in self.chain.iter().enumerate() {
                 let s_j = axis(j, jac);
                 let w_j = if is_base(j) { body_velocity } else { self.partial_velocity[j] };
                 let dp = s_j.v + s_j.w.cross(&p);
@@ -210,7 +210,6 @@ impl StepDerivatives {
                 let df_v = crate::spatial::Force::new(dlambda_v, p.cross(&dlambda_v));
                 // j supports k: k is leafward of j in the chain (the chain lists leaf first,
                 // so at or before j's position), or both are base axes.
-                let j_pos = self.chain.iter().position(|&c| c == j).unwrap_or(0);
                 for (pos, &k) in self.chain.iter().enumerate() {
                     let s_k = axis(k, jac);
                     let mut dq = s_k.dot(&df);

@@ -341,7 +341,7 @@ impl<'p, P: Problem> Slq<'p, P> {
         let mut alpha = 1.0;
         for _ in 0..self.settings.max_line_search_steps {
             let ws = &mut self.workspaces[0];
-            self.trial_states[0] = self.states[0].clone();
+            self.trial_states[0].clone_from(&self.states[0]);
             let mut trial_cost = 0.0;
             let mut valid = true;
             for k in 0..n {
