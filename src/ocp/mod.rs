@@ -144,7 +144,6 @@ pub struct WholeBodyWorkspace<'a> {
     e: DVector<f64>,
     we: DVector<f64>,
     jac: DMatrix<f64>,
-    wj: DMatrix<f64>,
     kinematics: crate::dynamics::Data,
     frame_jac: nalgebra::Matrix6xX<f64>,
 }
@@ -202,17 +201,28 @@ impl<'a> WholeBodyProblem<'a> {
     /// Adds `scale xb^T W xb` and its Gauss-Newton derivatives to `(l_x, l_xx)`.
     fn add_state_cost_derivatives(&self, ws: &mut WholeBodyWorkspace<'a>, cost: &StateCost, scale: f64, x: &RobotState, l_x: &mut DVector<f64>, l_xx: &mut DMatrix<f64>) -> f64 {
         ws.deviation.evaluate(self.model, (&x.q, &x.v), (&cost.q, &cost.v), &mut ws.e, Some(&mut ws.jac));
-        // we = W e; wj = W E
+        // l_x += 2 s E^T W e, l_xx += 2 s E^T W E, using E's structure (StateDeviation):
+        // identity except the 3x3 blocks of the base position (R) and orientation (Jr^-1).
         for i in 0..ws.e.len() {
             ws.we[i] = cost.weights[i] * ws.e[i];
         }
-        ws.wj.copy_from(&ws.jac);
-        for (i, mut row) in ws.wj.row_iter_mut().enumerate() {
-            row *= cost.weights[i];
+        for block in [0usize, 3] {
+            let jb = ws.jac.fixed_view::<3, 3>(block, block).into_owned();
+            let web = nalgebra::Vector3::new(ws.we[block], ws.we[block + 1], ws.we[block + 2]);
+            let w = nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(cost.weights[block], cost.weights[block + 1], cost.weights[block + 2]));
+            let g = jb.transpose() * web * (2.0 * scale);
+            let h = jb.transpose() * w * jb * (2.0 * scale);
+            for r in 0..3 {
+                l_x[block + r] += g[r];
+                for c in 0..3 {
+                    l_xx[(block + r, block + c)] += h[(r, c)];
+                }
+            }
         }
-        // l_x += 2 s E^T W e; l_xx += 2 s E^T W E
-        l_x.gemv_tr(2.0 * scale, &ws.jac, &ws.we, 1.0);
-        l_xx.gemm_tr(2.0 * scale, &ws.jac, &ws.wj, 1.0);
+        for i in 6..ws.e.len() {
+            l_x[i] += 2.0 * scale * ws.we[i];
+            l_xx[(i, i)] += 2.0 * scale * cost.weights[i];
+        }
         scale * ws.e.dot(&ws.we) + self.add_foot_cost_derivatives(ws, cost, scale, x, l_x, l_xx)
     }
 
@@ -254,7 +264,6 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             e: DVector::zeros(2 * nv),
             we: DVector::zeros(2 * nv),
             jac: DMatrix::zeros(2 * nv, 2 * nv),
-            wj: DMatrix::zeros(2 * nv, 2 * nv),
             kinematics: crate::dynamics::Data::new(model),
             frame_jac: nalgebra::Matrix6xX::zeros(nv),
         }

@@ -163,7 +163,6 @@ struct RiccatiScratch {
     q_ux: DMatrix<f64>,
     q_x: DVector<f64>,
     q_u: DVector<f64>,
-    kt_quu: DMatrix<f64>,
     chol: SmallCholesky,
 }
 
@@ -206,7 +205,6 @@ impl<'p, P: Problem> Slq<'p, P> {
                 q_ux: DMatrix::zeros(nu, nx),
                 q_x: DVector::zeros(nx),
                 q_u: DVector::zeros(nu),
-                kt_quu: DMatrix::zeros(nx, nu),
                 chol: SmallCholesky::new(nu),
             },
             dx: DVector::zeros(nx),
@@ -308,15 +306,12 @@ impl<'p, P: Problem> Slq<'p, P> {
                 ff.copy_from(&r.q_u);
                 r.chol.solve_vector_in_place(ff);
                 ff.neg_mut();
-                // P = Q_xx + K^T H K + K^T G + G^T K; p = Q_x + K^T H l + K^T g + G^T l.
-                r.kt_quu.gemm_tr(1.0, gain, &r.q_uu, 0.0);
+                // P = Q_xx + K^T H K + K^T G + G^T K and p = Q_x + K^T H l + K^T g + G^T l;
+                // with K = -H^-1 G and l = -H^-1 g from this same (regularized) H,
+                // K^T H K = -K^T G and K^T H l = -K^T g, so P = Q_xx + G^T K, p = Q_x + G^T l.
                 r.p_mat.copy_from(&r.q_xx);
-                r.p_mat.gemm(1.0, &r.kt_quu, gain, 1.0);
-                r.p_mat.gemm_tr(1.0, gain, &r.q_ux, 1.0);
                 r.p_mat.gemm_tr(1.0, &r.q_ux, gain, 1.0);
                 r.p_vec.copy_from(&r.q_x);
-                r.p_vec.gemv(1.0, &r.kt_quu, ff, 1.0);
-                r.p_vec.gemv_tr(1.0, gain, &r.q_u, 1.0);
                 r.p_vec.gemv_tr(1.0, &r.q_ux, ff, 1.0);
                 // Keep P symmetric against round-off.
                 let nx = r.p_mat.nrows();
