@@ -41,7 +41,7 @@
 //! The contact anchors are hidden states (as in the paper): held over the step.
 
 use super::workspace::ContactModelWorkspace;
-use crate::dynamics::{compute_joint_jacobians, compute_minverse, compute_rnea_derivatives, integrate, integrate_jacobians};
+use crate::dynamics::{compute_joint_jacobians, compute_minverse, compute_rnea_derivatives, integrate_jacobians};
 use crate::model::Model;
 use crate::spatial::Motion;
 use nalgebra::{DMatrix, DVector, Vector3};
@@ -115,18 +115,14 @@ impl StepDerivatives {
         self.dtau_c_dq -= &ws.data.dtau_dq;
         self.dtau_c_dv -= &ws.data.dtau_dv;
         compute_minverse(model, &mut ws.data, q);
-        let minv = &ws.data.minv;
-        self.a_q.gemm(1.0, minv, &self.dtau_c_dq, 0.0);
-        self.a_v.gemm(1.0, minv, &self.dtau_c_dv, 0.0);
+        self.a_q.gemm(1.0, &ws.data.minv, &self.dtau_c_dq, 0.0);
+        self.a_v.gemm(1.0, &ws.data.minv, &self.dtau_c_dv, 0.0);
 
-        // v' = v + dt a, q' = q (+) dt v'.
-        v.axpy(dt, &self.acc, 1.0);
-        ws.step_v.copy_from(v);
-        ws.step_v *= dt;
+        // v' = v + dt a, q' = q (+) dt v' (the simulator's own update), and the Jacobians of
+        // that integrate at dt v'.
+        ws.advance_semi_implicit(q, v, anchors, dt);
         integrate_jacobians(model, &ws.step_v, &mut self.jq, &mut self.jv);
-        integrate(model, q, &ws.step_v, &mut ws.q_next);
-        q.copy_from(&ws.q_next);
-        ws.update_anchors(anchors);
+        let minv = &ws.data.minv;
 
         // Lower rows: dv' = dt a_q dq + (I + dt a_v) dv + dt a_tau du.
         let (dt2, nu) = (dt * dt, self.nu);

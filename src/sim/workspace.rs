@@ -36,7 +36,7 @@ pub struct ContactModelWorkspace<'a> {
     pub(super) dv: [DVector<f64>; 4],
     vs: [DVector<f64>; 4],
     pub(super) step_v: DVector<f64>,
-    pub(super) q_next: DVector<f64>,
+    q_next: DVector<f64>,
 }
 
 impl<'a> ContactModelWorkspace<'a> {
@@ -140,6 +140,13 @@ impl<'a> ContactModelWorkspace<'a> {
         dt: f64,
     ) {
         self.acceleration(q, v, tau, push, 0);
+        self.advance_semi_implicit(q, v, anchors, dt);
+    }
+
+    /// The update of semi-implicit Euler from the acceleration in `dv[0]`: `v' = v + dt qdd`,
+    /// `q' = q (+) dt v'` (`dt v'` is left in `step_v`), then the anchors. Shared by the
+    /// simulator and the step's linearization ([`super::StepDerivatives`]).
+    pub(super) fn advance_semi_implicit(&mut self, q: &mut DVector<f64>, v: &mut DVector<f64>, anchors: &mut [Option<Vector3<f64>>], dt: f64) {
         v.axpy(dt, &self.dv[0], 1.0);
         self.step_v.copy_from(v);
         self.step_v *= dt;
@@ -194,7 +201,7 @@ impl<'a> ContactModelWorkspace<'a> {
         self.update_anchors(anchors);
     }
 
-    pub(super) fn update_anchors(&self, anchors: &mut [Option<Vector3<f64>>]) {
+    fn update_anchors(&self, anchors: &mut [Option<Vector3<f64>>]) {
         for (foot, anchor) in self.feet.iter().zip(anchors.iter_mut()) {
             update_anchor(&self.params, &foot.contact, anchor);
         }
