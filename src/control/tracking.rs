@@ -4,12 +4,12 @@
 //! schedule and mapped to joint torques by `J_c^T`.
 
 use super::joint_pd::PdGains;
-use crate::dynamics::{compute_joint_jacobians, crba, difference, frame_jacobian, integrate, Data, ReferenceFrame};
+use crate::dynamics::{base_orientation, compute_joint_jacobians, crba, difference, frame_jacobian, frame_position, integrate, Data, ReferenceFrame};
 use crate::io::Trajectory;
 use crate::model::Model;
 use crate::sim::{ControlError, Controller, SimState};
 use crate::spatial::{log3, skew};
-use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Matrix6xX, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Matrix6xX, Vector3, Vector6};
 
 /// Gains of the task-space base PD (eq. 12), world frame, diagonal.
 #[derive(Clone, Debug, PartialEq)]
@@ -155,7 +155,7 @@ impl TrackingController {
     /// The base wrench of eq. (12), world frame, about the base origin.
     fn base_wrench(&self, q: &DVector<f64>, v: &DVector<f64>) -> Vector6<f64> {
         let pose = |q: &DVector<f64>| {
-            let r = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[6], q[3], q[4], q[5])).to_rotation_matrix().into_inner();
+            let r = base_orientation(q.as_slice()).to_rotation_matrix().into_inner();
             (Vector3::new(q[0], q[1], q[2]), r)
         };
         let (x, r) = pose(q);
@@ -197,8 +197,7 @@ impl Controller for TrackingController {
             if !self.stance[i] {
                 continue;
             }
-            let fr = &model.frames[foot.frame];
-            let p = self.data.o_m_i[fr.parent_joint].act_point(&fr.placement.translation);
+            let p = frame_position(model, &self.data, foot.frame);
             self.grasp.fixed_view_mut::<3, 3>(0, 3 * i).copy_from(&Matrix3::identity());
             self.grasp.fixed_view_mut::<3, 3>(3, 3 * i).copy_from(&skew(&(p - base)));
         }

@@ -4,6 +4,13 @@ use crate::model::{JointKind, Model};
 use crate::spatial::{exp6, jexp6, log6, Motion, SE3};
 use nalgebra::{DMatrix, DVector, Quaternion, UnitQuaternion, Vector3};
 
+/// Orientation of the free-flyer base in a configuration `q` whose first joint is the free
+/// flyer: `q[3..7]` is its quaternion `(x, y, z, w)` (legwork's and Pinocchio's order).
+#[inline]
+pub fn base_orientation(q: &[f64]) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_quaternion(Quaternion::new(q[6], q[3], q[4], q[5]))
+}
+
 fn base_pose(q: &[f64]) -> SE3 {
     super::kinematics::joint_transform(&JointKind::FreeFlyer, q)
 }

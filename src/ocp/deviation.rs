@@ -1,9 +1,10 @@
 //! The deviation of a state from a desired state in the coordinates people write weights
 //! in, and its Jacobian with respect to the tangent-space state.
 
+use crate::dynamics::base_orientation;
 use crate::model::{JointKind, Model};
 use crate::spatial::{jlog3, log3};
-use nalgebra::{DMatrix, DVector, Matrix3, Quaternion, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 /// `xb = [p - p*; log(R*^T R); q_J - q_J*; v_B - v_B*; w_B - w_B*; qd_J - qd_J*]` (`2 nv`):
 /// base position error in the world frame (m), base orientation error as a rotation vector
@@ -19,7 +20,7 @@ pub struct StateDeviation {
 }
 
 fn base_rotation(q: &DVector<f64>) -> Matrix3<f64> {
-    UnitQuaternion::from_quaternion(Quaternion::new(q[6], q[3], q[4], q[5])).to_rotation_matrix().into_inner()
+    base_orientation(q.as_slice()).to_rotation_matrix().into_inner()
 }
 
 impl StateDeviation {
@@ -65,6 +66,7 @@ mod tests {
     use super::*;
     use crate::dynamics::integrate;
     use crate::model::embedded;
+    use nalgebra::UnitQuaternion;
 
     #[test]
     fn jacobian_matches_finite_differences() {

@@ -1,11 +1,10 @@
 //! Figures of a motion that the targets of the paper's tasks are stated in: where the base
 //! ended, how high it went, when feet were off the ground, which feet moved together.
 
-use crate::dynamics::{forward_kinematics, Data};
+use crate::dynamics::{base_orientation, forward_kinematics, frame_position, Data};
 use crate::io::Trajectory;
 use crate::model::Model;
 use nalgebra::DVector;
-use nalgebra::{Quaternion, UnitQuaternion};
 use serde::Serialize;
 
 /// Figures of one trajectory (a plan or a closed-loop re-run).
@@ -38,7 +37,7 @@ pub struct MotionMetrics {
 }
 
 fn rpy(q: &[f64]) -> [f64; 3] {
-    let (r, p, y) = UnitQuaternion::from_quaternion(Quaternion::new(q[6], q[3], q[4], q[5])).euler_angles();
+    let (r, p, y) = base_orientation(q).euler_angles();
     [r.to_degrees(), p.to_degrees(), y.to_degrees()]
 }
 
@@ -57,17 +56,7 @@ impl Snapshot {
     /// The knot of `traj` (a motion of `model`) nearest to `t`.
     pub fn at(model: &Model, traj: &Trajectory, t: f64) -> Self {
         let knot = traj.knots.iter().min_by(|a, b| (a.t - t).abs().total_cmp(&(b.t - t).abs())).expect("a trajectory has knots (validated)");
-        let mut data = Data::new(model);
-        let q = DVector::from_column_slice(&knot.q);
-        forward_kinematics(model, &mut data, &q);
-        let feet = model
-            .feet
-            .iter()
-            .map(|f| {
-                let frame = &model.frames[f.frame];
-                data.o_m_i[frame.parent_joint].act_point(&frame.placement.translation).into()
-            })
-            .collect();
+        let feet = feet_at(model, &mut Data::new(model), &knot.q);
         Self { t: knot.t, base_position: [knot.q[0], knot.q[1], knot.q[2]], base_rpy_deg: rpy(&knot.q), in_contact: knot.in_contact.clone(), feet }
     }
 }
@@ -85,16 +74,16 @@ fn correlation(a: &[f64], b: &[f64]) -> Option<f64> {
     (saa > 0.0 && sbb > 0.0).then(|| sab / (saa * sbb).sqrt())
 }
 
+/// World positions of the feet (sphere centres, `Model::feet` order) in configuration `q`.
+fn feet_at(model: &Model, data: &mut Data, q: &[f64]) -> Vec<[f64; 3]> {
+    forward_kinematics(model, data, &DVector::from_column_slice(q));
+    model.feet.iter().map(|f| frame_position(model, data, f.frame).into()).collect()
+}
+
 /// World positions of every foot at every knot.
 fn foot_positions(model: &Model, traj: &Trajectory) -> Vec<Vec<[f64; 3]>> {
     let mut data = Data::new(model);
-    traj.knots
-        .iter()
-        .map(|k| {
-            forward_kinematics(model, &mut data, &DVector::from_column_slice(&k.q));
-            model.feet.iter().map(|f| data.o_m_i[model.frames[f.frame].parent_joint].act_point(&model.frames[f.frame].placement.translation).into()).collect()
-        })
-        .collect()
+    traj.knots.iter().map(|k| feet_at(model, &mut data, &k.q)).collect()
 }
 
 impl MotionMetrics {

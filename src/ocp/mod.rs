@@ -169,8 +169,7 @@ impl<'a> WholeBodyProblem<'a> {
 
     /// World position of foot `f` after forward kinematics in `ws.kinematics`.
     fn foot_position(&self, ws: &WholeBodyWorkspace<'a>, f: usize) -> Vector3<f64> {
-        let frame = &self.model.frames[self.model.feet[f].frame];
-        ws.kinematics.o_m_i[frame.parent_joint].act_point(&frame.placement.translation)
+        crate::dynamics::frame_position(self.model, &ws.kinematics, self.model.feet[f].frame)
     }
 
     /// Adds the foot terms' Gauss-Newton derivatives: `e = p_f - p*`, `J` the foot's

@@ -359,7 +359,7 @@ fn desired_state(spec: &DesiredSpec, model: &Model, initial: &RobotState, stance
             None => start[i],
         };
     }
-    let start_rpy = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(start[6], start[3], start[4], start[5])).euler_angles();
+    let start_rpy = crate::dynamics::base_orientation(start.as_slice()).euler_angles();
     let start_rpy = [start_rpy.0, start_rpy.1, start_rpy.2];
     let mut rpy = [0.0; 3];
     if let Some(r) = &spec.base_rpy {
@@ -427,8 +427,7 @@ fn foot_targets(desired: &DesiredSpec, w: &WeightSpec, model: &Model, initial: &
         if let Some(x) = weights.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
             return Err(TaskError::Invalid { origin: origin.into(), field, problem: format!("expected finite weights >= 0, got {x}") });
         }
-        let frame = &model.frames[model.feet[foot].frame];
-        let start = data.o_m_i[frame.parent_joint].act_point(&frame.placement.translation);
+        let start = crate::dynamics::frame_position(model, &data, model.feet[foot].frame);
         let mut position = start;
         if let Some(coords) = desired.feet.as_ref().and_then(|d| d.get(name)) {
             for i in 0..3 {

@@ -115,7 +115,7 @@ impl<'a> ContactModelWorkspace<'a> {
         if push.iter().any(|x| *x != 0.0) {
             let b = 1; // the free-flyer joint
             let iq = self.model.joints[b].idx_q;
-            let quat = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[iq + 6], q[iq + 3], q[iq + 4], q[iq + 5]));
+            let quat = crate::dynamics::base_orientation(&q.as_slice()[iq..]);
             self.f_ext[b].f += quat.inverse_transform_vector(push);
         }
     }

@@ -3,7 +3,7 @@
 //! replay's plots and the SVG figures draw the same [`Panel`]s.
 
 use crate::io::{Knot, Trajectory};
-use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
 /// One named curve, sampled at the panel's times.
 #[derive(Clone, Debug)]
@@ -60,7 +60,7 @@ pub(crate) fn base_rotation(q: &[f64]) -> Matrix3<f64> {
 }
 
 fn base_quaternion(q: &[f64]) -> UnitQuaternion<f64> {
-    UnitQuaternion::from_quaternion(Quaternion::new(q[6], q[3], q[4], q[5]))
+    crate::dynamics::base_orientation(q)
 }
 
 /// Removes the 2 pi jumps of an angle sampled along a motion (a yaw passing pi).
