@@ -87,22 +87,20 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         },
         ..SimConfig::default()
     };
-    let mut controller: Box<dyn Controller> = match (args.controller, &args.reference) {
-        (ControllerKind::Stand, None) => Box::new(JointPd::standing(&model, config.control_dt)?),
+    // The controller, and where the run starts: the standing pose (raised by the drop
+    // height), or the reference's first state when tracking it.
+    let (mut controller, q0, v0): (Box<dyn Controller>, _, _) = match (args.controller, &args.reference) {
+        (ControllerKind::Stand, None) => {
+            (Box::new(JointPd::standing(&model, config.control_dt)?), standing_on_ground(&model, terrain.as_ref(), args.drop_height)?, None)
+        }
         (ControllerKind::Stand, Some(_)) => bail!("--reference is for --controller track"),
         (ControllerKind::Track, None) => bail!("--controller track needs --reference <trajectory.json>"),
         (ControllerKind::Track, Some(path)) => {
             let reference = Trajectory::load_file(path)?;
-            Box::new(TrackingController::with_default_gains(&model, &reference, config.control_dt)?)
-        }
-    };
-    let (q0, v0) = match (args.controller, &args.reference) {
-        (ControllerKind::Track, Some(path)) => {
-            let reference = Trajectory::load_file(path)?;
+            let controller = TrackingController::with_default_gains(&model, &reference, config.control_dt)?;
             let k = &reference.knots[0];
-            (nalgebra::DVector::from_column_slice(&k.q), Some(nalgebra::DVector::from_column_slice(&k.v)))
+            (Box::new(controller), nalgebra::DVector::from_column_slice(&k.q), Some(nalgebra::DVector::from_column_slice(&k.v)))
         }
-        _ => (standing_on_ground(&model, terrain.as_ref(), args.drop_height)?, None),
     };
     let standing_height = standing_on_ground(&model, terrain.as_ref(), 0.0)?[2];
     let mut sim = Simulator::new(&model, terrain.as_ref(), config.clone(), q0.clone(), v0)?;

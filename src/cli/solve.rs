@@ -2,7 +2,6 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
-use legwork::model::embedded;
 use legwork::ocp::{solve_task, MotionMetrics, Rerun, Snapshot, SolveOptions, TaskSpec, EMBEDDED_TASKS};
 use legwork::terrain::Plane;
 use serde_json::json;
@@ -66,7 +65,7 @@ fn rerun_json(r: &Rerun) -> serde_json::Value {
 pub fn run(args: SolveArgs) -> Result<()> {
     let (spec, origin) = load_task(&args.task)?;
     let robot = args.robot.clone().unwrap_or_else(|| spec.robot.clone());
-    let model = if embedded::names().contains(&robot.as_str()) && !Path::new(&robot).exists() { embedded::load(&robot)? } else { super::robot::load(&robot)?.0 };
+    let (model, _) = super::robot::load(&robot)?;
     let terrain = Plane::flat(0.0);
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&spec.name));
     say!("Solving {} ({}) for {}: {} s, {} knots of {} s", spec.name, spec.summary, model.name, spec.duration, spec.knots(), spec.dt);
