@@ -3,7 +3,7 @@
 //! PD feedback controller on all joints and no feedforward control").
 
 use crate::dynamics::{crba, Data};
-use crate::model::{JointKind, Model};
+use crate::model::Model;
 use crate::sim::{ControlError, Controller, SimState};
 use nalgebra::DVector;
 
@@ -38,7 +38,7 @@ impl PdGains {
         let m = crba(model, &mut data, q_ref).clone();
         let mut kp = DVector::zeros(model.nv);
         let mut finite: Vec<f64> = Vec::new();
-        for j in actuated(model) {
+        for j in model.actuated_joints() {
             let e = j.limits.effort[0];
             if e.is_finite() && e > 0.0 {
                 finite.push(e);
@@ -47,7 +47,7 @@ impl PdGains {
         finite.sort_by(|a, b| a.total_cmp(b));
         let fallback = finite.get(finite.len() / 2).copied().unwrap_or(100.0);
         let mut kd = DVector::zeros(model.nv);
-        for j in actuated(model) {
+        for j in model.actuated_joints() {
             let e = j.limits.effort[0];
             let effort = if e.is_finite() && e > 0.0 { e } else { fallback };
             let i = j.idx_v;
@@ -56,11 +56,6 @@ impl PdGains {
         }
         Self { kp, kd }
     }
-}
-
-/// The one-degree-of-freedom joints (the actuated ones).
-fn actuated(model: &Model) -> impl Iterator<Item = &crate::model::Joint> {
-    model.joints.iter().filter(|j| matches!(j.kind, JointKind::Revolute { .. } | JointKind::Prismatic { .. }))
 }
 
 /// `tau_j = kp_j (q*_j - q_j) - kd_j v_j` on every actuated joint, no feedforward.
@@ -111,7 +106,7 @@ impl JointPd {
     /// `tau = kp (q* - q) - kd v` into `tau` (actuated entries only), usable outside a
     /// simulation (for example as the optimizer's initial policy).
     pub fn torques(&self, model: &Model, q: &DVector<f64>, v: &DVector<f64>, tau: &mut DVector<f64>) {
-        for j in actuated(model) {
+        for j in model.actuated_joints() {
             let (iq, iv) = (j.idx_q, j.idx_v);
             tau[iv] = self.gains.kp[iv] * (self.target[iq] - q[iq]) - self.gains.kd[iv] * v[iv];
         }
@@ -122,7 +117,7 @@ impl JointPd {
     /// The same torques for the actuated joints only (`u`, length `nv - 6`, in `v` order
     /// after the free-flyer base): the optimizer's input vector.
     pub fn actuated_torques(&self, model: &Model, q: &DVector<f64>, v: &DVector<f64>, u: &mut DVector<f64>) {
-        for j in actuated(model) {
+        for j in model.actuated_joints() {
             let (iq, iv) = (j.idx_q, j.idx_v);
             u[iv - 6] = self.gains.kp[iv] * (self.target[iq] - q[iq]) - self.gains.kd[iv] * v[iv];
         }

@@ -181,7 +181,7 @@ impl Controller for TrackingController {
         self.sample(model, state.t);
         let (q, v) = (&state.q, &state.v);
         // Feedforward and joint PD.
-        for j in model.joints.iter().filter(|j| j.nv == 1) {
+        for j in model.actuated_joints() {
             let (iq, iv) = (j.idx_q, j.idx_v);
             tau[iv] = self.tau_ff[iv] + self.joint_gains.kp[iv] * (self.q_ref[iq] - q[iq]) + self.joint_gains.kd[iv] * (self.v_ref[iv] - v[iv]);
         }

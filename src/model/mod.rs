@@ -413,9 +413,15 @@ impl Model {
         self.reference_configurations.iter().find(|(n, _)| n == name).map(|(_, q)| q)
     }
 
+    /// The actuated (non-base) joints in `v` order: every joint but the universe and the free
+    /// flyer (one degree of freedom each: revolute or prismatic).
+    pub fn actuated_joints(&self) -> impl Iterator<Item = &Joint> {
+        self.joints.iter().skip(1).filter(|j| j.kind != JointKind::FreeFlyer)
+    }
+
     /// Names of the actuated (non-base) joints in `v` order.
     pub fn actuated_joint_names(&self) -> Vec<&str> {
-        self.joints.iter().skip(1).filter(|j| j.kind != JointKind::FreeFlyer).map(|j| j.name.as_str()).collect()
+        self.actuated_joints().map(|j| j.name.as_str()).collect()
     }
 
     /// Index into `q` of the one-dimensional joint `name`.

@@ -44,7 +44,7 @@
 
 use super::{RobotState, StateCost, Waypoint, WholeBodyProblem};
 use crate::contact::ContactParams;
-use crate::model::{JointKind, Model};
+use crate::model::Model;
 use crate::terrain::Terrain;
 use nalgebra::{DVector, UnitQuaternion};
 use serde::Deserialize;
@@ -312,11 +312,6 @@ fn matches(pattern: &str, name: &str) -> bool {
     }
 }
 
-/// The one-degree-of-freedom joints.
-fn joints(model: &Model) -> impl Iterator<Item = &crate::model::Joint> {
-    model.joints.iter().filter(|j| matches!(j.kind, JointKind::Revolute { .. } | JointKind::Prismatic { .. }))
-}
-
 /// Applies a name-pattern table to `out` (indexed by `index(joint)`); every pattern must
 /// match some joint.
 fn apply_table(table: &BTreeMap<String, f64>, model: &Model, origin: &str, field: &str, mut set: impl FnMut(&crate::model::Joint, f64)) -> Result<(), TaskError> {
@@ -325,12 +320,12 @@ fn apply_table(table: &BTreeMap<String, f64>, model: &Model, origin: &str, field
             return Err(TaskError::Invalid { origin: origin.into(), field: format!("{field}.{pattern}"), problem: format!("expected a finite number, got {value}") });
         }
         let mut any = false;
-        for j in joints(model).filter(|j| matches(pattern, &j.name)) {
+        for j in model.actuated_joints().filter(|j| matches(pattern, &j.name)) {
             set(j, *value);
             any = true;
         }
         if !any {
-            let names: Vec<&str> = joints(model).map(|j| j.name.as_str()).collect();
+            let names: Vec<&str> = model.actuated_joints().map(|j| j.name.as_str()).collect();
             return Err(TaskError::Invalid {
                 origin: origin.into(),
                 field: format!("{field}.{pattern}"),
@@ -376,7 +371,7 @@ fn desired_state(spec: &DesiredSpec, model: &Model, initial: &RobotState, stance
         None => {}
         Some(JointValues::Keyword(k)) if k == "stance" => {}
         Some(JointValues::Keyword(k)) if k == "start" => {
-            for j in joints(model) {
+            for j in model.actuated_joints() {
                 q[j.idx_q] = start[j.idx_q];
             }
         }
@@ -394,7 +389,7 @@ fn desired_state(spec: &DesiredSpec, model: &Model, initial: &RobotState, stance
         }
     }
     if let Some(x) = spec.joint_velocities {
-        for j in joints(model) {
+        for j in model.actuated_joints() {
             v[j.idx_v] = x;
         }
     }
@@ -454,7 +449,7 @@ fn weights(spec: &WeightSpec, model: &Model, origin: &str, section: &str) -> Res
         match values {
             None => {}
             Some(JointWeights::All(x)) => {
-                for j in joints(model) {
+                for j in model.actuated_joints() {
                     w[offset + j.idx_v] = *x;
                 }
             }
