@@ -1,0 +1,7 @@
+//! Winkler 2015's pipeline put together: a scenario (world and goal), the on-board terrain
+//! map, the body-action and footstep planners, the ZMP body trajectory and its execution
+//! in the simulator, with re-planning.
+
+pub mod scenario;
+
+pub use scenario::{BlockSpec, ScenarioError, ScenarioSpec, WorldSpec, EMBEDDED_SCENARIOS};
