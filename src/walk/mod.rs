@@ -2,6 +2,7 @@
 //! map, the body-action and footstep planners, the ZMP body trajectory and its execution
 //! in the simulator, with re-planning.
 
+pub mod footstep;
 pub mod scenario;
 
 pub use scenario::{BlockSpec, ScenarioError, ScenarioSpec, WorldSpec, EMBEDDED_SCENARIOS};

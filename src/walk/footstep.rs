@@ -1,0 +1,355 @@
+//! The footstep sequence planner (Winkler 2015, sec. III-C): for every body action of the
+//! body-action plan, a swing-leg order that depends on the action and, for each swing leg,
+//! the foothold with the lowest foothold cost
+//!
+//! ```text
+//! c_f = w_t c_t + w_st c_st + w_c c_c + w_o c_o
+//! ```
+//!
+//! in a search area around the leg's nominal stance position after the action:
+//!
+//! * `c_t`, the terrain cost below the foothold (the cost map's, 1 = forbidden);
+//! * `c_st`, the support-triangle cost: how much smaller than a wanted inscribed radius the
+//!   triangle is on which the robot stands while the *next* leg swings;
+//! * `c_c`, the leg-collision cost: how far the terrain along the straight swing path rises
+//!   above the higher of lift-off and touch-down, relative to the swing height;
+//! * `c_o`, the body-orientation cost: how far the foothold lies above or below the other
+//!   three feet, which the body would have to roll or pitch to follow.
+//!
+//! Any swing-leg order can come out of it; the ZMP body trajectory inserts four-leg support
+//! where consecutive support triangles are disjoint.
+
+use nalgebra::{Vector2, Vector3};
+
+/// What the footstep planner needs to know of the terrain (the on-board cost map).
+pub trait FootholdTerrain {
+    /// Terrain cost at `(x, y)`, in `[0, 1]`; 1 means a foot must not go there (a gap, an
+    /// edge, an unknown cell).
+    fn cost(&self, x: f64, y: f64) -> f64;
+    /// Terrain height at `(x, y)`.
+    fn height(&self, x: f64, y: f64) -> f64;
+    /// Cell size: the spacing of the foothold candidates.
+    fn resolution(&self) -> f64;
+}
+
+/// A planar body pose: position of the base and yaw.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BodyPose {
+    pub x: f64,
+    pub y: f64,
+    pub yaw: f64,
+}
+
+impl BodyPose {
+    /// A body-frame point `(bx, by)` in the world.
+    pub fn to_world(&self, b: [f64; 2]) -> Vector2<f64> {
+        let (s, c) = self.yaw.sin_cos();
+        Vector2::new(self.x + c * b[0] - s * b[1], self.y + s * b[0] + c * b[1])
+    }
+}
+
+/// Leg indices, in the project's order (DESIGN.md).
+pub const LF: usize = 0;
+pub const RF: usize = 1;
+pub const LH: usize = 2;
+pub const RH: usize = 3;
+pub const LEG_NAMES: [&str; 4] = ["LF", "RF", "LH", "RH"];
+
+/// Weights and limits of the footstep planner.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FootstepParams {
+    /// Nominal foot positions in the body frame (x, y), LF, RF, LH, RH.
+    pub nominal: [[f64; 2]; 4],
+    /// Half-width of the square search area around the nominal position (m).
+    pub search_half_width: f64,
+    /// Terrain cost at or above which a cell is never stepped on.
+    pub forbidden_cost: f64,
+    /// Wanted inscribed-circle radius of the support triangles (m).
+    pub wanted_inscribed_radius: f64,
+    /// Swing apex height above the higher end of the swing (m): the collision reference.
+    pub swing_height: f64,
+    /// Height difference to the other feet that counts as cost 1 for `c_o` (m).
+    pub orientation_height: f64,
+    /// `w_t, w_st, w_c, w_o`.
+    pub weights: [f64; 4],
+}
+
+impl FootstepParams {
+    /// HyQ's parameters: the nominal stance is the standing pose's feet (`legwork robot
+    /// info hyq`: x +-0.371, y +-0.324).
+    pub fn hyq() -> Self {
+        Self {
+            nominal: [[0.371, 0.324], [0.371, -0.324], [-0.371, 0.324], [-0.371, -0.324]],
+            search_half_width: 0.12,
+            forbidden_cost: 0.99,
+            wanted_inscribed_radius: 0.12,
+            swing_height: 0.1,
+            orientation_height: 0.3,
+            weights: [1.0, 0.5, 1.0, 0.3],
+        }
+    }
+}
+
+/// The four terms of `c_f` and their weighted sum.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FootholdCost {
+    pub terrain: f64,
+    pub support: f64,
+    pub collision: f64,
+    pub orientation: f64,
+    pub total: f64,
+}
+
+/// One step: `leg` moves from `from` to `to` (surface points, world) while the body moves
+/// toward `body` (the pose after the action the step belongs to).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Footstep {
+    pub leg: usize,
+    pub from: Vector3<f64>,
+    pub to: Vector3<f64>,
+    /// Index of the body action this step belongs to.
+    pub action: usize,
+    pub body: BodyPose,
+    pub cost: FootholdCost,
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum FootstepError {
+    #[error("action {action}: no foothold for {leg} within {half_width} m of its nominal position ({x:.3}, {y:.3}) has a terrain cost below {forbidden}")]
+    NoFoothold { action: usize, leg: &'static str, x: f64, y: f64, half_width: f64, forbidden: f64 },
+}
+
+/// The swing-leg order for a body action `(dx, dy, dyaw)` in the body frame (sec. III-C:
+/// "when moving left it is advantageous to swing one of the left legs"): a crawl that
+/// starts with the hind leg on the side the body moves to, or with a front leg when the
+/// body backs up.
+pub fn swing_order(dx: f64, dy: f64, dyaw: f64) -> [usize; 4] {
+    let lateral = dy.abs() > dx.abs();
+    if lateral {
+        if dy > 0.0 {
+            [LH, LF, RH, RF]
+        } else {
+            [RH, RF, LH, LF]
+        }
+    } else if dx < -1e-9 {
+        [LF, LH, RF, RH]
+    } else if dx.abs() <= 1e-9 && dyaw < 0.0 {
+        [RH, RF, LH, LF]
+    } else {
+        [LH, LF, RH, RF]
+    }
+}
+
+/// Radius of the circle inscribed in the triangle `a, b, c` (0 for a degenerate one).
+pub fn inscribed_radius(a: Vector2<f64>, b: Vector2<f64>, c: Vector2<f64>) -> f64 {
+    let twice_area = ((b - a).perp(&(c - a))).abs();
+    let perimeter = (b - a).norm() + (c - b).norm() + (a - c).norm();
+    if perimeter <= 0.0 {
+        0.0
+    } else {
+        twice_area / perimeter
+    }
+}
+
+/// Plans the footsteps of the body path `body_path[0] -> body_path[1] -> ...` (one action
+/// per consecutive pair) from the feet at `feet` (surface points, world, LF RF LH RH).
+pub fn plan_footsteps(terrain: &dyn FootholdTerrain, params: &FootstepParams, feet: [Vector3<f64>; 4], body_path: &[BodyPose]) -> Result<Vec<Footstep>, FootstepError> {
+    let mut feet = feet;
+    let mut steps = Vec::with_capacity(4 * body_path.len().saturating_sub(1));
+    for (action, pair) in body_path.windows(2).enumerate() {
+        let (before, after) = (pair[0], pair[1]);
+        // The action in the body frame of `before`.
+        let (s, c) = before.yaw.sin_cos();
+        let (wx, wy) = (after.x - before.x, after.y - before.y);
+        let order = swing_order(c * wx + s * wy, -s * wx + c * wy, after.yaw - before.yaw);
+        for (i, &leg) in order.iter().enumerate() {
+            let next_leg = order.get(i + 1).copied();
+            let (to, cost) = best_foothold(terrain, params, &feet, leg, next_leg, after).ok_or_else(|| {
+                let n = after.to_world(params.nominal[leg]);
+                FootstepError::NoFoothold { action, leg: LEG_NAMES[leg], x: n.x, y: n.y, half_width: params.search_half_width, forbidden: params.forbidden_cost }
+            })?;
+            steps.push(Footstep { leg, from: feet[leg], to, action, body: after, cost });
+            feet[leg] = to;
+        }
+    }
+    Ok(steps)
+}
+
+/// The lowest-`c_f` cell in the search area of `leg` around its nominal position at
+/// `body`; ties go to the candidate nearest the nominal position.
+fn best_foothold(terrain: &dyn FootholdTerrain, params: &FootstepParams, feet: &[Vector3<f64>; 4], leg: usize, next_leg: Option<usize>, body: BodyPose) -> Option<(Vector3<f64>, FootholdCost)> {
+    let nominal = body.to_world(params.nominal[leg]);
+    let r = terrain.resolution();
+    let n = (params.search_half_width / r).floor() as i64;
+    let others: Vec<usize> = (0..4).filter(|&l| l != leg).collect();
+    let others_height = others.iter().map(|&l| feet[l].z).sum::<f64>() / 3.0;
+    let [w_t, w_st, w_c, w_o] = params.weights;
+    let mut best: Option<(Vector3<f64>, FootholdCost, f64)> = None;
+    for i in -n..=n {
+        for j in -n..=n {
+            let p = Vector2::new(nominal.x + i as f64 * r, nominal.y + j as f64 * r);
+            let c_t = terrain.cost(p.x, p.y);
+            if c_t >= params.forbidden_cost || !c_t.is_finite() {
+                continue;
+            }
+            let to = Vector3::new(p.x, p.y, terrain.height(p.x, p.y));
+            // c_st: the triangle the robot stands on while the next leg swings.
+            let c_st = match next_leg {
+                Some(next) => {
+                    let corners: Vec<Vector2<f64>> = (0..4).filter(|&l| l != next).map(|l| if l == leg { p } else { feet[l].xy() }).collect();
+                    let radius = inscribed_radius(corners[0], corners[1], corners[2]);
+                    ((params.wanted_inscribed_radius - radius) / params.wanted_inscribed_radius).clamp(0.0, 1.0)
+                }
+                None => 0.0,
+            };
+            let c_c = swing_collision(terrain, &feet[leg], &to, params.swing_height);
+            let c_o = ((to.z - others_height).abs() / params.orientation_height).min(1.0);
+            let total = w_t * c_t + w_st * c_st + w_c * c_c + w_o * c_o;
+            let distance = (p - nominal).norm_squared();
+            let better = match &best {
+                None => true,
+                Some((_, b, d)) => total < b.total - 1e-12 || (total <= b.total + 1e-12 && distance < *d),
+            };
+            if better {
+                best = Some((to, FootholdCost { terrain: c_t, support: c_st, collision: c_c, orientation: c_o, total }, distance));
+            }
+        }
+    }
+    best.map(|(to, cost, _)| (to, cost))
+}
+
+/// `c_c`: the highest terrain along the straight swing path above the higher end, as a
+/// fraction of the swing height (capped at 1).
+fn swing_collision(terrain: &dyn FootholdTerrain, from: &Vector3<f64>, to: &Vector3<f64>, swing_height: f64) -> f64 {
+    let length = (to.xy() - from.xy()).norm();
+    let samples = ((length / terrain.resolution()).ceil() as usize).max(1);
+    let top = from.z.max(to.z);
+    let mut rise: f64 = 0.0;
+    for s in 1..samples {
+        let p = from.xy() + (to.xy() - from.xy()) * (s as f64 / samples as f64);
+        rise = rise.max(terrain.height(p.x, p.y) - top);
+    }
+    (rise / swing_height).clamp(0.0, 1.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Flat ground at 0 with optional forbidden strips and raised boxes.
+    struct TestTerrain {
+        forbidden_x: Option<[f64; 2]>,
+        boxes: Vec<([f64; 2], [f64; 2], f64)>,
+    }
+
+    impl FootholdTerrain for TestTerrain {
+        fn cost(&self, x: f64, _y: f64) -> f64 {
+            match self.forbidden_x {
+                Some([a, b]) if x >= a && x <= b => 1.0,
+                _ => 0.0,
+            }
+        }
+        fn height(&self, x: f64, y: f64) -> f64 {
+            self.boxes.iter().filter(|(bx, by, _)| x >= bx[0] && x <= bx[1] && y >= by[0] && y <= by[1]).map(|b| b.2).fold(0.0, f64::max)
+        }
+        fn resolution(&self) -> f64 {
+            0.04
+        }
+    }
+
+    fn standing_feet(params: &FootstepParams, body: BodyPose) -> [Vector3<f64>; 4] {
+        std::array::from_fn(|l| {
+            let p = body.to_world(params.nominal[l]);
+            Vector3::new(p.x, p.y, 0.0)
+        })
+    }
+
+    fn straight_path(step: f64, actions: usize) -> Vec<BodyPose> {
+        (0..=actions).map(|k| BodyPose { x: k as f64 * step, y: 0.0, yaw: 0.0 }).collect()
+    }
+
+    #[test]
+    fn flat_ground_gives_nominal_footholds_in_crawl_order() {
+        let params = FootstepParams::hyq();
+        let path = straight_path(0.2, 3);
+        let steps = plan_footsteps(&TestTerrain { forbidden_x: None, boxes: vec![] }, &params, standing_feet(&params, path[0]), &path).unwrap();
+        assert_eq!(steps.len(), 12);
+        assert_eq!(steps.iter().take(4).map(|s| s.leg).collect::<Vec<_>>(), vec![LH, LF, RH, RF]);
+        for s in &steps {
+            let nominal = s.body.to_world(params.nominal[s.leg]);
+            // On a 4 cm grid the nominal point itself is a candidate.
+            assert!((s.to.xy() - nominal).norm() < 1e-9, "{s:?}");
+            assert_eq!(s.cost.terrain, 0.0);
+            assert_eq!(s.cost.collision, 0.0);
+        }
+    }
+
+    #[test]
+    fn footholds_avoid_a_forbidden_strip() {
+        let params = FootstepParams::hyq();
+        let path = straight_path(0.15, 10);
+        let strip = [0.9, 1.05];
+        let steps = plan_footsteps(&TestTerrain { forbidden_x: Some(strip), boxes: vec![] }, &params, standing_feet(&params, path[0]), &path).unwrap();
+        let mut displaced = 0;
+        for s in &steps {
+            assert!(s.to.x < strip[0] || s.to.x > strip[1], "{s:?}");
+            let nominal = s.body.to_world(params.nominal[s.leg]);
+            if (s.to.xy() - nominal).norm() > 1e-9 {
+                displaced += 1;
+            }
+        }
+        // Some nominal footholds fall in the strip and were moved out of it.
+        assert!(displaced >= 2, "{displaced}");
+    }
+
+    #[test]
+    fn a_strip_wider_than_the_search_area_is_an_error_naming_the_action_and_leg() {
+        let params = FootstepParams::hyq();
+        let path = straight_path(0.2, 10);
+        let e = plan_footsteps(&TestTerrain { forbidden_x: Some([0.8, 1.4]), boxes: vec![] }, &params, standing_feet(&params, path[0]), &path).unwrap_err();
+        assert!(matches!(e, FootstepError::NoFoothold { .. }));
+        assert!(e.to_string().contains("action"));
+    }
+
+    #[test]
+    fn footholds_on_a_box_are_on_its_top() {
+        let params = FootstepParams::hyq();
+        let path = straight_path(0.2, 8);
+        let pallet = ([1.0, 2.2], [-0.4, 0.4], 0.15);
+        let terrain = TestTerrain { forbidden_x: None, boxes: vec![pallet] };
+        let steps = plan_footsteps(&terrain, &params, standing_feet(&params, path[0]), &path).unwrap();
+        for s in &steps {
+            assert_eq!(s.to.z, terrain.height(s.to.x, s.to.y));
+        }
+        assert!(steps.iter().any(|s| s.to.z == 0.15));
+    }
+
+    #[test]
+    fn swinging_over_a_ledge_costs_in_proportion_to_its_rise() {
+        let terrain = TestTerrain { forbidden_x: None, boxes: vec![([1.0, 1.08], [-1.0, 1.0], 0.05)] };
+        let over = swing_collision(&terrain, &Vector3::new(0.9, 0.0, 0.0), &Vector3::new(1.2, 0.0, 0.0), 0.1);
+        assert!((over - 0.5).abs() < 1e-12, "{over}");
+        let beside = swing_collision(&terrain, &Vector3::new(0.5, 0.0, 0.0), &Vector3::new(0.8, 0.0, 0.0), 0.1);
+        assert_eq!(beside, 0.0);
+        // Onto the ledge: nothing above the touch-down height.
+        let onto = swing_collision(&terrain, &Vector3::new(0.9, 0.0, 0.0), &Vector3::new(1.04, 0.0, 0.05), 0.1);
+        assert_eq!(onto, 0.0);
+    }
+
+    #[test]
+    fn swing_order_follows_the_direction() {
+        assert_eq!(swing_order(0.2, 0.0, 0.0), [LH, LF, RH, RF]);
+        assert_eq!(swing_order(-0.2, 0.0, 0.0), [LF, LH, RF, RH]);
+        assert_eq!(swing_order(0.0, 0.2, 0.0), [LH, LF, RH, RF]);
+        assert_eq!(swing_order(0.0, -0.2, 0.0), [RH, RF, LH, LF]);
+        assert_eq!(swing_order(0.0, 0.0, -0.3), [RH, RF, LH, LF]);
+    }
+
+    #[test]
+    fn inscribed_radius_of_a_right_triangle() {
+        // 3-4-5 triangle: r = (a + b - c) / 2 = 1.
+        let r = inscribed_radius(Vector2::new(0.0, 0.0), Vector2::new(3.0, 0.0), Vector2::new(0.0, 4.0));
+        assert!((r - 1.0).abs() < 1e-12);
+        assert_eq!(inscribed_radius(Vector2::new(0.0, 0.0), Vector2::new(1.0, 0.0), Vector2::new(2.0, 0.0)), 0.0);
+    }
+}
