@@ -47,6 +47,7 @@ fn hyq_shifts_its_base_forward() {
         terminal: StateCost { q: target.clone(), v: DVector::zeros(nv), weights: terminal, feet: vec![] },
         input_weights: DVector::from_element(nv - 6, 1e-4),
         input_desired: DVector::zeros(nv - 6),
+        effort_limits: DVector::from_element(nv - 6, f64::INFINITY),
         waypoints: vec![],
     };
     let pd = JointPd::standing(&model, dt).unwrap();
@@ -129,6 +130,7 @@ fn cost_gradient_with_foot_targets_matches_finite_differences() {
         terminal: cost.clone(),
         input_weights: DVector::from_element(nv - 6, 1e-3),
         input_desired: DVector::zeros(nv - 6),
+        effort_limits: DVector::from_element(nv - 6, f64::INFINITY),
         waypoints: vec![Waypoint { time: 0.004, rho: 1e4, cost }],
     };
     let mut ws = problem.workspace();
@@ -154,5 +156,54 @@ fn cost_gradient_with_foot_targets_matches_finite_differences() {
         let fm = problem.step(&mut ws, 2, &minus, &u, &mut next);
         let numeric = (fp - fm) / (2.0 * h);
         assert!((numeric - d.l_x[k]).abs() < 1e-5 * (1.0 + numeric.abs()), "l_x[{k}]: {} vs {numeric}", d.l_x[k]);
+    }
+}
+
+/// The optimizer's dynamics clip the torques at the effort limits as the simulator does: a
+/// clipped input acts as its limit and has a zero column in `B`; the others keep theirs,
+/// which match central differences of the step.
+#[test]
+fn inputs_beyond_the_effort_limit_act_as_the_limit_with_zero_sensitivity() {
+    use legwork::slq::KnotDerivatives;
+    let spec = legwork::ocp::TaskSpec::embedded("squat_jump").unwrap();
+    let model = embedded::load("hyq").unwrap();
+    let ground = Plane::flat(0.0);
+    let initial = legwork::ocp::settled_stance(&model, &ground, Default::default(), 0.2).unwrap();
+    let problem = spec.problem(&model, &ground, initial.clone(), "test").unwrap();
+    let nu = model.nv - 6;
+    assert!(problem.effort_limits.iter().all(|l| *l == 150.0), "HyQ's limits are 150 N m");
+    let mut u = DVector::from_fn(nu, |i, _| 20.0 * (i as f64 - 5.0));
+    u[1] = 400.0; // beyond the limit
+    u[4] = -300.0;
+    let mut ws = problem.workspace();
+    let mut d = KnotDerivatives::zeros(2 * model.nv, nu);
+    let mut next = initial.clone();
+    problem.step_with_derivatives(&mut ws, 0, &initial, &u, &mut next, &mut d);
+    let mut at_limit = u.clone();
+    at_limit[1] = 150.0;
+    at_limit[4] = -150.0;
+    let mut next_limit = initial.clone();
+    problem.step(&mut ws, 0, &initial, &at_limit, &mut next_limit);
+    assert_eq!(next.q, next_limit.q);
+    assert_eq!(next.v, next_limit.v);
+    let mut dx = DVector::zeros(2 * model.nv);
+    let h = 1e-4;
+    for i in 0..nu {
+        let (mut up, mut um) = (u.clone(), u.clone());
+        up[i] += h;
+        um[i] -= h;
+        let (mut xp, mut xm) = (initial.clone(), initial.clone());
+        problem.step(&mut ws, 0, &initial, &up, &mut xp);
+        problem.step(&mut ws, 0, &initial, &um, &mut xm);
+        problem.difference(&xm, &xp, &mut dx);
+        let numeric = &dx / (2.0 * h);
+        let analytic = d.b.column(i);
+        if i == 1 || i == 4 {
+            assert_eq!(analytic.norm(), 0.0);
+            assert_eq!(numeric.norm(), 0.0);
+        } else {
+            assert!(analytic.norm() > 1e-3);
+            assert!((analytic - &numeric).norm() < 1e-5 * analytic.norm(), "column {i}");
+        }
     }
 }

@@ -132,6 +132,10 @@ pub struct WholeBodyProblem<'a> {
     /// `R` (diagonal, `nv - 6`) and the desired torques.
     pub input_weights: DVector<f64>,
     pub input_desired: DVector<f64>,
+    /// Joint effort limits (N m, `nv - 6`; infinite = none). The simulator clips torques to
+    /// them, so the optimizer's dynamics do too (one source of truth): an input beyond its
+    /// limit acts as the limit, and its column of `B` is zero.
+    pub effort_limits: DVector<f64>,
     pub waypoints: Vec<Waypoint>,
 }
 
@@ -234,9 +238,12 @@ impl<'a> WholeBodyProblem<'a> {
         cost + self.dt * u.iter().zip(&self.input_desired).zip(&self.input_weights).map(|((u, d), r)| r * (u - d) * (u - d)).sum::<f64>()
     }
 
+    /// `tau = [0; clamp(u, -limit, limit)]`, as the simulator applies it.
     fn torques(&self, ws: &mut WholeBodyWorkspace<'a>, u: &DVector<f64>) {
         ws.tau.fill(0.0);
-        ws.tau.rows_mut(6, self.nu_()).copy_from(u);
+        for (i, (u, limit)) in u.iter().zip(self.effort_limits.iter()).enumerate() {
+            ws.tau[6 + i] = u.clamp(-limit, *limit);
+        }
     }
 }
 
@@ -295,6 +302,12 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         ws.derivatives.step(&mut ws.dynamics, &mut next.q, &mut next.v, &mut next.anchors, &ws.tau, self.dt);
         d.a.copy_from(&ws.derivatives.a);
         d.b.copy_from(&ws.derivatives.b);
+        // A clipped input does not move the state.
+        for (i, (u, limit)) in u.iter().zip(self.effort_limits.iter()).enumerate() {
+            if u.abs() > *limit {
+                d.b.column_mut(i).fill(0.0);
+            }
+        }
         d.l_x.fill(0.0);
         d.l_xx.fill(0.0);
         d.l_ux.fill(0.0);

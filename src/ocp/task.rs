@@ -264,6 +264,7 @@ impl TaskSpec {
             terminal,
             input_weights: DVector::from_element(nu, self.input.weight),
             input_desired: DVector::zeros(nu),
+            effort_limits: DVector::from_iterator(nu, model.actuated_joints().map(|j| j.limits.effort[0])),
             waypoints,
         })
     }
