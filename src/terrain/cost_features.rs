@@ -21,7 +21,7 @@
 //!
 //! The cost is the weighted mean of the features, each divided by a saturation value and
 //! clipped at 1, so it lies in `[0, 1]` and depends on the window alone (no map-wide
-//! normalisation, which would make a local recompute differ from a full one). Two hard rules
+//! normalisation, which would make a local recompute differ from a full one). Three hard rules
 //! make a cell forbidden (cost 1) whatever its features:
 //!
 //! * unknown: a cell of the window has no observation (or lies outside the map);
