@@ -8,12 +8,23 @@
 //!   normal from the gradient of that interpolant; built in code (boxes, gaps, steps) or
 //!   loaded from a TOML file ([`HeightMap::load_file`], format in [`HeightMap`]).
 //!
+//! The robot's own view of the ground is separate: [`TerrainMap`] (Winkler 2015 sec. III-A)
+//! is an on-board grid built from noisy height samples of a `Terrain` around the robot,
+//! with a terrain cost per cell from its geometric features ([`CostParams`]).
+//!
 //! [`TerrainSpec`] is the serialisable description of either, as stored in a trajectory
 //! file or a scenario file; [`TerrainSpec::build`] turns it into a `Box<dyn Terrain>`.
 
+mod cost_features;
+mod cost_map;
 mod height_map;
 mod plane;
 
+pub use cost_features::{CellAssessment, CellFeatures, CostParams, FeatureSaturation, FeatureWeights};
+pub use cost_map::{
+    standard_normal, CellRect, CellView, MapUpdate, SensorConfig, TerrainMap, TerrainMapConfig, TerrainMapError,
+    MAX_BEST_COSTS, MAX_CELLS,
+};
 pub use height_map::{HeightMap, HeightMapFile};
 pub use plane::Plane;
 
