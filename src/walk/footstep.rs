@@ -32,6 +32,18 @@ pub trait FootholdTerrain {
     fn resolution(&self) -> f64;
 }
 
+impl FootholdTerrain for crate::terrain::TerrainMap {
+    fn cost(&self, x: f64, y: f64) -> f64 {
+        crate::terrain::TerrainMap::cost(self, x, y)
+    }
+    fn height(&self, x: f64, y: f64) -> f64 {
+        crate::terrain::TerrainMap::height(self, x, y)
+    }
+    fn resolution(&self) -> f64 {
+        crate::terrain::TerrainMap::resolution(self)
+    }
+}
+
 /// A planar body pose: position of the base and yaw.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BodyPose {
@@ -70,6 +82,9 @@ pub struct FootstepParams {
     pub swing_height: f64,
     /// Height difference to the other feet that counts as cost 1 for `c_o` (m).
     pub orientation_height: f64,
+    /// Largest height difference between a foothold and the mean of the other three feet
+    /// that the legs can reach (m): a foothold further up or down is not a candidate.
+    pub max_step_height: f64,
     /// `w_t, w_st, w_c, w_o`.
     pub weights: [f64; 4],
 }
@@ -85,6 +100,7 @@ impl FootstepParams {
             wanted_inscribed_radius: 0.12,
             swing_height: 0.1,
             orientation_height: 0.3,
+            max_step_height: 0.25,
             weights: [1.0, 0.5, 1.0, 0.3],
         }
     }
@@ -115,7 +131,7 @@ pub struct Footstep {
 
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum FootstepError {
-    #[error("action {action}: no foothold for {leg} within {half_width} m of its nominal position ({x:.3}, {y:.3}) has a terrain cost below {forbidden}")]
+    #[error("action {action}: no foothold for {leg} within {half_width} m of its nominal position ({x:.3}, {y:.3}) has a terrain cost below {forbidden} and a height the leg reaches")]
     NoFoothold { action: usize, leg: &'static str, x: f64, y: f64, half_width: f64, forbidden: f64 },
 }
 
@@ -193,6 +209,9 @@ fn best_foothold(terrain: &dyn FootholdTerrain, params: &FootstepParams, feet: &
                 continue;
             }
             let to = Vector3::new(p.x, p.y, terrain.height(p.x, p.y));
+            if !to.z.is_finite() || (to.z - others_height).abs() > params.max_step_height {
+                continue;
+            }
             // c_st: the triangle the robot stands on while the next leg swings.
             let c_st = match next_leg {
                 Some(next) => {
@@ -300,6 +319,17 @@ mod tests {
         }
         // Some nominal footholds fall in the strip and were moved out of it.
         assert!(displaced >= 2, "{displaced}");
+    }
+
+    #[test]
+    fn a_pit_floor_out_of_the_legs_reach_is_never_a_foothold() {
+        // A pit 0.5 m deep with cost 0 on its (flat) floor: only the reach limit excludes it.
+        let params = FootstepParams::hyq();
+        let path = straight_path(0.15, 10);
+        let terrain = TestTerrain { forbidden_x: None, boxes: vec![([-5.0, 0.9], [-5.0, 5.0], 0.5), ([1.05, 9.0], [-5.0, 5.0], 0.5)] };
+        let feet = standing_feet(&params, path[0]).map(|f| Vector3::new(f.x, f.y, 0.5));
+        let steps = plan_footsteps(&terrain, &params, feet, &path).unwrap();
+        assert!(steps.iter().all(|s| s.to.z == 0.5), "a foot went into the pit");
     }
 
     #[test]
