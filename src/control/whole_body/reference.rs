@@ -97,10 +97,22 @@ pub enum LegMotion {
 /// Everything the controller needs from the plan at one tick: the body motion and, per
 /// foot in the model's order (`model.feet`: LF, RF, LH, RH on HyQ), stance or a swing
 /// target.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub struct WholeBodyReference {
     pub body: BodyMotion,
     pub legs: Vec<LegMotion>,
+}
+
+/// `clone_from` reuses the `legs` buffer (the derived one would allocate a new one), so that
+/// a source can copy a stored reference into the controller's at every tick for free.
+impl Clone for WholeBodyReference {
+    fn clone(&self) -> Self {
+        Self { body: self.body, legs: self.legs.clone() }
+    }
+    fn clone_from(&mut self, source: &Self) {
+        self.body = source.body;
+        self.legs.clone_from(&source.legs);
+    }
 }
 
 impl WholeBodyReference {

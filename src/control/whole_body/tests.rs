@@ -641,3 +641,34 @@ fn simulated_hyq_steps_with_one_leg_on_three() {
     assert!(slide < 0.004, "stance feet moved {slide} m in the ground plane");
     assert_eq!(stats.clipped_ticks, 0);
 }
+
+/// A reference the actuators cannot follow (the CoG accelerating up at 40 m/s^2): every
+/// torque above its effort limit is clipped to it, and counted.
+#[test]
+fn torques_beyond_the_effort_limits_are_clipped_and_counted() {
+    let model = hyq();
+    let q = model.reference_configuration("standing").unwrap().clone();
+    let v = DVector::zeros(model.nv);
+    let mut c = controller(&model);
+    let mut r = WholeBodyReference::holding(&model, &q);
+    r.body.cog_acceleration.z = 40.0;
+    let mut tau = DVector::zeros(model.nv);
+    c.execute(&model, &q, &v, &r, &mut tau).unwrap();
+    let tick = c.last_tick();
+    let mut expected = 0;
+    for j in model.actuated_joints() {
+        let i = j.idx_v;
+        let raw = tick.inverse_dynamics_torque[i] + tick.feedback_torque[i];
+        let limit = j.limits.effort[0];
+        if raw.abs() > limit {
+            expected += 1;
+            assert_eq!(tau[i], limit * raw.signum(), "joint {}", j.name);
+        } else {
+            assert_eq!(tau[i], raw, "joint {}", j.name);
+        }
+    }
+    assert!(expected >= 4, "the knees at least must saturate ({expected} clipped)");
+    assert_eq!(tick.clipped_joints, expected);
+    assert_eq!((c.stats().clipped_ticks, c.stats().clipped_joint_torques), (1, expected as u64));
+    assert_eq!(c.stats().max_torque, 150.0);
+}
