@@ -4,6 +4,10 @@
 
 mod joint_pd;
 mod tracking;
+pub mod whole_body;
 
 pub use joint_pd::{JointPd, PdGains};
 pub use tracking::{BaseGains, TrackingController};
+pub use whole_body::{
+    BodyMotion, FootMotion, LegMotion, MotionSource, WholeBodyController, WholeBodyError, WholeBodyGains, WholeBodyReference, WholeBodyStats, WholeBodyTick,
+};

@@ -1,0 +1,67 @@
+//! Floating-base inverse dynamics by partitioning, Winkler 2015, sec. V-B, eq. (11):
+//!
+//! ```text
+//! M [qdd_b; qdd] + [h_b; h_q] = [0; tau] + [J_cb^T; J_cq^T] lambda        (11)
+//!  \_____________  ____________/
+//!                \/
+//!        b = RNEA(q, v, vd^ref)
+//! ```
+//!
+//! The six base rows hold no torque: they fix the stance contact forces,
+//! `lambda = (J_cb^T)^+ b_b` (Moore-Penrose, the paper's choice: the least-squares and then
+//! minimum-norm forces); the joint rows then give `tau^id = b_q - J_cq^T lambda`.
+//!
+//! As in the paper, nothing keeps `lambda` inside the friction cones or pushing (not
+//! pulling) on the ground: the minimum-norm forces of a standing or slowly moving robot
+//! are close to vertical and positive, but an aggressive reference can ask for forces the
+//! ground cannot give; the simulator's contact model then decides what happens.
+
+use super::legs::{FootKinematics, LegChain};
+use nalgebra::{DVector, Matrix6, Vector3, Vector6};
+
+/// Eigenvalues of `J_cb^T J_cb` below this fraction of the largest are treated as zero (a
+/// direction of base wrench no stance foot can produce, e.g. the moment about the line
+/// through two feet).
+const RANK_TOLERANCE: f64 = 1e-10;
+
+/// The stance contact forces from the base rows of eq. (11): `lambda = A^+ b_b` with
+/// `A = J_cb^T` (6 x 3k over the `k` stance feet), computed as `A^+ = A^T (A A^T)^+`,
+/// `A A^T = sum_i J_cb,i^T J_cb,i` (6 x 6, pseudo-inverted through its eigenvalues).
+/// Writes one force per foot into `forces` (world frame, the ground on the foot; zero for
+/// swing feet) and returns the residual `|b_b - J_cb^T lambda|` of the base rows: zero when
+/// the stance feet span every base wrench (three or more feet not on one line).
+pub fn contact_forces(base_rows: &Vector6<f64>, feet: &[FootKinematics], stance: &[bool], forces: &mut [Vector3<f64>]) -> f64 {
+    let mut gram = Matrix6::zeros();
+    for (foot, _) in feet.iter().zip(stance).filter(|(_, &s)| s) {
+        gram += foot.base_jacobian.transpose() * foot.base_jacobian;
+    }
+    let eigen = gram.symmetric_eigen();
+    let largest = eigen.eigenvalues.amax();
+    let mut y = Vector6::zeros();
+    for k in 0..6 {
+        let sigma = eigen.eigenvalues[k];
+        if sigma > RANK_TOLERANCE * largest {
+            let u = eigen.eigenvectors.column(k);
+            y += u * (u.dot(base_rows) / sigma);
+        }
+    }
+    let mut produced = Vector6::zeros();
+    for ((foot, &s), force) in feet.iter().zip(stance).zip(forces.iter_mut()) {
+        *force = if s { foot.base_jacobian * y } else { Vector3::zeros() };
+        produced += foot.base_jacobian.transpose() * *force;
+    }
+    (base_rows - produced).norm()
+}
+
+/// The joint rows of eq. (11): `tau^id = b_q - J_cq^T lambda`, into `tau` (`nv` entries,
+/// the six base entries set to zero: the base is not actuated).
+pub fn joint_torques(b: &DVector<f64>, legs: &[LegChain], feet: &[FootKinematics], forces: &[Vector3<f64>], tau: &mut DVector<f64>) {
+    tau.copy_from(b);
+    tau.fixed_rows_mut::<6>(0).fill(0.0);
+    for leg in legs {
+        let t = feet[leg.foot].leg_jacobian.transpose() * forces[leg.foot];
+        for k in 0..3 {
+            tau[leg.v_index[k]] -= t[k];
+        }
+    }
+}
