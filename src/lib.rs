@@ -33,3 +33,4 @@ pub mod slq;
 pub mod spatial;
 pub mod terrain;
 pub mod viz;
+pub mod zmp;
