@@ -13,6 +13,7 @@
 //! * [`quintic`]: the polynomial of eq. (3) and the closed forms the QP is built from;
 //! * [`qp`]: the QP (eq. 3-7) and its solution, [`ZmpQp::solve`];
 //! * [`trajectory`]: the result, [`CogTrajectory`]: CoG state and ZMP at any time, checks.
+//! * [`swing`]: swing-foot trajectories between lift-off and touch-down.
 //!
 //! ```
 //! use legwork::zmp::{phases_from_footsteps, CogState, Footstep, Leg, StepTiming, ZmpQp, ZmpSettings};
@@ -39,6 +40,7 @@ pub mod phases;
 pub mod polygon;
 pub mod qp;
 pub mod quintic;
+pub mod swing;
 pub mod trajectory;
 
 pub use phases::{
@@ -48,6 +50,7 @@ pub use phases::{
 pub use polygon::{ConvexPolygon, EdgeLine, PolygonError};
 pub use qp::{ZmpQp, ZmpSettings};
 pub use quintic::Quintic;
+pub use swing::{SwingError, SwingShape, SwingTrajectory};
 pub use trajectory::{CogSpline, CogState, CogTrajectory, SolveInfo, ZmpCheck};
 
 use nalgebra::Point2;
