@@ -236,20 +236,31 @@ pub fn insert_four_leg_phases_into(
     planned: &mut Vec<PlannedPhase>,
 ) -> Result<(), ZmpError> {
     planned.clear();
+    if !(margin >= 0.0 && margin.is_finite()) {
+        return Err(ZmpError::InvalidSetting {
+            field: "stability_margin",
+            expected: "a finite number >= 0",
+            value: margin,
+        });
+    }
+    if !(four_leg_duration > 0.0 && four_leg_duration.is_finite()) {
+        let expected = "a finite number > 0";
+        return Err(ZmpError::InvalidSetting { field: "four_leg_duration", expected, value: four_leg_duration });
+    }
     if phases.is_empty() {
         return Err(ZmpError::NoPhases);
     }
     let mut time = 0.0;
     for (index, phase) in phases.iter().enumerate() {
         phase.validate(index)?;
-        let (support, shrunk_support) = support_and_shrunk(phase, margin, &format!("given phase {index}"))?;
+        let (support, shrunk_support) = support_and_shrunk(phase, margin, || format!("given phase {index}"))?;
         if let Some(previous) = planned.last().copied() {
-            let previous: PlannedPhase = previous;
             check_stance_feet_stay(&previous.phase, phase, index)?;
             if shrunk_supports_disjoint(&previous.shrunk_support, &shrunk_support) {
                 let transition = transition_phase(&previous.phase, phase, four_leg_duration);
-                let description = format!("four-leg phase inserted before given phase {index}");
-                let (t_support, t_shrunk) = support_and_shrunk(&transition, margin, &description)?;
+                let (t_support, t_shrunk) = support_and_shrunk(&transition, margin, || {
+                    format!("four-leg phase inserted before given phase {index}")
+                })?;
                 planned.push(PlannedPhase {
                     phase: transition,
                     origin: PhaseOrigin::Inserted { before: index },
@@ -275,13 +286,12 @@ pub fn insert_four_leg_phases_into(
 fn support_and_shrunk(
     phase: &SupportPhase,
     margin: f64,
-    description: &str,
+    // Only called on failure: no string is built on the way to a plan.
+    describe: impl Fn() -> String,
 ) -> Result<(ConvexPolygon, ConvexPolygon), ZmpError> {
-    let support = phase
-        .support_polygon()
-        .map_err(|error| ZmpError::DegenerateSupport { phase: description.to_string(), error })?;
+    let support = phase.support_polygon().map_err(|error| ZmpError::DegenerateSupport { phase: describe(), error })?;
     let shrunk = support.shrink(margin).ok_or_else(|| ZmpError::SupportTooSmall {
-        phase: format!("{description} ({})", phase.describe()),
+        phase: format!("{} ({})", describe(), phase.describe()),
         margin,
         inscribed_radius: support.inscribed_radius(),
     })?;
@@ -454,5 +464,7 @@ mod tests {
         assert!(matches!(e, ZmpError::StanceFootMoved { phase: 1, leg: Leg::LH, .. }), "{e}");
 
         assert!(matches!(insert_four_leg_phases(&[], 0.05, 0.2), Err(ZmpError::NoPhases)));
+        let e = insert_four_leg_phases(&[swing(Leg::LF)], f64::NAN, 0.2).unwrap_err().to_string();
+        assert!(e.contains("`stability_margin`"), "{e}");
     }
 }

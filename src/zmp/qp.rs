@@ -126,7 +126,7 @@ pub struct ZmpQp {
 
 /// Outcome of one Clarabel run.
 enum Run {
-    Solved { iterations: u32, seconds: f64, equality_rows: usize, inequality_rows: usize },
+    Solved { iterations: u32, seconds: f64, equality_rows: usize, inequality_rows: usize, reduced_accuracy: bool },
     Infeasible,
 }
 
@@ -181,7 +181,7 @@ impl ZmpQp {
 
         let n = self.phases.len();
         match self.run(initial, goal, false)? {
-            Run::Solved { iterations, seconds, equality_rows, inequality_rows } => {
+            Run::Solved { iterations, seconds, equality_rows, inequality_rows, reduced_accuracy } => {
                 let correction = self.enforce_equalities(initial, goal);
                 let splines: Vec<CogSpline> = self
                     .splines
@@ -205,6 +205,7 @@ impl ZmpQp {
                     equality_constraints: equality_rows,
                     inequality_constraints: inequality_rows,
                     iterations,
+                    reduced_accuracy,
                     solver_seconds: seconds,
                     cost: 0.0,
                     continuity_correction: correction,
@@ -258,7 +259,14 @@ impl ZmpQp {
                             best
                         }
                     });
-                let others = slacks.iter().filter(|&&v| v > ELASTIC_SLACK_REPORTED).count().saturating_sub(1);
+                if violation <= ELASTIC_SLACK_REPORTED {
+                    // The elastic problem needs no slack: the first solve's verdict was numerical.
+                    return Err(ZmpError::Solver {
+                        status: "PrimalInfeasible, but the elastic problem needs no slack".into(),
+                        iterations: 0,
+                    });
+                }
+                let others = slacks.iter().filter(|&&v| v > ELASTIC_SLACK_REPORTED).count() - 1;
                 Ok(ZmpError::Infeasible { index, phase: self.phases[index].to_string(), violation, others })
             }
             // Cannot happen (the elastic problem is feasible by construction), but if the
@@ -290,6 +298,7 @@ impl ZmpQp {
                     seconds: solution.solve_time,
                     equality_rows,
                     inequality_rows,
+                    reduced_accuracy: solution.status == SolverStatus::AlmostSolved,
                 })
             }
             SolverStatus::PrimalInfeasible | SolverStatus::AlmostPrimalInfeasible => Ok(Run::Infeasible),

@@ -65,6 +65,9 @@ pub struct SolveInfo {
     /// Rows of eq. (6): one per edge of the shrunk support polygon per ZMP sample.
     pub inequality_constraints: usize,
     pub iterations: u32,
+    /// Clarabel stopped at its reduced tolerances (status `AlmostSolved`, about 1e-4
+    /// instead of 1e-8): [`CogTrajectory::check_zmp`] tells how well eq. (6) holds.
+    pub reduced_accuracy: bool,
     /// Clarabel's own solve time (s); the setup (factorization structure) is outside it.
     pub solver_seconds: f64,
     /// Cost eq. (7) of the returned trajectory.
