@@ -34,3 +34,4 @@ pub mod spatial;
 pub mod terrain;
 pub mod viz;
 pub mod walk;
+pub mod zmp;
