@@ -15,6 +15,10 @@ pub trait TerrainCostField {
     fn height(&self, x: f64, y: f64) -> f64;
     /// Cell size of the map (m): the spacing at which the planners sample it.
     fn resolution(&self) -> f64;
+    /// Cost and height together: one cell lookup where the map can share it.
+    fn cost_and_height(&self, x: f64, y: f64) -> (f64, f64) {
+        (self.cost(x, y), self.height(x, y))
+    }
 }
 
 impl<T: TerrainCostField + ?Sized> TerrainCostField for &T {
@@ -26,5 +30,8 @@ impl<T: TerrainCostField + ?Sized> TerrainCostField for &T {
     }
     fn resolution(&self) -> f64 {
         (**self).resolution()
+    }
+    fn cost_and_height(&self, x: f64, y: f64) -> (f64, f64) {
+        (**self).cost_and_height(x, y)
     }
 }

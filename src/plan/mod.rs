@@ -2,6 +2,7 @@
 //! ARA*) and the body action planner of sec. III-B ([`body`]), which reads the terrain
 //! through the small [`TerrainCostField`] trait.
 
+pub mod body;
 mod cost_field;
 pub mod search;
 

@@ -159,7 +159,7 @@ where
 {
     while let Some(top) = ws.peek_open() {
         let goal_g = goal.map_or(f64::INFINITY, |(_, g)| g);
-        if goal_g <= top.key {
+        if goal_g <= f64::from_bits(top.key) {
             break;
         }
         if let Some(limit) = ws.limit_reached(limits) {

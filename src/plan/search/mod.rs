@@ -162,11 +162,18 @@ struct Node<S, A> {
 
 /// An entry of the open heap. Entries are not removed when a node's `g` improves; a new one
 /// is pushed and the old one is skipped when it surfaces (its `g` no longer matches).
+/// Keys and `g` are non-negative (validated costs and heuristic, `epsilon >= 1`), so they
+/// are stored as their bit patterns, which order like the numbers and compare faster.
 #[derive(Clone, Copy, Debug)]
 struct OpenEntry {
-    key: f64,
-    g: f64,
+    key: u64,
+    g: u64,
     node: NodeId,
+}
+
+/// The bit pattern of a non-negative float (`-0.0` taken as `+0.0`), ordered like the float.
+fn order_bits(x: f64) -> u64 {
+    (x + 0.0).to_bits()
 }
 
 impl PartialEq for OpenEntry {
@@ -185,7 +192,7 @@ impl Ord for OpenEntry {
     /// the larger `g` (the deeper node, nearer the goal) first, then the lower node id, so
     /// the expansion order is deterministic.
     fn cmp(&self, other: &Self) -> Ordering {
-        other.key.total_cmp(&self.key).then(self.g.total_cmp(&other.g)).then(other.node.cmp(&self.node))
+        other.key.cmp(&self.key).then(self.g.cmp(&other.g)).then(other.node.cmp(&self.node))
     }
 }
 
@@ -270,14 +277,14 @@ impl<S: Copy + Eq + Hash + Debug, A: Copy + Debug> SearchWorkspace<S, A> {
     fn push_open(&mut self, id: NodeId, key: f64) {
         let node = &mut self.nodes[id as usize];
         node.in_open = true;
-        self.open.push(OpenEntry { key, g: node.g, node: id });
+        self.open.push(OpenEntry { key: order_bits(key), g: order_bits(node.g), node: id });
     }
 
     /// Drops stale entries from the top of the heap and returns the live minimum.
     fn peek_open(&mut self) -> Option<OpenEntry> {
         while let Some(&top) = self.open.peek() {
             let node = &self.nodes[top.node as usize];
-            if node.in_open && node.g == top.g {
+            if node.in_open && order_bits(node.g) == top.g {
                 return Some(top);
             }
             self.open.pop();
