@@ -44,10 +44,15 @@ struct GridField {
 }
 
 impl GridField {
+    /// The cell holding `(x, y)`. Truncation instead of `floor` (an out-of-line libm call on
+    /// baseline x86-64), after the check that the offsets are non-negative.
     fn cell(&self, x: f64, y: f64) -> Option<usize> {
-        let i = ((x - self.origin[0]) / self.resolution).floor();
-        let j = ((y - self.origin[1]) / self.resolution).floor();
-        (i >= 0.0 && j >= 0.0 && (i as usize) < self.columns && (j as usize) < self.rows).then(|| j as usize * self.columns + i as usize)
+        let (u, v) = ((x - self.origin[0]) / self.resolution, (y - self.origin[1]) / self.resolution);
+        if !(u >= 0.0 && v >= 0.0) {
+            return None;
+        }
+        let (i, j) = (u as usize, v as usize);
+        (i < self.columns && j < self.rows).then(|| j * self.columns + i)
     }
 
     fn cells_in(&self, x: [f64; 2], y: [f64; 2]) -> Vec<usize> {
@@ -99,6 +104,9 @@ impl TerrainCostField for GridField {
     }
     fn resolution(&self) -> f64 {
         self.resolution
+    }
+    fn cost_and_height(&self, x: f64, y: f64) -> (f64, f64) {
+        self.cell(x, y).map_or((1.0, 0.0), |c| (self.cost[c], self.height[c]))
     }
 }
 

@@ -2,7 +2,7 @@
 //! `s = (x, y, theta)` to a goal state, the sequence of motion primitives (eq. (1)) of least
 //! accumulated action cost (eq. (2)), searched with ARA* over a lattice.
 //!
-//! * [`lattice`](LatticeKey): states on a lattice anchored at the start pose, 4 cm cells (the
+//! * [`LatticeKey`]: states on a lattice anchored at the start pose, 4 cm cells (the
 //!   paper's map resolution, "roughly the dimensions of the robot's foot") and 36 headings of
 //!   10 deg; HyQ's crawl primitives in [`hyq_crawl_primitives`].
 //! * [`ActionCost`]: the four terms of eq. (2) from a [`TerrainCostField`] and the robot's
@@ -218,22 +218,7 @@ impl BodyPlanner {
             .ok_or_else(|| BodyPlanError::InvalidStance("the four feet lie on one line: no plane fits them".into()))?;
         let probe = TerrainProbe::new(stance, plane_rows, config.best_cells);
         let mut lattice = Lattice::new(config.cell_size, config.headings);
-        // Every primitive must move on the lattice at every heading.
         lattice.anchor(BodyPose { x: 0.0, y: 0.0, yaw: 0.0 }, &config.primitives);
-        for heading in 0..config.headings {
-            for (p, primitive) in config.primitives.iter().enumerate() {
-                let step = lattice.step(heading, p);
-                if (step.dix, step.diy, step.dheading) == (0, 0, 0) {
-                    return Err(invalid(
-                        format!("primitives[{p}] ({})", primitive.name),
-                        format!(
-                            "moves less than half a cell ({} m) and does not turn: it would not leave its lattice state",
-                            config.cell_size / 2.0
-                        ),
-                    ));
-                }
-            }
-        }
         let (per_metre, per_radian) = GoalRegion::rates(&lattice, &config.primitives, &config.weights);
         if !per_metre.is_finite() {
             return Err(invalid("primitives".into(), "expected at least one primitive that translates the body".into()));
@@ -384,7 +369,8 @@ fn to_body_plan<F: TerrainCostField + ?Sized>(space: &mut BodyLatticeSpace<'_, F
     let mut steps = Vec::with_capacity(solution.actions.len());
     for (i, &primitive) in solution.actions.iter().enumerate() {
         let (from, to) = (solution.states[i], solution.states[i + 1]);
-        // Both states were evaluated, and found usable, when the search took this edge.
+        // Unreachable `else`: both states were evaluated and found usable (and cached) when
+        // the search took this edge, and the swing check is deterministic.
         let (Some(before), Some(after)) = (space.stance_terrain(from), space.stance_terrain(to)) else { continue };
         let Some(cost) = space.action_cost(primitive, &before, &after) else { continue };
         steps.push(BodyStep { primitive, from: poses[i], to: poses[i + 1], cost, footholds: after.footholds });
@@ -481,6 +467,20 @@ fn validate(config: &BodyPlannerConfig) -> Result<(), BodyPlanError> {
             ));
         }
         positive(&field("difficulty"), primitive.difficulty)?;
+        // A move of at least one cell ends in another cell at every heading (rounding both
+        // components to zero needs a length below half a cell's diagonal); shorter moves
+        // would be lost or kept depending on the heading.
+        let length = primitive.dx.hypot(primitive.dy);
+        let no_op = length == 0.0 && turns.round() == 0.0;
+        if no_op || (length > 0.0 && length < config.cell_size) {
+            return Err(invalid(
+                format!("primitives[{p}] ({})", primitive.name),
+                format!(
+                    "moves {length} m, turns {} rad (expected a move of 0 or at least one cell, {} m, and not neither)",
+                    primitive.dyaw, config.cell_size
+                ),
+            ));
+        }
     }
     Ok(())
 }

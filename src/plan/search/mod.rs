@@ -8,9 +8,9 @@
 //! continuous states are discretised by the space into whatever key type it chooses (the
 //! body planner's [`LatticeKey`](crate::plan::body::LatticeKey) is `(ix, iy, heading)`).
 //!
-//! Both searches run in a [`SearchWorkspace`] (node table, open heap, successor
-//! buffer) that keeps its memory between queries, so re-planning at 10 Hz does
-//! not allocate once the tables have grown to the problem's size.
+//! Both searches run in a [`SearchWorkspace`] (node table, open heap, successor buffer)
+//! that keeps its memory between queries: once its tables have grown to the problem's size,
+//! expanding a state allocates nothing (only the returned paths are new vectors).
 //!
 //! * [`a_star`]: best-first on `f = g + h`, closed nodes re-opened when a cheaper path
 //!   reaches them, so the result is optimal for any admissible `h`.
