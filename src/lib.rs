@@ -28,6 +28,7 @@ pub mod dynamics;
 pub mod io;
 pub mod model;
 pub mod ocp;
+pub mod plan;
 pub mod sim;
 pub mod slq;
 pub mod spatial;

@@ -1,0 +1,9 @@
+//! Planning on terrain, Winkler 2015 sec. III: the generic graph search ([`search`]: A* and
+//! ARA*) and the body action planner of sec. III-B ([`body`]), which reads the terrain
+//! through the small [`TerrainCostField`] trait.
+
+pub mod body;
+mod cost_field;
+pub mod search;
+
+pub use cost_field::TerrainCostField;
