@@ -35,3 +35,16 @@ impl<T: TerrainCostField + ?Sized> TerrainCostField for &T {
         (**self).cost_and_height(x, y)
     }
 }
+
+/// The on-board terrain map (Winkler 2015 sec. III-A) is what the planners read.
+impl TerrainCostField for crate::terrain::TerrainMap {
+    fn cost(&self, x: f64, y: f64) -> f64 {
+        crate::terrain::TerrainMap::cost(self, x, y)
+    }
+    fn height(&self, x: f64, y: f64) -> f64 {
+        crate::terrain::TerrainMap::height(self, x, y)
+    }
+    fn resolution(&self) -> f64 {
+        crate::terrain::TerrainMap::resolution(self)
+    }
+}

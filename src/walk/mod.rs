@@ -2,7 +2,8 @@
 //! map, the body-action and footstep planners, the ZMP body trajectory and its execution
 //! in the simulator, with re-planning.
 
-pub mod footstep;
+pub mod motion;
 pub mod scenario;
+pub mod trial;
 
 pub use scenario::{BlockSpec, ScenarioError, ScenarioSpec, WorldSpec, EMBEDDED_SCENARIOS};

@@ -19,46 +19,16 @@
 //! Any swing-leg order can come out of it; the ZMP body trajectory inserts four-leg support
 //! where consecutive support triangles are disjoint.
 
+use super::body::BodyPose;
+use super::TerrainCostField;
 use nalgebra::{Vector2, Vector3};
 
-/// What the footstep planner needs to know of the terrain (the on-board cost map).
-pub trait FootholdTerrain {
-    /// Terrain cost at `(x, y)`, in `[0, 1]`; 1 means a foot must not go there (a gap, an
-    /// edge, an unknown cell).
-    fn cost(&self, x: f64, y: f64) -> f64;
-    /// Terrain height at `(x, y)`.
-    fn height(&self, x: f64, y: f64) -> f64;
-    /// Cell size: the spacing of the foothold candidates.
-    fn resolution(&self) -> f64;
+/// A body-frame point `(bx, by)` of the planar pose `pose` in the world.
+pub fn body_to_world(pose: &BodyPose, b: [f64; 2]) -> Vector2<f64> {
+    let (s, c) = pose.yaw.sin_cos();
+    Vector2::new(pose.x + c * b[0] - s * b[1], pose.y + s * b[0] + c * b[1])
 }
 
-impl FootholdTerrain for crate::terrain::TerrainMap {
-    fn cost(&self, x: f64, y: f64) -> f64 {
-        crate::terrain::TerrainMap::cost(self, x, y)
-    }
-    fn height(&self, x: f64, y: f64) -> f64 {
-        crate::terrain::TerrainMap::height(self, x, y)
-    }
-    fn resolution(&self) -> f64 {
-        crate::terrain::TerrainMap::resolution(self)
-    }
-}
-
-/// A planar body pose: position of the base and yaw.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BodyPose {
-    pub x: f64,
-    pub y: f64,
-    pub yaw: f64,
-}
-
-impl BodyPose {
-    /// A body-frame point `(bx, by)` in the world.
-    pub fn to_world(&self, b: [f64; 2]) -> Vector2<f64> {
-        let (s, c) = self.yaw.sin_cos();
-        Vector2::new(self.x + c * b[0] - s * b[1], self.y + s * b[0] + c * b[1])
-    }
-}
 
 /// Leg indices, in the project's order (DESIGN.md).
 pub const LF: usize = 0;
@@ -90,11 +60,11 @@ pub struct FootstepParams {
 }
 
 impl FootstepParams {
-    /// HyQ's parameters: the nominal stance is the standing pose's feet (`legwork robot
-    /// info hyq`: x +-0.371, y +-0.324).
-    pub fn hyq() -> Self {
+    /// HyQ's parameters around the nominal stance `nominal` (the body planner's
+    /// [`super::body::NominalStance`], from the standing pose: x +-0.371, y +-0.324 on HyQ).
+    pub fn hyq(nominal: [[f64; 2]; 4]) -> Self {
         Self {
-            nominal: [[0.371, 0.324], [0.371, -0.324], [-0.371, 0.324], [-0.371, -0.324]],
+            nominal,
             search_half_width: 0.12,
             forbidden_cost: 0.99,
             wanted_inscribed_radius: 0.12,
@@ -169,7 +139,7 @@ pub fn inscribed_radius(a: Vector2<f64>, b: Vector2<f64>, c: Vector2<f64>) -> f6
 
 /// Plans the footsteps of the body path `body_path[0] -> body_path[1] -> ...` (one action
 /// per consecutive pair) from the feet at `feet` (surface points, world, LF RF LH RH).
-pub fn plan_footsteps(terrain: &dyn FootholdTerrain, params: &FootstepParams, feet: [Vector3<f64>; 4], body_path: &[BodyPose]) -> Result<Vec<Footstep>, FootstepError> {
+pub fn plan_footsteps(terrain: &dyn TerrainCostField, params: &FootstepParams, feet: [Vector3<f64>; 4], body_path: &[BodyPose]) -> Result<Vec<Footstep>, FootstepError> {
     let mut feet = feet;
     let mut steps = Vec::with_capacity(4 * body_path.len().saturating_sub(1));
     for (action, pair) in body_path.windows(2).enumerate() {
@@ -181,7 +151,7 @@ pub fn plan_footsteps(terrain: &dyn FootholdTerrain, params: &FootstepParams, fe
         for (i, &leg) in order.iter().enumerate() {
             let next_leg = order.get(i + 1).copied();
             let (to, cost) = best_foothold(terrain, params, &feet, leg, next_leg, after).ok_or_else(|| {
-                let n = after.to_world(params.nominal[leg]);
+                let n = body_to_world(&after, params.nominal[leg]);
                 FootstepError::NoFoothold { action, leg: LEG_NAMES[leg], x: n.x, y: n.y, half_width: params.search_half_width, forbidden: params.forbidden_cost }
             })?;
             steps.push(Footstep { leg, from: feet[leg], to, action, body: after, cost });
@@ -193,8 +163,8 @@ pub fn plan_footsteps(terrain: &dyn FootholdTerrain, params: &FootstepParams, fe
 
 /// The lowest-`c_f` cell in the search area of `leg` around its nominal position at
 /// `body`; ties go to the candidate nearest the nominal position.
-fn best_foothold(terrain: &dyn FootholdTerrain, params: &FootstepParams, feet: &[Vector3<f64>; 4], leg: usize, next_leg: Option<usize>, body: BodyPose) -> Option<(Vector3<f64>, FootholdCost)> {
-    let nominal = body.to_world(params.nominal[leg]);
+fn best_foothold(terrain: &dyn TerrainCostField, params: &FootstepParams, feet: &[Vector3<f64>; 4], leg: usize, next_leg: Option<usize>, body: BodyPose) -> Option<(Vector3<f64>, FootholdCost)> {
+    let nominal = body_to_world(&body, params.nominal[leg]);
     let r = terrain.resolution();
     let n = (params.search_half_width / r).floor() as i64;
     let others: Vec<usize> = (0..4).filter(|&l| l != leg).collect();
@@ -239,7 +209,7 @@ fn best_foothold(terrain: &dyn FootholdTerrain, params: &FootstepParams, feet: &
 
 /// `c_c`: the highest terrain along the straight swing path above the higher end, as a
 /// fraction of the swing height (capped at 1).
-fn swing_collision(terrain: &dyn FootholdTerrain, from: &Vector3<f64>, to: &Vector3<f64>, swing_height: f64) -> f64 {
+fn swing_collision(terrain: &dyn TerrainCostField, from: &Vector3<f64>, to: &Vector3<f64>, swing_height: f64) -> f64 {
     let length = (to.xy() - from.xy()).norm();
     let samples = ((length / terrain.resolution()).ceil() as usize).max(1);
     let top = from.z.max(to.z);
@@ -255,13 +225,15 @@ fn swing_collision(terrain: &dyn FootholdTerrain, from: &Vector3<f64>, to: &Vect
 mod tests {
     use super::*;
 
+    const HYQ_STANCE: [[f64; 2]; 4] = [[0.3708, 0.3241], [0.3708, -0.3241], [-0.3708, 0.3241], [-0.3708, -0.3241]];
+
     /// Flat ground at 0 with optional forbidden strips and raised boxes.
     struct TestTerrain {
         forbidden_x: Option<[f64; 2]>,
         boxes: Vec<([f64; 2], [f64; 2], f64)>,
     }
 
-    impl FootholdTerrain for TestTerrain {
+    impl TerrainCostField for TestTerrain {
         fn cost(&self, x: f64, _y: f64) -> f64 {
             match self.forbidden_x {
                 Some([a, b]) if x >= a && x <= b => 1.0,
@@ -278,7 +250,7 @@ mod tests {
 
     fn standing_feet(params: &FootstepParams, body: BodyPose) -> [Vector3<f64>; 4] {
         std::array::from_fn(|l| {
-            let p = body.to_world(params.nominal[l]);
+            let p = body_to_world(&body, params.nominal[l]);
             Vector3::new(p.x, p.y, 0.0)
         })
     }
@@ -289,13 +261,13 @@ mod tests {
 
     #[test]
     fn flat_ground_gives_nominal_footholds_in_crawl_order() {
-        let params = FootstepParams::hyq();
+        let params = FootstepParams::hyq(HYQ_STANCE);
         let path = straight_path(0.2, 3);
         let steps = plan_footsteps(&TestTerrain { forbidden_x: None, boxes: vec![] }, &params, standing_feet(&params, path[0]), &path).unwrap();
         assert_eq!(steps.len(), 12);
         assert_eq!(steps.iter().take(4).map(|s| s.leg).collect::<Vec<_>>(), vec![LH, LF, RH, RF]);
         for s in &steps {
-            let nominal = s.body.to_world(params.nominal[s.leg]);
+            let nominal = body_to_world(&s.body, params.nominal[s.leg]);
             // On a 4 cm grid the nominal point itself is a candidate.
             assert!((s.to.xy() - nominal).norm() < 1e-9, "{s:?}");
             assert_eq!(s.cost.terrain, 0.0);
@@ -305,14 +277,14 @@ mod tests {
 
     #[test]
     fn footholds_avoid_a_forbidden_strip() {
-        let params = FootstepParams::hyq();
+        let params = FootstepParams::hyq(HYQ_STANCE);
         let path = straight_path(0.15, 10);
         let strip = [0.9, 1.05];
         let steps = plan_footsteps(&TestTerrain { forbidden_x: Some(strip), boxes: vec![] }, &params, standing_feet(&params, path[0]), &path).unwrap();
         let mut displaced = 0;
         for s in &steps {
             assert!(s.to.x < strip[0] || s.to.x > strip[1], "{s:?}");
-            let nominal = s.body.to_world(params.nominal[s.leg]);
+            let nominal = body_to_world(&s.body, params.nominal[s.leg]);
             if (s.to.xy() - nominal).norm() > 1e-9 {
                 displaced += 1;
             }
@@ -324,7 +296,7 @@ mod tests {
     #[test]
     fn a_pit_floor_out_of_the_legs_reach_is_never_a_foothold() {
         // A pit 0.5 m deep with cost 0 on its (flat) floor: only the reach limit excludes it.
-        let params = FootstepParams::hyq();
+        let params = FootstepParams::hyq(HYQ_STANCE);
         let path = straight_path(0.15, 10);
         let terrain = TestTerrain { forbidden_x: None, boxes: vec![([-5.0, 0.9], [-5.0, 5.0], 0.5), ([1.05, 9.0], [-5.0, 5.0], 0.5)] };
         let feet = standing_feet(&params, path[0]).map(|f| Vector3::new(f.x, f.y, 0.5));
@@ -334,7 +306,7 @@ mod tests {
 
     #[test]
     fn a_strip_wider_than_the_search_area_is_an_error_naming_the_action_and_leg() {
-        let params = FootstepParams::hyq();
+        let params = FootstepParams::hyq(HYQ_STANCE);
         let path = straight_path(0.2, 10);
         let e = plan_footsteps(&TestTerrain { forbidden_x: Some([0.8, 1.4]), boxes: vec![] }, &params, standing_feet(&params, path[0]), &path).unwrap_err();
         assert!(matches!(e, FootstepError::NoFoothold { .. }));
@@ -343,7 +315,7 @@ mod tests {
 
     #[test]
     fn footholds_on_a_box_are_on_its_top() {
-        let params = FootstepParams::hyq();
+        let params = FootstepParams::hyq(HYQ_STANCE);
         let path = straight_path(0.2, 8);
         let pallet = ([1.0, 2.2], [-0.4, 0.4], 0.15);
         let terrain = TestTerrain { forbidden_x: None, boxes: vec![pallet] };
