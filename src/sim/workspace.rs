@@ -98,7 +98,13 @@ impl<'a> ContactModelWorkspace<'a> {
             let vj = &self.data.v[j];
             let velocity = o_m_j.rotation * (vj.v + vj.w.cross(&local));
             let (h, normal) = self.terrain.surface(position.x, position.y);
-            let surface = Surface { point: Vector3::new(position.x, position.y, h), normal };
+            let mut surface = Surface { point: Vector3::new(position.x, position.y, h), normal };
+            // Above everything the foot could touch: no contact, even where the tangent plane
+            // under the foot (a cliff's edge) passes within a radius of it.
+            let highest = self.terrain.highest_near(position.x, position.y, foot.radius);
+            if position.z - foot.radius > highest {
+                surface = Surface { point: Vector3::new(position.x, position.y, highest), normal: Vector3::z() };
+            }
             let contact = contact_force(&self.params, foot.radius, &position, &velocity, &surface, anchors[k].as_ref());
             if contact.normal_force > 0.0 {
                 // f in the joint frame: R^T F at the point r: moment r x R^T F.

@@ -198,6 +198,21 @@ impl Terrain for HeightMap {
         let hy = if inside_y { ((1.0 - u) * (h01 - h00) + u * (h11 - h10)) / self.resolution } else { 0.0 };
         (h, Vector3::new(-hx, -hy, 1.0).normalize())
     }
+    /// The highest grid point of the cells the disk touches (bilinear cells never rise
+    /// above their corners).
+    fn highest_near(&self, x: f64, y: f64, radius: f64) -> f64 {
+        let r = self.resolution;
+        let index = |v: f64, o: f64, n: usize| (((v - o) / r).floor().max(0.0) as usize).min(n - 1);
+        let (i0, i1) = (index(x - radius, self.origin[0], self.columns), index(x + radius, self.origin[0], self.columns) + 1);
+        let (j0, j1) = (index(y - radius, self.origin[1], self.rows), index(y + radius, self.origin[1], self.rows) + 1);
+        let mut highest = f64::NEG_INFINITY;
+        for j in j0..=j1.min(self.rows - 1) {
+            for i in i0..=i1.min(self.columns - 1) {
+                highest = highest.max(self.heights[j * self.columns + i]);
+            }
+        }
+        highest
+    }
     fn spec(&self) -> TerrainSpec {
         TerrainSpec::HeightMap(self.to_file_data())
     }
@@ -224,6 +239,26 @@ mod tests {
         // Outside: the border extends, flat along the clamped axis.
         assert!((map.height(5.0, 0.0) - map.height(1.0, 0.0)).abs() < 1e-12);
         assert!(map.normal(5.0, 0.0).x.abs() < 1e-12);
+    }
+
+    #[test]
+    fn highest_near_bounds_the_surface_over_the_disk() {
+        // A 0.57 m cliff: the pit at -0.5 up to a stone top at 0.07 from x = 0.66.
+        let mut map = HeightMap::flat([0.0, -1.0], 0.02, 101, 101, -0.5);
+        map.set_rect([0.66, 0.82], [-0.1, 0.1], 0.07);
+        for k in 0..200 {
+            let (x, y) = (0.55 + 0.002 * k as f64, 0.013 * (k % 7) as f64);
+            let bound = map.highest_near(x, y, 0.022);
+            for s in 0..16 {
+                let a = s as f64 * std::f64::consts::TAU / 16.0;
+                for r in [0.0, 0.011, 0.022] {
+                    assert!(map.height(x + r * a.cos(), y + r * a.sin()) <= bound + 1e-12, "({x}, {y})");
+                }
+            }
+        }
+        // Over the cliff's ramp the bound is the stone top, not the tangent plane's reach.
+        assert_eq!(map.highest_near(0.65, 0.0, 0.022), 0.07);
+        assert_eq!(map.highest_near(0.3, 0.0, 0.022), -0.5);
     }
 
     #[test]

@@ -41,6 +41,12 @@ pub trait Terrain: Send + Sync {
     fn surface(&self, x: f64, y: f64) -> (f64, Vector3<f64>) {
         (self.height(x, y), self.normal(x, y))
     }
+    /// An upper bound of the surface height over the disk of `radius` around `(x, y)`
+    /// (default: none). A foot sphere whose lowest point is above it touches nothing: this
+    /// keeps a foot passing above a cliff's edge from touching the edge's tangent plane.
+    fn highest_near(&self, _x: f64, _y: f64, _radius: f64) -> f64 {
+        f64::INFINITY
+    }
     /// The serialisable description of this terrain (for trajectory files and replays).
     fn spec(&self) -> TerrainSpec;
 }

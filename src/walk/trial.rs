@@ -35,9 +35,8 @@ pub struct WalkConfig {
     pub planning_budget: Duration,
     /// Time between two sensor sweeps of the map (s).
     pub sensor_period: f64,
-    /// Range of the map's height sensor (m): the scanning depth camera sees the scene to
-    /// about 4 m.
-    pub sensor_range: f64,
+    /// The terrain map (its origin and size are the scenario world's, its noise the trial's).
+    pub map: TerrainMapConfig,
     /// Reset map cells in one sweep that count as a change of the world (a lone reset is
     /// sensor noise beyond the map's k-sigma test; a placed pallet resets hundreds).
     pub min_changed_cells: usize,
@@ -77,7 +76,14 @@ impl WalkConfig {
             body: BodyPlannerConfig::default(),
             planning_budget: Duration::from_millis(100),
             sensor_period: 0.1,
-            sensor_range: 4.0,
+            // The scanning depth camera sees the scene to about 4 m; the cost features over
+            // 3 x 3 cells (12 cm) so that a 16 cm stepping stone keeps footholds inside its
+            // forbidden lip.
+            map: TerrainMapConfig {
+                sensor: crate::terrain::SensorConfig { range: 4.0, ..Default::default() },
+                cost: crate::terrain::CostParams { window_radius_cells: 1, ..Default::default() },
+                ..TerrainMapConfig::default()
+            },
             min_changed_cells: 8,
             replan_deviation: 0.08,
             settle_time: 0.3,
@@ -165,6 +171,16 @@ pub struct BadFoothold {
     pub surface: String,
 }
 
+/// Where a swing ended against where it was planned to (foot-sphere centres, world).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Touchdown {
+    pub t: f64,
+    pub leg: &'static str,
+    pub planned: [f64; 3],
+    pub actual: [f64; 3],
+    pub in_contact: bool,
+}
+
 /// The result of a trial.
 #[derive(Clone, Debug)]
 pub struct TrialOutcome {
@@ -185,6 +201,8 @@ pub struct TrialOutcome {
     /// Longest map update (sample, fuse, local cost) (ms).
     pub max_map_update_ms: f64,
     pub bad_footholds: Vec<BadFoothold>,
+    /// Every swing's end, planned against actual foot position.
+    pub touchdowns: Vec<Touchdown>,
     pub clipped_ticks: u64,
     pub trajectory: Trajectory,
     /// The map at the end (for drawing).
@@ -287,8 +305,8 @@ pub fn run_trial(model: &Model, scenario: &ScenarioSpec, config: &WalkConfig, se
     let map_config = TerrainMapConfig {
         origin: w.origin,
         size: w.size,
-        sensor: crate::terrain::SensorConfig { noise_sigma: setup.map_noise, range: config.sensor_range, ..Default::default() },
-        ..TerrainMapConfig::default()
+        sensor: crate::terrain::SensorConfig { noise_sigma: setup.map_noise, ..config.map.sensor },
+        ..config.map
     };
     let mut map = TerrainMap::new(map_config).map_err(|e| setup_error(e.to_string()))?;
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(setup.seed);
@@ -306,6 +324,8 @@ pub fn run_trial(model: &Model, scenario: &ScenarioSpec, config: &WalkConfig, se
     let mut trajectory = Trajectory::new(model, format!("walk {}", scenario.name), config.record_dt, world.spec());
     let mut plans: Vec<PlanRecord> = Vec::new();
     let mut bad_footholds = Vec::new();
+    let mut touchdowns = Vec::new();
+    let mut swinging: Option<(usize, nalgebra::Point3<f64>)> = None;
     let mut map_updates = 0;
     let mut max_map_update_ms: f64 = 0.0;
     let mut next_sensor = 0.0;
@@ -373,6 +393,15 @@ pub fn run_trial(model: &Model, scenario: &ScenarioSpec, config: &WalkConfig, se
             }
         }
         last_phase = controller.source().plan.as_ref().map(|p| p.phase_at(t));
+        // The end of a swing: where the foot is against where it was to land.
+        let now_swinging = controller.source().plan.as_ref().and_then(|p| p.swing_at(t)).map(|s| (s.leg, s.trajectory.state(f64::INFINITY).0));
+        if let Some((leg, planned)) = swinging {
+            if now_swinging.is_none_or(|(l, p)| l != leg || p != planned) {
+                let foot = &sim.feet()[leg];
+                touchdowns.push(Touchdown { t, leg: crate::plan::footstep::LEG_NAMES[leg], planned: planned.coords.into(), actual: foot.position.into(), in_contact: foot.contact.normal_force > 0.0 });
+            }
+        }
+        swinging = now_swinging;
 
         // The end of a plan: at the goal, or plan again.
         if let Some(plan) = &controller.source().plan {
@@ -451,6 +480,7 @@ pub fn run_trial(model: &Model, scenario: &ScenarioSpec, config: &WalkConfig, se
         map_updates,
         max_map_update_ms,
         bad_footholds,
+        touchdowns,
         clipped_ticks: controller.stats().clipped_ticks,
         trajectory,
         map,

@@ -53,10 +53,15 @@ impl MotionPrimitive {
 /// deg in place moves each foot (0.49 m from the centre) by 0.17 m, a step of the same size.
 /// The short forward step (0.12 m) places the feet before gaps and near the goal.
 ///
-/// Difficulties `c_a` per action; per metre: forward 4.2, short forward 5.0, forward with a
+/// `stride` is the long step that crosses a 35 cm gap (Winkler 2015 sec. VI: "a gap of 35
+/// cm, which is approximately half the robot's body length"): each foot moves 0.36 m, to
+/// 0.18 m either side of its nominal point, within HyQ's reach at its walking height.
+///
+/// Difficulties `c_a` per action; per metre: stride 3.9, forward 4.2, short forward 5.0, forward with a
 /// turn 5.5, diagonal 6.5, sideways and backward 10 (the robot sees and steps best forward).
 pub fn hyq_crawl_primitives() -> Vec<MotionPrimitive> {
     vec![
+        MotionPrimitive::new("stride", 0.36, 0.0, 0.0, 1.4),
         MotionPrimitive::new("forward", 0.24, 0.0, 0.0, 1.0),
         MotionPrimitive::new("forward_short", 0.12, 0.0, 0.0, 0.6),
         MotionPrimitive::new("diagonal_left", 0.16, 0.12, 0.0, 1.3),
