@@ -19,6 +19,12 @@ pub trait TerrainCostField {
     fn cost_and_height(&self, x: f64, y: f64) -> (f64, f64) {
         (self.cost(x, y), self.height(x, y))
     }
+    /// The centre of the cell that holds `(x, y)` (default: the point itself). Footholds are
+    /// chosen at cell centres: a point near a cell's border may lie beyond the edge the
+    /// cell's sample saw.
+    fn cell_center(&self, x: f64, y: f64) -> (f64, f64) {
+        (x, y)
+    }
 }
 
 impl<T: TerrainCostField + ?Sized> TerrainCostField for &T {
@@ -34,6 +40,9 @@ impl<T: TerrainCostField + ?Sized> TerrainCostField for &T {
     fn cost_and_height(&self, x: f64, y: f64) -> (f64, f64) {
         (**self).cost_and_height(x, y)
     }
+    fn cell_center(&self, x: f64, y: f64) -> (f64, f64) {
+        (**self).cell_center(x, y)
+    }
 }
 
 /// The on-board terrain map (Winkler 2015 sec. III-A) is what the planners read.
@@ -46,5 +55,14 @@ impl TerrainCostField for crate::terrain::TerrainMap {
     }
     fn resolution(&self) -> f64 {
         crate::terrain::TerrainMap::resolution(self)
+    }
+    fn cell_center(&self, x: f64, y: f64) -> (f64, f64) {
+        match self.cell_at(x, y) {
+            Some((i, j)) => {
+                let [cx, cy] = crate::terrain::TerrainMap::cell_center(self, i, j);
+                (cx, cy)
+            }
+            None => (x, y),
+        }
     }
 }

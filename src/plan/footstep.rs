@@ -173,7 +173,8 @@ fn best_foothold(terrain: &dyn TerrainCostField, params: &FootstepParams, feet: 
     let mut best: Option<(Vector3<f64>, FootholdCost, f64)> = None;
     for i in -n..=n {
         for j in -n..=n {
-            let p = Vector2::new(nominal.x + i as f64 * r, nominal.y + j as f64 * r);
+            let (cx, cy) = terrain.cell_center(nominal.x + i as f64 * r, nominal.y + j as f64 * r);
+            let p = Vector2::new(cx, cy);
             let c_t = terrain.cost(p.x, p.y);
             if c_t >= params.forbidden_cost || !c_t.is_finite() {
                 continue;
