@@ -42,7 +42,8 @@ pub struct WalkConfig {
     pub min_changed_cells: usize,
     /// Horizontal CoG error that triggers a re-plan (m).
     pub replan_deviation: f64,
-    /// Standing still under the controller before the first plan (s).
+    /// Standing still under the controller before the first plan (s): ten sensor sweeps
+    /// average the map's noise down before footholds are chosen on it.
     pub settle_time: f64,
     /// Base position error at the end that counts as reaching the goal (m).
     pub goal_tolerance: f64,
@@ -86,7 +87,7 @@ impl WalkConfig {
             },
             min_changed_cells: 8,
             replan_deviation: 0.08,
-            settle_time: 0.3,
+            settle_time: 1.0,
             goal_tolerance: 0.1,
             fall_tilt: 40f64.to_radians(),
             fall_height: 0.25,
