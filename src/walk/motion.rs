@@ -10,21 +10,27 @@
 //!   footholds, the roll to the slope between the left and right ones, and the yaw to the
 //!   body action's, each along the rest-to-rest quintic `sigma(u) = 10u^3 - 15u^4 + 6u^5`
 //!   (zero velocity and acceleration at the phase ends, so the reference stays twice
-//!   differentiable and a re-plan at a phase boundary starts from rest in these);
+//!   differentiable and a re-plan at a phase boundary starts from rest in these); the height
+//!   is taken halfway between the mean and the lowest foothold, so that over a step the
+//!   leg on the lower level keeps reaching its foot;
 //! * each swing follows a [`SwingTrajectory`] that clears the terrain between the footholds.
 
 use crate::plan::body::BodyPose;
 use crate::plan::footstep::Footstep;
 use crate::plan::TerrainCostField;
 use crate::control::{BodyMotion, FootMotion, LegMotion, WholeBodyReference};
-use crate::zmp::{self, CogState, CogTrajectory, PhaseOrigin, StepTiming, SwingShape, SwingTrajectory, ZmpQp};
+use crate::zmp::{self, CogState, CogTrajectory, PhaseOrigin, SupportPhase, SwingShape, SwingTrajectory, ZmpQp};
 use nalgebra::{Point2, Point3, UnitQuaternion, Vector2, Vector3};
 
 /// Timing and shape of the walk.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GaitParams {
-    /// Duration of one swing phase (s).
+    /// Duration of a swing on level ground (s).
     pub swing_duration: f64,
+    /// Extra swing time per metre the foot must rise or drop (above the higher foothold to
+    /// clear the terrain between, or from one level to another) (s/m): stepping onto a
+    /// pallet takes longer than a level step.
+    pub swing_time_per_height: f64,
     /// Four-leg support before the first step of a plan (s).
     pub initial_stance: f64,
     /// Four-leg support after the last step, while the CoG settles at the goal (s).
@@ -59,7 +65,9 @@ impl Posture {
 
     /// The posture over four footholds (LF, RF, LH, RH surface points) for body yaw `yaw`.
     pub fn over_footholds(feet: &[Vector3<f64>; 4], yaw: f64, gait: &GaitParams) -> Self {
-        let mean = feet.iter().map(|f| f.z).sum::<f64>() / 4.0;
+        // Halfway between the mean and the lowest foothold: over a step the body rises less
+        // than the mean would lift it, so the leg on the lower level still reaches its foot.
+        let mean = 0.5 * (feet.iter().map(|f| f.z).sum::<f64>() / 4.0 + feet.iter().map(|f| f.z).fold(f64::INFINITY, f64::min));
         let front = 0.5 * (feet[0].z + feet[1].z);
         let hind = 0.5 * (feet[2].z + feet[3].z);
         let left = 0.5 * (feet[0].z + feet[2].z);
@@ -137,9 +145,19 @@ impl MotionPlan {
         footsteps: Vec<Footstep>,
         goal_cog: Vector2<f64>,
     ) -> Result<Self, MotionError> {
-        let zmp_steps: Vec<zmp::Footstep> = footsteps.iter().map(|s| zmp::Footstep { leg: zmp::Leg::ALL[s.leg], target: Point2::new(s.to.x, s.to.y) }).collect();
-        let timing = StepTiming { initial_stance: gait.initial_stance, swing: gait.swing_duration, final_stance: gait.final_stance };
-        let phases = zmp::phases_from_footsteps(feet.map(|f| Point2::new(f.x, f.y)), &zmp_steps, timing, gait.cog_height);
+        // The support phases: four-leg stance, one swing per step (its duration from the
+        // height the foot must travel), four-leg stance at the end.
+        let mut support = feet.map(|f| Point2::new(f.x, f.y));
+        let mut phases = Vec::with_capacity(footsteps.len() + 2);
+        phases.push(SupportPhase::four_leg(support, gait.initial_stance, gait.cog_height));
+        for s in &footsteps {
+            let top = terrain_top(terrain, &s.from, &s.to).unwrap_or(f64::NEG_INFINITY);
+            let travel = (s.to.z - s.from.z).abs().max(top - s.from.z.max(s.to.z)).max(0.0);
+            let duration = gait.swing_duration + gait.swing_time_per_height * travel;
+            phases.push(SupportPhase::swing(support, zmp::Leg::ALL[s.leg], duration, gait.cog_height));
+            support[s.leg] = Point2::new(s.to.x, s.to.y);
+        }
+        phases.push(SupportPhase::four_leg(support, gait.final_stance, gait.cog_height));
         let cog = qp.solve(&phases, cog_start, Point2::from(goal_cog))?;
 
         let mut postures = vec![posture_start];
@@ -294,11 +312,11 @@ mod tests {
 
     #[test]
     fn posture_follows_the_footholds() {
-        let gait = GaitParams { swing_duration: 0.3, initial_stance: 0.3, final_stance: 0.5, step_height: 0.1, clearance: 0.05, cog_height: 0.55, stance_length: 0.74, stance_width: 0.65, foot_radius: 0.02 };
+        let gait = GaitParams { swing_duration: 0.3, swing_time_per_height: 1.3, initial_stance: 0.3, final_stance: 0.5, step_height: 0.1, clearance: 0.05, cog_height: 0.55, stance_length: 0.74, stance_width: 0.65, foot_radius: 0.02 };
         // Front feet 0.15 m up (on a pallet): nose up, i.e. negative pitch.
         let feet = [Vector3::new(0.37, 0.32, 0.15), Vector3::new(0.37, -0.32, 0.15), Vector3::new(-0.37, 0.32, 0.0), Vector3::new(-0.37, -0.32, 0.0)];
         let p = Posture::over_footholds(&feet, 0.2, &gait);
-        assert!((p.cog_z - (0.075 + 0.55)).abs() < 1e-12);
+        assert!((p.cog_z - (0.5 * (0.075 + 0.0) + 0.55)).abs() < 1e-12);
         assert!((p.pitch + (0.15f64 / 0.74).atan()).abs() < 1e-12);
         assert_eq!(p.roll, 0.0);
         assert_eq!(p.yaw, 0.2);

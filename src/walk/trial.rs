@@ -63,11 +63,12 @@ impl WalkConfig {
         Ok(Self {
             gait: GaitParams {
                 swing_duration: 0.3,
+                swing_time_per_height: 1.4,
                 initial_stance: 0.2,
                 final_stance: 0.6,
-                step_height: 0.08,
-                clearance: 0.02,
-                cog_height: 0.58,
+                step_height: 0.10,
+                clearance: 0.05,
+                cog_height: 0.55,
                 stance_length: 0.742,
                 stance_width: 0.648,
                 foot_radius,
