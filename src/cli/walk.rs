@@ -77,8 +77,14 @@ pub fn run(args: WalkArgs) -> Result<()> {
     let wall = started.elapsed().as_secs_f64();
     let report = TrialReport::new(&outcome, wall);
 
-    // The files.
+    // The files. A trial that ends before its first simulation step after a recorded knot
+    // records that instant twice; a trajectory file's times increase strictly.
     let mut traj = outcome.trajectory.clone();
+    if let [.., before, last] = traj.knots.as_slice() {
+        if last.t <= before.t {
+            traj.knots.pop();
+        }
+    }
     let p = &report.planning;
     // The trajectory's own summary is short (the replay shows it in its header); every
     // number is in summary.json.
@@ -117,8 +123,12 @@ pub fn run(args: WalkArgs) -> Result<()> {
         Some(reason) => say!("{}: FAILED: {reason}", spec.name),
     }
     say!("  goal error            {} m (yaw {} deg)", opt(report.goal_error_m, 3), opt(report.yaw_error_deg, 1));
-    say!("  walking time          {:.2} s, speed {:.1} cm/s (simulated {:.2} s in {:.1} s)", report.walking_time_s, report.speed_cm_s, report.simulated_time_s, wall);
-    say!("  plans                 {} ({})", p.plans, report.plan_reasons.join(", "));
+    let speed = if report.success { format!("speed {:.1} cm/s", report.speed_cm_s) } else { "no speed (the goal was not reached)".into() };
+    say!("  walking time          {:.2} s, {speed} (simulated {:.2} s in {:.1} s)", report.walking_time_s, report.simulated_time_s, wall);
+    match p.plans {
+        0 => say!("  plans                 0"),
+        n => say!("  plans                 {n} ({})", report.plan_reasons.join(", ")),
+    }
     say!("  ARA* first solution   mean {} ms, max {} ms", opt(p.mean_first_solution_ms, 1), opt(p.max_first_solution_ms, 1));
     say!("  whole plan            mean {} ms, max {} ms", opt(p.mean_plan_ms, 1), opt(p.max_plan_ms, 1));
     say!("  ZMP QP                mean {} ms, max {} ms; worst ZMP margin {} cm", opt(p.mean_zmp_ms, 2), opt(p.max_zmp_ms, 2), opt(p.worst_zmp_margin_m.map(|m| m * 100.0), 2));

@@ -131,7 +131,8 @@ pub fn plan_overlay(plans: &[PlanRecord], terrain: &dyn Terrain, end_time: f64) 
             }
         }
     }
-    ReplayOverlay { footholds, paths: vec![cog, zmp], supports }
+    let paths = [cog, zmp].into_iter().filter(|p| !p.t.is_empty()).collect();
+    ReplayOverlay { footholds, paths, supports }
 }
 
 /// Writes the walk's figures into `dir` (created if needed) and returns the files written:
