@@ -536,4 +536,27 @@ mod tests {
         assert_eq!(round(-0.00001, 3).to_string(), "0");
         assert_eq!(round(1.23456, 2), 1.23);
     }
+
+    #[test]
+    fn overlay_checks_name_the_field() {
+        let path = |t: Vec<f64>, n: usize| OverlayPath { name: "CoG".into(), color: "#8e24aa".into(), t, points: vec![[0.0, 0.0, 0.5]; n] };
+        let good = ReplayOverlay {
+            footholds: vec![OverlayFoothold { foot: 3, position: [0.3, -0.2, 0.0], t: 1.0, executed: true }],
+            paths: vec![path(vec![0.0, 0.5, 0.5, 1.0], 4)],
+            supports: vec![OverlaySupport { t0: 0.0, t1: 1.0, polygon: vec![[0.0, 0.0, 0.0]; 3], shrunk: Vec::new() }],
+        };
+        good.validate(4).unwrap();
+        let cases = [
+            (ReplayOverlay { footholds: vec![OverlayFoothold { foot: 4, ..good.footholds[0].clone() }], ..good.clone() }, "footholds[0].foot"),
+            (ReplayOverlay { footholds: vec![OverlayFoothold { t: f64::NAN, ..good.footholds[0].clone() }], ..good.clone() }, "footholds[0]"),
+            (ReplayOverlay { paths: vec![path(vec![0.0, 1.0], 3)], ..good.clone() }, "paths[0].t"),
+            (ReplayOverlay { paths: vec![path(vec![0.0, 1.0, 0.5], 3)], ..good.clone() }, "paths[0].t[2]"),
+            (ReplayOverlay { supports: vec![OverlaySupport { t1: -1.0, ..good.supports[0].clone() }], ..good.clone() }, "supports[0].t1"),
+            (ReplayOverlay { supports: vec![OverlaySupport { shrunk: vec![[f64::INFINITY, 0.0, 0.0]], ..good.supports[0].clone() }], ..good.clone() }, "supports[0].shrunk"),
+        ];
+        for (overlay, field) in cases {
+            let e = overlay.validate(4).unwrap_err().to_string();
+            assert!(e.starts_with(&format!("replay overlay: {field}:")), "{e}");
+        }
+    }
 }
