@@ -96,6 +96,15 @@ fn terrain(trials: usize, as_json: bool, threads: usize, names: &[String]) -> Re
     Ok(())
 }
 
+/// The first line of `text`, cut at `max` characters.
+fn first_line(text: &str, max: usize) -> String {
+    let line = text.lines().next().unwrap_or("");
+    match line.char_indices().nth(max) {
+        Some((cut, _)) => format!("{}...", &line[..cut]),
+        None => line.to_string(),
+    }
+}
+
 /// The table: the paper's Table I beside ours, the planning figures, the targets.
 fn print_table_i(bench: &TerrainBenchmark) {
     let opt = |x: Option<f64>, decimals: usize| x.map_or("-".to_string(), |x| format!("{x:.decimals$}"));
@@ -145,9 +154,9 @@ fn print_table_i(bench: &TerrainBenchmark) {
         );
     }
     say!("  targets: success >= {:.0} % and speed >= {TARGET_SPEED_FACTOR} x the paper's on every terrain", 100.0 * TARGET_SUCCESS_RATE);
-    let failures: Vec<String> = bench.terrains.iter().flat_map(|row| row.failures.iter().map(move |f| format!("  {} seed {}: {}", row.scenario, f.seed, f.reason.lines().next().unwrap_or("")))).collect();
+    let failures: Vec<String> = bench.terrains.iter().flat_map(|row| row.failures.iter().map(move |f| format!("  {} seed {}: {}", row.scenario, f.seed, first_line(&f.reason, 140)))).collect();
     if !failures.is_empty() {
-        say!("Failed trials (first line of the reason; --json has all):");
+        say!("Failed trials (the reason's start; --json has all of it):");
         for f in failures {
             say!("{f}");
         }

@@ -25,7 +25,7 @@ pub struct WalkArgs {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Randomize the trial as `legwork bench terrain` does: start offset +-5 cm, yaw
-    /// +-5 deg, map noise 0.5-2 cm.
+    /// +-5 deg, map noise 0.5-2 cm (`--random --seed K` is the benchmark's trial K).
     #[arg(long)]
     random: bool,
 }

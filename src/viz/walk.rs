@@ -92,6 +92,20 @@ fn touchdown_time(plan: &MotionPlan, step: usize) -> Option<f64> {
     Some(plan.start_time + plan.cog.phases()[k].end_time())
 }
 
+/// Every plan's footholds, in order, with their touch-down times; executed when the swing
+/// ended within the plan's window (whose end is `window_ends[k]` for plan `k`).
+fn footholds_of(plans: &[PlanRecord], window_ends: impl Iterator<Item = f64>) -> Vec<OverlayFoothold> {
+    let mut footholds = Vec::new();
+    for (record, b) in plans.iter().zip(window_ends) {
+        let plan = &record.plan;
+        for (j, step) in plan.footsteps.iter().enumerate() {
+            let t = touchdown_time(plan, j).unwrap_or(plan.end_time());
+            footholds.push(OverlayFoothold { foot: step.leg, position: [step.to.x, step.to.y, step.to.z], t, executed: t <= b + 1e-9 });
+        }
+    }
+    footholds
+}
+
 /// The replay overlay of a trial's plans (see the module docs); `terrain` (the world)
 /// places the ZMP and the support polygons on the ground; `end_time` is the end of the
 /// trial.
@@ -99,15 +113,11 @@ pub fn plan_overlay(plans: &[PlanRecord], terrain: &dyn Terrain, end_time: f64) 
     let windows = executed_windows(plans, end_time);
     let mut cog = OverlayPath { name: "planned CoG".into(), color: css(COG_COLOR), t: Vec::new(), points: Vec::new() };
     let mut zmp = OverlayPath { name: "planned ZMP (cart-table)".into(), color: css(ZMP_COLOR), t: Vec::new(), points: Vec::new() };
-    let mut footholds = Vec::new();
+    let footholds = footholds_of(plans, windows.iter().map(|w| w.1));
     let mut supports = Vec::new();
     let on_ground = |p: &Point2<f64>| [p.x, p.y, terrain.height(p.x, p.y)];
     for (record, &(a, b)) in plans.iter().zip(&windows) {
         let plan = &record.plan;
-        for (j, step) in plan.footsteps.iter().enumerate() {
-            let t = touchdown_time(plan, j).unwrap_or(plan.end_time());
-            footholds.push(OverlayFoothold { foot: step.leg, position: [step.to.x, step.to.y, step.to.z], t, executed: t <= b + 1e-9 });
-        }
         if b <= a {
             continue;
         }
@@ -222,15 +232,12 @@ fn plot_area(width: u32, height: u32) -> (f64, f64) {
 fn draw_fig8(path: &Path, plans: &[PlanRecord], windows: &[(f64, f64)], actual: &[(f64, [f64; 3])], planned: &[PlannedSample]) -> Result<(), VizError> {
     let err = |e: &dyn std::fmt::Display| plot_error(path, e);
     // Top: the walk from above.
-    let footholds: Vec<(usize, f64, f64, bool)> = plans
-        .iter()
-        .zip(windows)
-        .flat_map(|(r, &(_, b))| r.plan.footsteps.iter().enumerate().map(move |(j, s)| (s.leg, s.to.x, s.to.y, touchdown_time(&r.plan, j).is_some_and(|t| t <= b + 1e-9))))
-        .collect();
+    let footholds = footholds_of(plans, windows.iter().map(|w| w.1));
     let mut extent: Vec<(f64, f64)> = actual.iter().map(|(_, p)| (p[0], p[1])).collect();
     extent.extend(planned.iter().map(|p| (p.cog[0], p.cog[1])));
-    extent.extend(footholds.iter().map(|f| (f.1, f.2)));
-    // As tall as the walk is wide at one scale, within bounds.
+    extent.extend(footholds.iter().map(|f| (f.position[0], f.position[1])));
+    // The panel's height follows the walk's extent at one scale (at least a quarter of its
+    // width), within one to two panel heights.
     let (w, _) = plot_area(WIDTH, 0);
     let (xr, yr) = equal_aspect(&extent, w, 0.25 * w);
     let top_h = ((w * (yr.end - yr.start) / (xr.end - xr.start)) as u32 + XY_MARGINS.1).clamp(PANEL_HEIGHT, 2 * PANEL_HEIGHT);
@@ -251,9 +258,9 @@ fn draw_fig8(path: &Path, plans: &[PlanRecord], windows: &[(f64, f64)], actual: 
     house_style(&mut chart.configure_mesh()).x_desc("x [m]").y_desc("y [m]").draw().map_err(|e| err(&e))?;
     for (leg, name) in LEG_NAMES.iter().enumerate() {
         let color = LEG_COLORS[leg];
-        let done = footholds.iter().filter(|f| f.0 == leg && f.3).map(|f| Circle::new((f.1, f.2), 4, color.filled()));
+        let done = footholds.iter().filter(|f| f.foot == leg && f.executed).map(|f| Circle::new((f.position[0], f.position[1]), 4, color.filled()));
         chart.draw_series(done).map_err(|e| err(&e))?.label(format!("{name} foothold")).legend(move |(x, y)| Circle::new((x + 9, y), 4, color.filled()));
-        let replaced = footholds.iter().filter(|f| f.0 == leg && !f.3).map(|f| Circle::new((f.1, f.2), 4, color.stroke_width(1)));
+        let replaced = footholds.iter().filter(|f| f.foot == leg && !f.executed).map(|f| Circle::new((f.position[0], f.position[1]), 4, color.stroke_width(1)));
         chart.draw_series(replaced).map_err(|e| err(&e))?;
     }
     // The plan wide and light under the actual CoG, so that both show where they agree.
