@@ -29,6 +29,7 @@ pub mod io;
 pub mod model;
 pub mod ocp;
 pub mod plan;
+pub mod report;
 pub mod sim;
 pub mod slq;
 pub mod spatial;

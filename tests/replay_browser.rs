@@ -3,7 +3,11 @@
 //! drew its first frame (`<body data-drawn="1">`), keep its error box hidden, and the
 //! screenshot must show the robot in the 3D view (varied pixels, leg colours present).
 //!
-//! Without chromium the test fails when `CI` is set, and otherwise says it skipped.
+//! With a plan overlay (planned footholds, a CoG and a ZMP path, a support polygon) the page
+//! must also say so (`<body data-overlay="N">`, N the items drawn) and the screenshot show the
+//! path's and the footholds' colours; without one it must not.
+//!
+//! Without chromium the tests fail when `CI` is set, and otherwise say they skipped.
 //! `LEGWORK_REPLAY_ARTIFACTS=DIR` keeps the page, the DOM, the screenshot, chromium's logs,
 //! the trajectory and its SVG plots in DIR (to look at them).
 
@@ -95,19 +99,37 @@ fn decode_png(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
     (info.width, info.height, pixels)
 }
 
-#[test]
-fn replay_loads_in_chromium_without_errors_and_draws_the_robot() {
-    let Some(chromium) = find_chromium() else {
+/// Chromium, or `None` (the test skips) when it is missing outside CI.
+fn chromium_or_skip() -> Option<PathBuf> {
+    let found = find_chromium();
+    if found.is_none() {
         if std::env::var_os("CI").is_some() {
             panic!("chromium is not installed, and CI is set: run scripts/install-test-deps.sh");
         }
         eprintln!("SKIPPED replay_browser: chromium is not on PATH (install it with scripts/install-test-deps.sh)");
-        return;
-    };
-    let keep = std::env::var_os("LEGWORK_REPLAY_ARTIFACTS").map(PathBuf::from);
-    let dir = keep.clone().unwrap_or_else(|| std::env::temp_dir().join(format!("legwork-replay-browser-{}", std::process::id())));
+    }
+    found
+}
+
+/// The folder for a test's files: `LEGWORK_REPLAY_ARTIFACTS/<tag>` (kept) or a temporary one.
+fn work_dir(tag: &str) -> (PathBuf, bool) {
+    let keep = std::env::var_os("LEGWORK_REPLAY_ARTIFACTS").map(|d| PathBuf::from(d).join(tag));
+    let dir = keep.clone().unwrap_or_else(|| std::env::temp_dir().join(format!("legwork-replay-browser-{}-{tag}", std::process::id())));
     std::fs::create_dir_all(&dir).unwrap();
-    let dir = dir.canonicalize().unwrap();
+    (dir.canonicalize().unwrap(), keep.is_some())
+}
+
+/// The page's error box must be hidden and empty.
+fn assert_no_error_box(dom: &str) {
+    let errors_box = dom.find("id=\"errors\"").map(|i| &dom[i..]).and_then(|s| s.find("</div>").map(|j| &s[..j])).expect("the error box");
+    let tag_end = errors_box.find('>').unwrap_or(0);
+    assert!(errors_box[..tag_end].contains("hidden") && errors_box[tag_end + 1..].trim().is_empty(), "the page reports errors: {errors_box}");
+}
+
+#[test]
+fn replay_loads_in_chromium_without_errors_and_draws_the_robot() {
+    let Some(chromium) = chromium_or_skip() else { return };
+    let (dir, keep) = work_dir("plain");
 
     let (model, traj) = common::hyq_trot(3.0);
     let page = dir.join("replay.html");
@@ -118,7 +140,7 @@ fn replay_loads_in_chromium_without_errors_and_draws_the_robot() {
     let shot = dir.join("screenshot.png");
     let (_, log_shot) = run_chromium(&chromium, &dir, "screenshot", &page, &[format!("--screenshot={}", shot.display())]);
     eprintln!("chromium: two headless runs in {:.1} s", started.elapsed().as_secs_f64());
-    if keep.is_some() {
+    if keep {
         std::fs::write(dir.join("dom.html"), &dom).unwrap();
         traj.save_file(dir.join("trajectory.json")).unwrap();
         legwork::viz::write_plots(&traj, dir.join("plots")).unwrap();
@@ -130,9 +152,9 @@ fn replay_loads_in_chromium_without_errors_and_draws_the_robot() {
 
     // The page drew its first frame and shows no error.
     assert!(dom.contains("data-drawn=\"1\""), "the page never marked its first frame drawn; DOM starts:\n{}", &dom[..dom.len().min(3000)]);
-    let errors_box = dom.find("id=\"errors\"").map(|i| &dom[i..]).and_then(|s| s.find("</div>").map(|j| &s[..j])).expect("the error box");
-    let tag_end = errors_box.find('>').unwrap_or(0);
-    assert!(errors_box[..tag_end].contains("hidden") && errors_box[tag_end + 1..].trim().is_empty(), "the page reports errors: {errors_box}");
+    assert_no_error_box(&dom);
+    // No overlay given, none drawn.
+    assert!(!dom.contains("data-overlay"), "a page without an overlay says it drew one");
 
     // The screenshot: the 3D view (left part, between the header and the controls) is not
     // blank, and shows the legs (their colours, shaded: orange left, blue right).
@@ -150,7 +172,71 @@ fn replay_loads_in_chromium_without_errors_and_draws_the_robot() {
     assert!(std > 10.0, "the 3D view looks blank (luminance std {std:.1})");
     assert!(orange > 300 && blue > 300, "the legs are not visible ({orange} orange, {blue} blue pixels)");
 
-    if keep.is_none() {
+    if !keep {
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
+
+/// Pixels of `region` within `tol` of the colour `c` in every channel.
+fn count_near(region: &[[u8; 3]], c: [i32; 3], tol: i32) -> usize {
+    region.iter().filter(|p| p.iter().zip(c).all(|(&a, b)| (a as i32 - b).abs() <= tol)).count()
+}
+
+#[test]
+fn replay_draws_a_plan_overlay() {
+    use legwork::dynamics::{forward_kinematics, update_frame_placements, Data};
+    use legwork::viz::{OverlayFoothold, OverlayPath, OverlaySupport, ReplayOverlay};
+    let Some(chromium) = chromium_or_skip() else { return };
+    let (dir, keep) = work_dir("overlay");
+
+    let (model, traj) = common::hyq_trot(3.0);
+    // Footholds 15 cm (replaced, drawn hollow) and 30 cm ahead of the feet; a CoG path at base
+    // height swaying in y, from behind the robot to ahead of it (where the trunk does not
+    // hide it); a ZMP path on the ground; the support polygon of the four feet.
+    let mut data = Data::new(&model);
+    forward_kinematics(&model, &mut data, &nalgebra::DVector::from_column_slice(&traj.knots[0].q));
+    update_frame_placements(&model, &mut data);
+    let feet: Vec<[f64; 3]> = model.feet.iter().map(|f| data.o_m_f[f.frame].translation).map(|p| [p.x, p.y, 0.0]).collect();
+    let footholds = (0..feet.len())
+        .flat_map(|k| [0.15, 0.3].map(|dx| OverlayFoothold { foot: k, position: [feet[k][0] + dx, feet[k][1], 0.0], t: 0.5 + dx, executed: dx > 0.2 }))
+        .collect();
+    let t: Vec<f64> = (0..=150).map(|i| i as f64 * 0.02).collect();
+    let sway = |t: f64| 0.06 * (2.0 * std::f64::consts::PI * t / 1.5).sin();
+    let cog = OverlayPath { name: "planned CoG".into(), color: "#8e24aa".into(), t: t.clone(), points: t.iter().map(|&t| [-1.0 + 0.7 * t, sway(t), 0.55]).collect() };
+    let zmp = OverlayPath { name: "planned ZMP".into(), color: "#2e7d32".into(), t: t.clone(), points: t.iter().map(|&t| [-1.0 + 0.7 * t, 1.5 * sway(t), 0.0]).collect() };
+    let hull = vec![feet[0], feet[2], feet[3], feet[1]];
+    let shrunk = hull.iter().map(|p| [0.8 * p[0], 0.8 * p[1], 0.0]).collect();
+    let overlay = ReplayOverlay { footholds, paths: vec![cog, zmp], supports: vec![OverlaySupport { t0: 0.0, t1: 3.0, polygon: hull, shrunk }] };
+    let page = dir.join("replay.html");
+    legwork::viz::write_replay_with_overlay(&model, &traj, Some(&overlay), &page).unwrap();
+
+    let (dom, log_dom) = run_chromium(&chromium, &dir, "dom", &page, &["--dump-dom".into()]);
+    let shot = dir.join("screenshot.png");
+    // Paused at 1.2 s: the paths' markers are drawn at that instant.
+    let paused = PathBuf::from(format!("{}#t=1.2&paused", page.display()));
+    let (_, log_shot) = run_chromium(&chromium, &dir, "screenshot", &paused, &[format!("--screenshot={}", shot.display())]);
+    let errors: Vec<&str> = console_errors(&log_dom).into_iter().chain(console_errors(&log_shot)).collect();
+    assert!(errors.is_empty(), "console errors:\n{}", errors.join("\n"));
+    assert!(dom.contains("data-drawn=\"1\""), "the page never marked its first frame drawn");
+    assert_no_error_box(&dom);
+    // 8 footholds, 2 paths, 1 support polygon; the legend names them.
+    assert!(dom.contains("data-overlay=\"11\""), "the page did not draw the overlay; DOM starts:\n{}", &dom[..dom.len().min(3000)]);
+    for needle in ["planned footholds", "planned CoG", "planned ZMP", "support polygon, shrunk"] {
+        assert!(dom.contains(needle), "the legend lacks {needle:?}");
+    }
+
+    let (w, _, px) = decode_png(&shot);
+    // Below the legend (which has the same colours), above the controls.
+    let (x0, x1, y0, y1) = (20usize, 730usize, 260usize, 740usize);
+    let region: Vec<[u8; 3]> = (y0..y1).flat_map(|y| px[y * w as usize + x0..y * w as usize + x1].to_vec()).collect();
+    let purple = count_near(&region, [142, 36, 170], 30);
+    let green = count_near(&region, [46, 125, 50], 30);
+    let red = count_near(&region, [214, 39, 40], 30);
+    let cyan = count_near(&region, [23, 190, 207], 30);
+    eprintln!("overlay: {purple} CoG (purple), {green} ZMP (green), {red} LF foothold (red), {cyan} RH foothold (cyan) pixels");
+    assert!(purple > 100 && green > 100, "the paths are not visible ({purple} purple, {green} green pixels)");
+    assert!(red > 40 && cyan > 40, "the footholds are not visible ({red} red, {cyan} cyan pixels)");
+    if !keep {
         std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -1,12 +1,17 @@
 //! `legwork bench slq`: the solver's speed as the paper's Fig. 13 (time per iteration against
 //! the number of knots, which must be linear) and every embedded task solved in full.
+//! `legwork bench terrain`: Winkler 2015's Table I (forward speed and success rate per
+//! terrain) over randomized walk trials, beside the paper's.
 
-use anyhow::Result;
+use anyhow::{bail, Context, Result};
 use clap::Subcommand;
 use legwork::model::embedded;
 use legwork::ocp::{settled_stance, solve_task, PdPolicy, SolveOptions, TaskSpec, EMBEDDED_TASKS};
 use legwork::slq::{Slq, SlqSettings};
 use legwork::terrain::Plane;
+use legwork::report::walk::{paper_result, terrain_benchmark, TerrainBenchmark, TrialReport, TABLE_I, TARGET_SPEED_FACTOR, TARGET_SUCCESS_RATE};
+use legwork::walk::trial::WalkConfig;
+use legwork::walk::{ScenarioSpec, EMBEDDED_SCENARIOS};
 use serde_json::json;
 
 #[derive(Debug, Subcommand)]
@@ -23,11 +28,138 @@ pub enum BenchCommand {
         #[arg(long, default_value_t = 5)]
         iterations: usize,
     },
+    /// Winkler 2015's Table I: randomized walk trials over the paper's four terrains
+    /// (start +-5 cm, yaw +-5 deg, map noise), speed and success beside the paper's.
+    Terrain {
+        /// Trials per terrain (seeds 1..=N).
+        #[arg(long, default_value_t = 10)]
+        trials: usize,
+        /// Print the results as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Trials run at once (default: one per core). Planning times are wall-clock, so
+        /// more trials than cores inflate them.
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Scenarios, comma-separated (embedded names or .toml files); `all` = every embedded
+        /// scenario. Default: the paper's four terrains.
+        #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+        scenarios: Vec<String>,
+    },
 }
 
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Slq { json, threads, iterations } => slq(json, threads, iterations),
+        BenchCommand::Terrain { trials, json, threads, scenarios } => terrain(trials, json, threads, &scenarios),
+    }
+}
+
+/// The scenarios of `legwork bench terrain --scenarios`.
+fn terrain_scenarios(names: &[String]) -> Result<Vec<ScenarioSpec>> {
+    let names: Vec<String> = match names {
+        [] => TABLE_I.iter().map(|p| p.scenario.to_string()).collect(),
+        [all] if all == "all" => EMBEDDED_SCENARIOS.iter().map(|(n, _)| n.to_string()).collect(),
+        names => names.to_vec(),
+    };
+    names.iter().map(|n| ScenarioSpec::resolve(n.trim()).map_err(Into::into)).collect()
+}
+
+fn terrain(trials: usize, as_json: bool, threads: usize, names: &[String]) -> Result<()> {
+    if trials == 0 {
+        bail!("--trials: expected at least one trial per terrain, got 0");
+    }
+    let scenarios = terrain_scenarios(names)?;
+    let robots: Vec<&str> = scenarios.iter().map(|s| s.robot.as_str()).collect();
+    if let Some(other) = robots.iter().find(|r| **r != robots[0]) {
+        bail!("--scenarios: every scenario must use one robot, got {} and {other}", robots[0]);
+    }
+    let model = embedded::load(robots[0])?;
+    let config = WalkConfig::hyq(&model).with_context(|| format!("cannot set up the walk for robot {}", model.name))?;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("cannot start the trial threads")?;
+    let total = trials * scenarios.len();
+    let bar = indicatif::ProgressBar::with_draw_target(Some(total as u64), indicatif::ProgressDrawTarget::stderr());
+    bar.set_style(indicatif::ProgressStyle::with_template("{msg:30} [{bar:30}] {pos}/{len} trials ({elapsed}, {eta} left)").expect("static template"));
+    bar.set_message(format!("walking, {} at once", pool.current_num_threads()));
+    let on_trial = |r: &TrialReport| {
+        let verdict = if r.success { format!("{:.1} cm/s", r.speed_cm_s) } else { "failed".into() };
+        bar.set_message(format!("{} seed {}: {verdict}", r.scenario, r.seed));
+        bar.inc(1);
+    };
+    let bench = pool.install(|| terrain_benchmark(&model, &config, &scenarios, trials, on_trial));
+    bar.finish_and_clear();
+    if as_json {
+        say!("{}", serde_json::to_string_pretty(&bench)?);
+    } else {
+        print_table_i(&bench);
+    }
+    Ok(())
+}
+
+/// The first line of `text`, cut at `max` characters.
+fn first_line(text: &str, max: usize) -> String {
+    let line = text.lines().next().unwrap_or("");
+    match line.char_indices().nth(max) {
+        Some((cut, _)) => format!("{}...", &line[..cut]),
+        None => line.to_string(),
+    }
+}
+
+/// The table: the paper's Table I beside ours, the planning figures, the targets.
+fn print_table_i(bench: &TerrainBenchmark) {
+    let opt = |x: Option<f64>, decimals: usize| x.map_or("-".to_string(), |x| format!("{x:.decimals$}"));
+    say!(
+        "Winkler 2015, Table I, against legwork: {} trials per terrain; {}; {} at once, {:.0} s",
+        bench.trials_per_terrain,
+        bench.randomization,
+        bench.threads,
+        bench.wall_time_s
+    );
+    say!("  {:<16} {:>14} {:>14} | {:>10} {:>10} {:>9} {:>9} {:>8} {:>10} {:>9} | {:>14}", "", "paper", "", "legwork", "", "plan", "ARA* 1st", "ZMP QP", "worst ZMP", "map upd.", "targets");
+    say!(
+        "  {:<16} {:>14} {:>14} | {:>10} {:>10} {:>9} {:>9} {:>8} {:>10} {:>9} | {:>14}",
+        "terrain",
+        "speed [cm/s]",
+        "success",
+        "speed",
+        "success",
+        "mean [ms]",
+        "mean [ms]",
+        "mean [ms]",
+        "margin [cm]",
+        "max [ms]",
+        "met"
+    );
+    for row in &bench.terrains {
+        let paper = paper_result(&row.scenario);
+        let name = paper.map_or(row.scenario.clone(), |p| p.terrain.to_string());
+        let targets = match (row.meets_targets, row.target_speed_cm_s) {
+            (Some(met), Some(speed)) => format!("{} (>= {speed:.1})", if met { "yes" } else { "no" }),
+            _ => "-".into(),
+        };
+        let p = &row.planning;
+        say!(
+            "  {:<16} {:>14} {:>14} | {:>10} {:>10} {:>9} {:>9} {:>8} {:>10} {:>9.1} | {:>14}",
+            name,
+            opt(row.paper_speed_cm_s, 1),
+            row.paper_success_rate.map_or("-".into(), |r| format!("{:.0} %", 100.0 * r)),
+            opt(row.speed_cm_s, 1),
+            format!("{}/{} ({:.0} %)", row.successes, row.trials, 100.0 * row.success_rate),
+            opt(p.mean_plan_ms, 1),
+            opt(p.mean_first_solution_ms, 1),
+            opt(p.mean_zmp_ms, 2),
+            opt(p.worst_zmp_margin_m.map(|m| 100.0 * m), 2),
+            row.max_map_update_ms,
+            targets
+        );
+    }
+    say!("  targets: success >= {:.0} % and speed >= {TARGET_SPEED_FACTOR} x the paper's on every terrain", 100.0 * TARGET_SUCCESS_RATE);
+    let failures: Vec<String> = bench.terrains.iter().flat_map(|row| row.failures.iter().map(move |f| format!("  {} seed {}: {}", row.scenario, f.seed, first_line(&f.reason, 140)))).collect();
+    if !failures.is_empty() {
+        say!("Failed trials (the reason's start; --json has all of it):");
+        for f in failures {
+            say!("{f}");
+        }
     }
 }
 

@@ -28,6 +28,7 @@ mod robot;
 mod simulate;
 mod solve;
 mod view;
+mod walk;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -52,7 +53,11 @@ enum Command {
     Solve(solve::SolveArgs),
     /// List the embedded tasks.
     Tasks,
-    /// Benchmarks: the SLQ solver's speed and the embedded tasks.
+    /// Walk to a goal over terrain (Winkler 2015): plan and execute one trial of a scenario;
+    /// writes the trajectory, a replay with the plans drawn, plots and a summary.
+    Walk(walk::WalkArgs),
+    /// Benchmarks: the SLQ solver's speed and the embedded tasks; the walk over Winkler
+    /// 2015's terrains (Table I).
     #[command(subcommand)]
     Bench(bench::BenchCommand),
     /// Replay a trajectory: write a self-contained HTML page (3D robot, plots) and,
@@ -68,6 +73,7 @@ pub fn main() -> ExitCode {
         Command::Simulate(args) => simulate::run(args),
         Command::Solve(args) => solve::run(args),
         Command::Tasks => solve::list(),
+        Command::Walk(args) => walk::run(args),
         Command::Bench(cmd) => bench::run(cmd),
         Command::View(args) => view::run(args),
     };

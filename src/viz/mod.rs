@@ -24,9 +24,10 @@
 pub mod plots;
 pub mod replay;
 mod signals;
+pub mod walk;
 
 pub use plots::{write_cost_plot, write_plots};
-pub use replay::{replay_html, write_replay};
+pub use replay::{replay_html, replay_html_with_overlay, write_replay, write_replay_with_overlay, OverlayFoothold, OverlayPath, OverlaySupport, ReplayOverlay};
 
 use crate::io::TrajectoryError;
 use crate::terrain::TerrainError;
@@ -43,6 +44,9 @@ pub enum VizError {
     /// The terrain stored in the trajectory cannot be built.
     #[error("metadata.terrain: {0}")]
     Terrain(#[from] TerrainError),
+    /// A replay overlay that the page cannot draw.
+    #[error("replay overlay: {field}: {problem}")]
+    Overlay { field: String, problem: String },
     /// The plotting library failed on a figure.
     #[error("{path}: cannot draw the figure: {message}")]
     Plot { path: String, message: String },

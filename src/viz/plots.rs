@@ -34,13 +34,13 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 /// At most this many samples per curve (the knots are thinned evenly in time beyond it).
-const MAX_POINTS: usize = 4000;
+pub(super) const MAX_POINTS: usize = 4000;
 /// Figure width and height of one panel, px.
-const WIDTH: u32 = 960;
-const PANEL_HEIGHT: u32 = 270;
+pub(super) const WIDTH: u32 = 960;
+pub(super) const PANEL_HEIGHT: u32 = 270;
 
-const XYZ: [RGBColor; 3] = [RGBColor(214, 39, 40), RGBColor(44, 160, 44), RGBColor(31, 119, 180)];
-const PALETTE: [RGBColor; 10] = [
+pub(super) const XYZ: [RGBColor; 3] = [RGBColor(214, 39, 40), RGBColor(44, 160, 44), RGBColor(31, 119, 180)];
+pub(super) const PALETTE: [RGBColor; 10] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
     RGBColor(44, 160, 44),
@@ -53,7 +53,7 @@ const PALETTE: [RGBColor; 10] = [
     RGBColor(23, 190, 207),
 ];
 const CONTACT: RGBColor = RGBColor(39, 163, 90);
-const FONT: &str = "sans-serif";
+pub(super) const FONT: &str = "sans-serif";
 
 /// Writes the figures of `traj` into the folder `dir` (created if needed) and returns the
 /// files written: `base_pose.svg`, `base_twist.svg`, `joint_torques.svg`,
@@ -117,7 +117,7 @@ fn contact_phases(traj: &Trajectory, foot: usize) -> Vec<(f64, f64)> {
 }
 
 /// The axes, grid and fonts every figure shares; time along x.
-fn house_style<'m, 'a, 'b, X: Ranged, Y: Ranged, DB: DrawingBackend>(mesh: &'m mut MeshStyle<'a, 'b, X, Y, DB>) -> &'m mut MeshStyle<'a, 'b, X, Y, DB> {
+pub(super) fn house_style<'m, 'a, 'b, X: Ranged, Y: Ranged, DB: DrawingBackend>(mesh: &'m mut MeshStyle<'a, 'b, X, Y, DB>) -> &'m mut MeshStyle<'a, 'b, X, Y, DB> {
     mesh.x_desc("t [s]")
         .label_style((FONT, 14))
         .axis_desc_style((FONT, 15))
@@ -125,12 +125,12 @@ fn house_style<'m, 'a, 'b, X: Ranged, Y: Ranged, DB: DrawingBackend>(mesh: &'m m
         .bold_line_style(RGBColor(214, 218, 224))
 }
 
-fn plot_error(path: &Path, e: impl std::fmt::Display) -> VizError {
+pub(super) fn plot_error(path: &Path, e: impl std::fmt::Display) -> VizError {
     VizError::Plot { path: path.display().to_string(), message: e.to_string() }
 }
 
 /// `[lo, hi]` of the values with a 6 % margin; a flat curve gets a band around it.
-fn value_range<'a>(values: impl Iterator<Item = &'a f64>) -> Range<f64> {
+pub(super) fn value_range<'a>(values: impl Iterator<Item = &'a f64>) -> Range<f64> {
     let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
     if !lo.is_finite() {
         return -1.0..1.0;
@@ -139,7 +139,7 @@ fn value_range<'a>(values: impl Iterator<Item = &'a f64>) -> Range<f64> {
     (lo - pad)..(hi + pad)
 }
 
-fn time_range(t: &[f64]) -> Range<f64> {
+pub(super) fn time_range(t: &[f64]) -> Range<f64> {
     match (t.first(), t.last()) {
         (Some(&a), Some(&b)) if b > a => a..b,
         (Some(&a), _) => a..a + 1e-3,

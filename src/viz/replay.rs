@@ -11,6 +11,12 @@
 //! JavaScript, inlined) projects and draws that; it has no kinematics of its own and loads
 //! nothing from anywhere.
 //!
+//! An optional [`ReplayOverlay`] ([`replay_html_with_overlay`]) adds what a planner
+//! intended to the scene: planned footholds coloured by foot, time-stamped paths (a
+//! planned CoG, its ZMP) with a marker at the current instant, and the support polygon in
+//! use at each instant (as planned, and shrunk by a stability margin). A page without one
+//! reads as before: the overlay is an optional field of the page's data.
+//!
 //! ```
 //! use legwork::{io::Trajectory, model::embedded, terrain::TerrainSpec, viz};
 //! let model = embedded::load("a1").unwrap();
@@ -53,6 +59,12 @@ const MAX_TERRAIN_CELLS: usize = 90;
 /// Checks the trajectory first ([`Trajectory::validate`], [`Trajectory::check_against`]):
 /// a trajectory that does not fit the model is an error, not a panic.
 pub fn replay_html(model: &Model, traj: &Trajectory) -> Result<String, VizError> {
+    replay_html_with_overlay(model, traj, None)
+}
+
+/// [`replay_html`] with `overlay` drawn over the scene (checked first: finite numbers, feet
+/// of the model, one time per path point).
+pub fn replay_html_with_overlay(model: &Model, traj: &Trajectory, overlay: Option<&ReplayOverlay>) -> Result<String, VizError> {
     traj.validate("trajectory")?;
     traj.check_against(model, "trajectory")?;
     if !model.has_free_flyer() || model.nq != traj.knots[0].q.len() {
@@ -63,8 +75,11 @@ pub fn replay_html(model: &Model, traj: &Trajectory) -> Result<String, VizError>
         }
         .into());
     }
+    if let Some(overlay) = overlay {
+        overlay.validate(traj.metadata.foot_names.len())?;
+    }
     let terrain = traj.metadata.terrain.build("metadata.terrain")?;
-    let data = ReplayData::new(model, traj, terrain.as_ref());
+    let data = ReplayData::new(model, traj, terrain.as_ref(), overlay);
     let json = serde_json::to_string(&data).map_err(|e| VizError::Io { path: "replay data".into(), source: e.into() })?;
     // In JSON, `<` only occurs inside strings, where `\u003c` means the same: no name in
     // the file can close the <script> element the data sits in.
@@ -74,8 +89,13 @@ pub fn replay_html(model: &Model, traj: &Trajectory) -> Result<String, VizError>
 
 /// Writes [`replay_html`] to `path` (creating its folder if needed).
 pub fn write_replay(model: &Model, traj: &Trajectory, path: impl AsRef<Path>) -> Result<(), VizError> {
+    write_replay_with_overlay(model, traj, None, path)
+}
+
+/// Writes [`replay_html_with_overlay`] to `path` (creating its folder if needed).
+pub fn write_replay_with_overlay(model: &Model, traj: &Trajectory, overlay: Option<&ReplayOverlay>, path: impl AsRef<Path>) -> Result<(), VizError> {
     let path = path.as_ref();
-    let html = replay_html(model, traj)?;
+    let html = replay_html_with_overlay(model, traj, overlay)?;
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| VizError::io(dir, e))?;
     }
@@ -98,6 +118,111 @@ struct ReplayData {
     terrain: TerrainPatch,
     plot_t: Vec<f64>,
     plots: Vec<PlotData>,
+    /// Absent when there is nothing to overlay (pages written before overlays existed read
+    /// the same).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    overlay: Option<ReplayOverlay>,
+}
+
+/// What a planner intended, drawn over the replay's scene (all in the world frame, m and s).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ReplayOverlay {
+    /// Planned footholds.
+    pub footholds: Vec<OverlayFoothold>,
+    /// Paths drawn as lines, with a marker at the current instant while it lies within them.
+    pub paths: Vec<OverlayPath>,
+    /// Support polygons, each shown while it is in use.
+    pub supports: Vec<OverlaySupport>,
+}
+
+/// A planned foothold: where foot `foot` (an index into the trajectory's `foot_names`) is
+/// to touch down, and when.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct OverlayFoothold {
+    pub foot: usize,
+    /// Surface point `[x, y, z]`.
+    pub position: [f64; 3],
+    /// Planned touch-down time (s).
+    pub t: f64,
+    /// False when a later plan replaced this one before the foot got there (drawn hollow).
+    pub executed: bool,
+}
+
+/// A time-stamped path: `points[i]` at time `t[i]` (increasing).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct OverlayPath {
+    /// Legend text.
+    pub name: String,
+    /// CSS colour (`#rrggbb`).
+    pub color: String,
+    pub t: Vec<f64>,
+    pub points: Vec<[f64; 3]>,
+}
+
+/// A support polygon in use from `t0` to `t1`: the hull of the stance feet, and the region
+/// the ZMP is kept in (the hull shrunk by the stability margin; may be empty).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct OverlaySupport {
+    pub t0: f64,
+    pub t1: f64,
+    pub polygon: Vec<[f64; 3]>,
+    pub shrunk: Vec<[f64; 3]>,
+}
+
+impl ReplayOverlay {
+    /// Checks what the page relies on: finite numbers, feet among the `n_feet` of the
+    /// trajectory, one time per path point and increasing times, `t0 <= t1`.
+    pub fn validate(&self, n_feet: usize) -> Result<(), VizError> {
+        let bad = |field: String, problem: String| VizError::Overlay { field, problem };
+        let finite = |field: &dyn Fn() -> String, values: &[f64]| match values.iter().find(|v| !v.is_finite()) {
+            Some(v) => Err(bad(field(), format!("expected finite numbers, got {v}"))),
+            None => Ok(()),
+        };
+        for (i, f) in self.footholds.iter().enumerate() {
+            if f.foot >= n_feet {
+                return Err(bad(format!("footholds[{i}].foot"), format!("expected a foot index below {n_feet}, got {}", f.foot)));
+            }
+            finite(&|| format!("footholds[{i}]"), &[f.position[0], f.position[1], f.position[2], f.t])?;
+        }
+        for (i, p) in self.paths.iter().enumerate() {
+            if p.t.len() != p.points.len() {
+                return Err(bad(format!("paths[{i}].t"), format!("expected one time per point ({}), got {}", p.points.len(), p.t.len())));
+            }
+            finite(&|| format!("paths[{i}].t"), &p.t)?;
+            finite(&|| format!("paths[{i}].points"), p.points.as_flattened())?;
+            if let Some(k) = p.t.windows(2).position(|w| w[1] < w[0]) {
+                return Err(bad(format!("paths[{i}].t[{}]", k + 1), format!("expected increasing times, got {} after {}", p.t[k + 1], p.t[k])));
+            }
+        }
+        for (i, s) in self.supports.iter().enumerate() {
+            finite(&|| format!("supports[{i}]"), &[s.t0, s.t1])?;
+            finite(&|| format!("supports[{i}].polygon"), s.polygon.as_flattened())?;
+            finite(&|| format!("supports[{i}].shrunk"), s.shrunk.as_flattened())?;
+            if s.t1 < s.t0 {
+                return Err(bad(format!("supports[{i}].t1"), format!("expected t1 >= t0 = {}, got {}", s.t0, s.t1)));
+            }
+        }
+        Ok(())
+    }
+
+    /// Every point of the overlay (for the extent of the terrain patch).
+    fn points(&self) -> impl Iterator<Item = Vector3<f64>> + '_ {
+        let footholds = self.footholds.iter().map(|f| f.position);
+        let paths = self.paths.iter().flat_map(|p| p.points.iter().copied());
+        let supports = self.supports.iter().flat_map(|s| s.polygon.iter().copied());
+        footholds.chain(paths).chain(supports).map(Vector3::from)
+    }
+
+    /// The overlay with its numbers rounded for the page (mm and ms are enough).
+    fn rounded(&self) -> Self {
+        let p3 = |p: &[f64; 3]| p.map(|x| round(x, 3));
+        let ps = |v: &[[f64; 3]]| v.iter().map(p3).collect::<Vec<_>>();
+        ReplayOverlay {
+            footholds: self.footholds.iter().map(|f| OverlayFoothold { position: p3(&f.position), t: round(f.t, 3), ..f.clone() }).collect(),
+            paths: self.paths.iter().map(|p| OverlayPath { name: p.name.clone(), color: p.color.clone(), t: p.t.iter().map(|t| round(*t, 3)).collect(), points: ps(&p.points) }).collect(),
+            supports: self.supports.iter().map(|s| OverlaySupport { t0: round(s.t0, 3), t1: round(s.t1, 3), polygon: ps(&s.polygon), shrunk: ps(&s.shrunk) }).collect(),
+        }
+    }
 }
 
 /// How the page joins the points of a frame into a robot. Points, per frame: joint origins
@@ -274,7 +399,7 @@ impl Sketch {
 }
 
 impl ReplayData {
-    fn new(model: &Model, traj: &Trajectory, terrain: &dyn Terrain) -> Self {
+    fn new(model: &Model, traj: &Trajectory, terrain: &dyn Terrain, overlay: Option<&ReplayOverlay>) -> Self {
         let mut data = Data::new(model);
         let sketch = Sketch::new(model, &mut data);
         // 3D frames.
@@ -293,6 +418,11 @@ impl ReplayData {
             frames.forces.push(knot.contact_force.iter().flatten().map(|f| round(*f, 1)).collect());
             frames.contact.push(knot.in_contact.iter().map(|&c| u8::from(c)).collect());
             frames.ground.push(round(terrain.height(b.x, b.y), 3));
+        }
+        // The terrain patch also covers what the overlay draws (footholds of plans the robot
+        // did not finish).
+        for p in overlay.into_iter().flat_map(|o| o.points()) {
+            (lo, hi) = (lo.inf(&p), hi.sup(&p));
         }
 
         // Force arrows: the robot's weight is drawn about as long as the stance height.
@@ -331,6 +461,7 @@ impl ReplayData {
             force_scale_label,
             plot_t: signals::times(traj, &pidx).into_iter().map(|t| round(t, 4)).collect(),
             plots: panels.into_iter().map(plot_data).collect(),
+            overlay: overlay.map(ReplayOverlay::rounded),
         }
     }
 }
@@ -404,5 +535,28 @@ mod tests {
         assert_eq!(nice_floor(0.99), 0.5);
         assert_eq!(round(-0.00001, 3).to_string(), "0");
         assert_eq!(round(1.23456, 2), 1.23);
+    }
+
+    #[test]
+    fn overlay_checks_name_the_field() {
+        let path = |t: Vec<f64>, n: usize| OverlayPath { name: "CoG".into(), color: "#8e24aa".into(), t, points: vec![[0.0, 0.0, 0.5]; n] };
+        let good = ReplayOverlay {
+            footholds: vec![OverlayFoothold { foot: 3, position: [0.3, -0.2, 0.0], t: 1.0, executed: true }],
+            paths: vec![path(vec![0.0, 0.5, 0.5, 1.0], 4)],
+            supports: vec![OverlaySupport { t0: 0.0, t1: 1.0, polygon: vec![[0.0, 0.0, 0.0]; 3], shrunk: Vec::new() }],
+        };
+        good.validate(4).unwrap();
+        let cases = [
+            (ReplayOverlay { footholds: vec![OverlayFoothold { foot: 4, ..good.footholds[0].clone() }], ..good.clone() }, "footholds[0].foot"),
+            (ReplayOverlay { footholds: vec![OverlayFoothold { t: f64::NAN, ..good.footholds[0].clone() }], ..good.clone() }, "footholds[0]"),
+            (ReplayOverlay { paths: vec![path(vec![0.0, 1.0], 3)], ..good.clone() }, "paths[0].t"),
+            (ReplayOverlay { paths: vec![path(vec![0.0, 1.0, 0.5], 3)], ..good.clone() }, "paths[0].t[2]"),
+            (ReplayOverlay { supports: vec![OverlaySupport { t1: -1.0, ..good.supports[0].clone() }], ..good.clone() }, "supports[0].t1"),
+            (ReplayOverlay { supports: vec![OverlaySupport { shrunk: vec![[f64::INFINITY, 0.0, 0.0]], ..good.supports[0].clone() }], ..good.clone() }, "supports[0].shrunk"),
+        ];
+        for (overlay, field) in cases {
+            let e = overlay.validate(4).unwrap_err().to_string();
+            assert!(e.starts_with(&format!("replay overlay: {field}:")), "{e}");
+        }
     }
 }
