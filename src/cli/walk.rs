@@ -77,14 +77,7 @@ pub fn run(args: WalkArgs) -> Result<()> {
     let wall = started.elapsed().as_secs_f64();
     let report = TrialReport::new(&outcome, wall);
 
-    // The files. A trial that ends before its first simulation step after a recorded knot
-    // records that instant twice; a trajectory file's times increase strictly.
-    let mut traj = outcome.trajectory.clone();
-    if let [.., before, last] = traj.knots.as_slice() {
-        if last.t <= before.t {
-            traj.knots.pop();
-        }
-    }
+    let traj = outcome.trajectory.clone();
     let p = &report.planning;
     // The trajectory's own summary is short (the replay shows it in its header); every
     // number is in summary.json.

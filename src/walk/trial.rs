@@ -196,8 +196,9 @@ pub struct TrialOutcome {
     /// Final base position error to the goal (m) and yaw error (rad).
     pub goal_error: f64,
     pub yaw_error: f64,
-    /// Time from the first plan to the end of the last (s), and the average forward speed
-    /// over it (start-to-goal distance over that time, m/s).
+    /// Time from the first plan to the end of the last (or to the failure) (s), and, for a
+    /// successful trial, the average forward speed over it (start-to-goal distance over
+    /// that time, m/s; 0 for a failed trial).
     pub walking_time: f64,
     pub speed: f64,
     pub plans: Vec<PlanRecord>,
@@ -474,7 +475,9 @@ pub fn run_trial(model: &Model, scenario: &ScenarioSpec, config: &WalkConfig, se
             }
         }
     }
-    trajectory.knots.push(sim.knot());
+    if trajectory.knots.last().is_none_or(|k| k.t < sim.state().t) {
+        trajectory.knots.push(sim.knot());
+    }
     let pose = body_pose(&sim.state().q);
     let goal_error = ((pose.x - goal.x).powi(2) + (pose.y - goal.y).powi(2)).sqrt();
     let yaw_error = crate::plan::body::wrap_angle(pose.yaw - goal.yaw).abs();
@@ -493,7 +496,7 @@ pub fn run_trial(model: &Model, scenario: &ScenarioSpec, config: &WalkConfig, se
         goal_error,
         yaw_error,
         walking_time,
-        speed: if walking_time > 0.0 { distance / walking_time } else { 0.0 },
+        speed: if success && walking_time > 0.0 { distance / walking_time } else { 0.0 },
         plans,
         map_updates,
         max_map_update_ms,
