@@ -77,7 +77,7 @@ pub fn run(args: WalkArgs) -> Result<()> {
     let wall = started.elapsed().as_secs_f64();
     let report = TrialReport::new(&outcome, wall);
 
-    let traj = outcome.trajectory.clone();
+    let mut traj = outcome.trajectory.clone();
     let p = &report.planning;
     // The trajectory's own summary is short (the replay shows it in its header); every
     // number is in summary.json.
