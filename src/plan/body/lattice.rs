@@ -57,12 +57,12 @@ impl MotionPrimitive {
 /// cm, which is approximately half the robot's body length"): each foot moves 0.36 m, to
 /// 0.18 m either side of its nominal point, within HyQ's reach at its walking height.
 ///
-/// Difficulties `c_a` per action; per metre: stride 3.9, forward_long 4.0, forward 4.2, short forward 5.0, forward with a
+/// Difficulties `c_a` per action; per metre: stride 3.9, forward_long 4.1, forward 4.2, short forward 5.0, forward with a
 /// turn 5.5, diagonal 6.5, sideways and backward 10 (the robot sees and steps best forward).
 pub fn hyq_crawl_primitives() -> Vec<MotionPrimitive> {
     vec![
         MotionPrimitive::new("stride", 0.36, 0.0, 0.0, 1.4),
-        MotionPrimitive::new("forward_long", 0.30, 0.0, 0.0, 1.2),
+        MotionPrimitive::new("forward_long", 0.28, 0.0, 0.0, 1.15),
         MotionPrimitive::new("forward", 0.24, 0.0, 0.0, 1.0),
         MotionPrimitive::new("forward_short", 0.12, 0.0, 0.0, 0.6),
         MotionPrimitive::new("diagonal_left", 0.16, 0.12, 0.0, 1.3),
