@@ -28,9 +28,11 @@
 //! let goal = BodyPose { x: 1.0, y: 0.0, yaw: 0.0 };
 //! let plans = planner.plan(&Flat, start, goal, &SearchLimits::none()).unwrap();
 //! let best = plans.best();
-//! // 4 steps of 0.24 m reach x = 0.96, within the 5 cm goal tolerance.
-//! assert_eq!(best.steps.len(), 4);
-//! assert!((best.poses.last().unwrap().x - 0.96).abs() < 1e-12);
+//! // Two 0.36 m strides and one 0.24 m step reach x = 0.96, within the 5 cm goal tolerance,
+//! // for a difficulty of 1.4 + 1.4 + 1.0 = 3.8 (four 0.24 m steps would cost 4.0).
+//! assert_eq!(best.steps.len(), 3);
+//! assert!((best.poses.last().unwrap().x - 0.96).abs() < 1e-9);
+//! assert!((best.cost - 3.8).abs() < 1e-9);
 //! assert_eq!(best.bound, 1.0);
 //! ```
 
