@@ -227,17 +227,21 @@ impl ScenarioSpec {
     /// Whether a foot may stand at `(x, y)` at time `t`: the topmost block containing the
     /// point (the last one in file order) decides; the open ground supports.
     pub fn supports(&self, t: f64, x: f64, y: f64) -> bool {
-        let blocks: Vec<&BlockSpec> = self.blocks_at(t).collect();
-        blocks.iter().rev().find(|b| x >= b.x[0] && x <= b.x[1] && y >= b.y[0] && y <= b.y[1]).is_none_or(|b| b.support)
+        self.top_block(t, x, y).is_none_or(|(_, b)| b.support)
     }
 
     /// The name of the block under `(x, y)` at time `t`, or `"ground"`.
     pub fn surface_name(&self, t: f64, x: f64, y: f64) -> String {
-        let blocks: Vec<&BlockSpec> = self.blocks_at(t).collect();
-        match blocks.iter().enumerate().rev().find(|(_, b)| x >= b.x[0] && x <= b.x[1] && y >= b.y[0] && y <= b.y[1]) {
+        match self.top_block(t, x, y) {
             Some((k, b)) => b.name.clone().unwrap_or_else(|| format!("block {k}")),
             None => "ground".into(),
         }
+    }
+
+    /// The last block in file order present at `t` that contains `(x, y)`, with its index.
+    fn top_block(&self, t: f64, x: f64, y: f64) -> Option<(usize, &BlockSpec)> {
+        let present = |b: &&BlockSpec| b.appears_at.is_none_or(|a| a <= t);
+        self.world.blocks.iter().enumerate().rev().filter(|(_, b)| present(b)).find(|(_, b)| x >= b.x[0] && x <= b.x[1] && y >= b.y[0] && y <= b.y[1])
     }
 }
 

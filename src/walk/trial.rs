@@ -7,15 +7,14 @@
 //! A trial succeeds when the base ends within `goal_tolerance` of the goal with no fall and
 //! no foot ever touching an unsupported region (a gap, the pit between stepping stones).
 
-use crate::plan::body::BodyPose;
-use crate::plan::footstep::{plan_footsteps, FootstepParams};
 use super::motion::{GaitParams, MotionPlan, Posture};
 use super::scenario::ScenarioSpec;
 use crate::control::{MotionSource, WholeBodyController, WholeBodyReference};
 use crate::dynamics::{base_orientation, center_of_mass, Data};
 use crate::io::Trajectory;
 use crate::model::Model;
-use crate::plan::body::{BodyPlanner, BodyPlannerConfig};
+use crate::plan::body::{BodyPlanner, BodyPlannerConfig, BodyPose};
+use crate::plan::footstep::{plan_footsteps, FootstepParams};
 use crate::plan::search::SearchLimits;
 use crate::sim::{ControlError, SimConfig, Simulator};
 use crate::terrain::{Terrain, TerrainMap, TerrainMapConfig};
@@ -56,7 +55,8 @@ pub struct WalkConfig {
 }
 
 impl WalkConfig {
-    /// HyQ's walk: 0.28 s swings, 8 cm step height, a 5 cm ZMP margin.
+    /// HyQ's walk: 0.3 s swings on level ground (longer where the foot climbs), a 10 cm step
+    /// height, a 5 cm ZMP margin, the nominal stance of the standing pose.
     pub fn hyq(model: &Model) -> Result<Self, crate::plan::body::BodyPlanError> {
         let foot_radius = model.feet.first().map(|f| f.radius).unwrap_or(0.02);
         let stance = crate::plan::body::NominalStance::from_model(model)?.feet.map(|f| [f.x, f.y]);
@@ -69,8 +69,8 @@ impl WalkConfig {
                 step_height: 0.10,
                 clearance: 0.05,
                 cog_height: 0.55,
-                stance_length: 0.742,
-                stance_width: 0.648,
+                stance_length: 0.5 * (stance[0][0] + stance[1][0] - stance[2][0] - stance[3][0]),
+                stance_width: 0.5 * (stance[0][1] + stance[2][1] - stance[1][1] - stance[3][1]),
                 foot_radius,
             },
             // ZMP constraints every 50 ms: between the samples the ZMP then stays within 1 mm
@@ -297,8 +297,9 @@ fn zmp_margin(plan: &MotionPlan, gravity: f64) -> f64 {
 /// Runs one trial of `scenario` with `model` (HyQ).
 pub fn run_trial(model: &Model, scenario: &ScenarioSpec, config: &WalkConfig, setup: TrialSetup, mut on_progress: impl FnMut(f64, &str)) -> Result<TrialOutcome, WalkError> {
     let setup_error = |problem: String| WalkError::Setup { scenario: scenario.name.clone(), problem };
-    // The physical world holds every block from the start; the robot must not reach a block
-    // before it appears (checked below), so this is the world the robot sees at each time.
+    // The physics holds every block from the start (a foot reaching a block before the block
+    // appears is an error, checked below); the map's sensor sees `world_at(t)`, so a block
+    // shows up on the map when it appears.
     let world = scenario.world_at(f64::INFINITY);
     let start = BodyPose { x: scenario.start[0] + setup.start_offset[0], y: scenario.start[1] + setup.start_offset[1], yaw: scenario.start[2] + setup.start_offset[2] };
     let goal = BodyPose { x: scenario.goal[0], y: scenario.goal[1], yaw: scenario.goal[2] };
