@@ -9,7 +9,8 @@
 //!
 //! The six base rows hold no torque: they fix the stance contact forces,
 //! `lambda = (J_cb^T)^+ b_b` (Moore-Penrose, the paper's choice: the least-squares and then
-//! minimum-norm forces); the joint rows then give `tau^id = b_q - J_cq^T lambda`.
+//! minimum-norm forces; legwork weights the tangential components, see [`contact_forces`]);
+//! the joint rows then give `tau^id = b_q - J_cq^T lambda`.
 //!
 //! As in the paper, nothing keeps `lambda` inside the friction cones or pushing (not
 //! pulling) on the ground: the minimum-norm forces of a standing or slowly moving robot
@@ -17,23 +18,28 @@
 //! ground cannot give; the simulator's contact model then decides what happens.
 
 use super::legs::{FootKinematics, LegChain};
-use nalgebra::{DVector, Matrix6, Vector3, Vector6};
+use nalgebra::{DVector, Matrix3, Matrix6, Vector3, Vector6};
 
 /// Eigenvalues of `J_cb^T J_cb` below this fraction of the largest are treated as zero (a
 /// direction of base wrench no stance foot can produce, e.g. the moment about the line
 /// through two feet).
 const RANK_TOLERANCE: f64 = 1e-10;
 
-/// The stance contact forces from the base rows of eq. (11): `lambda = A^+ b_b` with
-/// `A = J_cb^T` (6 x 3k over the `k` stance feet), computed as `A^+ = A^T (A A^T)^+`,
-/// `A A^T = sum_i J_cb,i^T J_cb,i` (6 x 6, pseudo-inverted through its eigenvalues).
+/// The stance contact forces from the base rows of eq. (11): the least-squares, then
+/// least-`lambda^T W lambda` solution of `A lambda = b_b` with `A = J_cb^T` (6 x 3k over the `k`
+/// stance feet), `lambda = W^-1 A^T (A W^-1 A^T)^+ b_b`, `A W^-1 A^T = sum_i J_cb,i^T W_i^-1
+/// J_cb,i` (6 x 6, pseudo-inverted through its eigenvalues). `W_i = diag(w_t, w_t, 1)` in the
+/// world frame: with `w_t = 1` it is the paper's Moore-Penrose solution; a larger `w_t` asks
+/// the same base wrench with less tangential force, which the ground can only give up to
+/// `mu F_n` (with `w_t = 10`, HyQ's feet stopped sliding off stepping stones).
 /// Writes one force per foot into `forces` (world frame, the ground on the foot; zero for
 /// swing feet) and returns the residual `|b_b - J_cb^T lambda|` of the base rows: zero when
 /// the stance feet span every base wrench (three or more feet not on one line).
-pub fn contact_forces(base_rows: &Vector6<f64>, feet: &[FootKinematics], stance: &[bool], forces: &mut [Vector3<f64>]) -> f64 {
+pub fn contact_forces(base_rows: &Vector6<f64>, feet: &[FootKinematics], stance: &[bool], tangential_weight: f64, forces: &mut [Vector3<f64>]) -> f64 {
+    let winv = Matrix3::from_diagonal(&Vector3::new(1.0 / tangential_weight, 1.0 / tangential_weight, 1.0));
     let mut gram = Matrix6::zeros();
     for (foot, _) in feet.iter().zip(stance).filter(|(_, &s)| s) {
-        gram += foot.base_jacobian.transpose() * foot.base_jacobian;
+        gram += foot.base_jacobian.transpose() * winv * foot.base_jacobian;
     }
     let eigen = gram.symmetric_eigen();
     let largest = eigen.eigenvalues.amax();
@@ -47,7 +53,7 @@ pub fn contact_forces(base_rows: &Vector6<f64>, feet: &[FootKinematics], stance:
     }
     let mut produced = Vector6::zeros();
     for ((foot, &s), force) in feet.iter().zip(stance).zip(forces.iter_mut()) {
-        *force = if s { foot.base_jacobian * y } else { Vector3::zeros() };
+        *force = if s { winv * (foot.base_jacobian * y) } else { Vector3::zeros() };
         produced += foot.base_jacobian.transpose() * *force;
     }
     (base_rows - produced).norm()

@@ -192,7 +192,7 @@ fn contact_forces_are_the_moore_penrose_solution() {
     let b = Vector6::new(30.0, -20.0, 850.0, 15.0, -40.0, 5.0);
     for stance in [[true, true, true, true], [false, true, true, true], [true, false, false, true]] {
         let mut forces = vec![Vector3::zeros(); 4];
-        let residual = contact_forces(&b, &feet, &stance, &mut forces);
+        let residual = contact_forces(&b, &feet, &stance, 1.0, &mut forces);
         let idx: Vec<usize> = (0..4).filter(|&i| stance[i]).collect();
         let mut a = DMatrix::zeros(6, 3 * idx.len());
         for (k, &i) in idx.iter().enumerate() {
@@ -213,6 +213,41 @@ fn contact_forces_are_the_moore_penrose_solution() {
         for i in (0..4).filter(|&i| !stance[i]) {
             assert_eq!(forces[i], Vector3::zeros());
         }
+    }
+}
+
+/// With a tangential weight `w_t`, the forces are the least-`lambda^T W lambda` solution:
+/// `W^-1/2 (A W^-1/2)^+ b`, against nalgebra's SVD; the base rows are met as before, and
+/// the tangential forces shrink.
+#[test]
+fn weighted_contact_forces_trade_tangential_for_normal_force() {
+    let model = hyq();
+    let (q, v) = moving_state(&model, 21);
+    let mut c = controller(&model);
+    let reference = moving_reference(&model, &q, &[], 7);
+    let mut tau = DVector::zeros(model.nv);
+    c.execute(&model, &q, &v, &reference, &mut tau).unwrap();
+    let feet = c.ws.feet.clone();
+    let b = Vector6::new(120.0, -80.0, 850.0, 15.0, -40.0, 5.0);
+    let w = 10.0;
+    for stance in [[true, true, true, true], [false, true, true, true]] {
+        let (mut plain, mut weighted) = (vec![Vector3::zeros(); 4], vec![Vector3::zeros(); 4]);
+        contact_forces(&b, &feet, &stance, 1.0, &mut plain);
+        let residual = contact_forces(&b, &feet, &stance, w, &mut weighted);
+        assert!(residual < 1e-9);
+        let idx: Vec<usize> = (0..4).filter(|&i| stance[i]).collect();
+        let scale = nalgebra::Matrix3::from_diagonal(&Vector3::new(1.0 / w.sqrt(), 1.0 / w.sqrt(), 1.0));
+        let mut a = DMatrix::zeros(6, 3 * idx.len());
+        for (k, &i) in idx.iter().enumerate() {
+            a.view_mut((0, 3 * k), (6, 3)).copy_from(&(feet[i].base_jacobian.transpose() * scale));
+        }
+        let mu = a.pseudo_inverse(1e-12).unwrap() * DVector::from_column_slice(b.as_slice());
+        for (k, &i) in idx.iter().enumerate() {
+            let expected = scale * mu.fixed_rows::<3>(3 * k);
+            assert!((weighted[i] - expected).amax() < 1e-8, "stance {stance:?}, foot {i}");
+        }
+        let tangential = |f: &[Vector3<f64>]| f.iter().map(|f| f.xy().norm_squared()).sum::<f64>();
+        assert!(tangential(&weighted) < tangential(&plain), "{} vs {}", tangential(&weighted), tangential(&plain));
     }
 }
 
