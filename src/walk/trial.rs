@@ -77,7 +77,10 @@ impl WalkConfig {
             // of the shrunk polygon (0.1 s let it out by 11 mm on these gaits).
             zmp: ZmpSettings { four_leg_duration: 0.2, sample_interval: 0.05, ..ZmpSettings::default() },
             footsteps: FootstepParams::hyq(stance),
-            body: BodyPlannerConfig::default(),
+            // The body planner asks for a usable cell as far from each nominal foothold as
+            // the footstep planner searches (12 cm, not its default 8 cm): with 8 cm, a start
+            // yawed a few degrees had no lattice path across the 35 cm gap.
+            body: BodyPlannerConfig { foothold_radius: FootstepParams::hyq(stance).search_half_width, ..BodyPlannerConfig::default() },
             planning_budget: Duration::from_millis(100),
             sensor_period: 0.1,
             // The scanning depth camera sees the scene to about 4 m; the cost features over
