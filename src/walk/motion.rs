@@ -19,6 +19,7 @@ use crate::plan::body::BodyPose;
 use crate::plan::footstep::Footstep;
 use crate::plan::TerrainCostField;
 use crate::control::{BodyMotion, FootMotion, LegMotion, WholeBodyReference};
+use crate::zmp::swing::rest_to_rest;
 use crate::zmp::{self, CogState, CogTrajectory, PhaseOrigin, SupportPhase, SwingShape, SwingTrajectory, ZmpQp};
 use nalgebra::{Point2, Point3, UnitQuaternion, Vector2, Vector3};
 
@@ -75,13 +76,6 @@ impl Posture {
         // Nose up (front higher) is a negative rotation about the base y axis (z up).
         Self { cog_z: mean + gait.cog_height, roll: ((left - right) / gait.stance_width).atan(), pitch: -((front - hind) / gait.stance_length).atan(), yaw }
     }
-}
-
-/// `sigma(u)`, `sigma'(u)`, `sigma''(u)` of the rest-to-rest quintic on `u` in [0, 1].
-fn rest_to_rest(u: f64) -> (f64, f64, f64) {
-    let u = u.clamp(0.0, 1.0);
-    let (u2, u3) = (u * u, u * u * u);
-    (u3 * (10.0 - 15.0 * u + 6.0 * u2), 30.0 * u2 * (1.0 - 2.0 * u + u2), 60.0 * u * (1.0 - 3.0 * u + 2.0 * u2))
 }
 
 /// Orientation `Rz(yaw) Ry(pitch) Rx(roll)` and its world angular velocity for the rates.

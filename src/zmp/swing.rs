@@ -47,7 +47,7 @@ pub struct SwingTrajectory {
 }
 
 /// `sigma(u)`, `sigma'(u)`, `sigma''(u)` of the rest-to-rest quintic, `u` clamped to [0, 1].
-fn rest_to_rest(u: f64) -> (f64, f64, f64) {
+pub(crate) fn rest_to_rest(u: f64) -> (f64, f64, f64) {
     let u = u.clamp(0.0, 1.0);
     let (u2, u3) = (u * u, u * u * u);
     (u3 * (10.0 - 15.0 * u + 6.0 * u2), 30.0 * u2 * (1.0 - 2.0 * u + u2), 60.0 * u * (1.0 - 3.0 * u + 2.0 * u2))
