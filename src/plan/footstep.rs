@@ -26,6 +26,7 @@
 
 use super::body::BodyPose;
 use super::TerrainCostField;
+use crate::model::description::LEG_ORDER;
 use nalgebra::{Vector2, Vector3};
 
 /// A body-frame point `(bx, by)` of the planar pose `pose` in the world.
@@ -40,7 +41,6 @@ pub const LF: usize = 0;
 pub const RF: usize = 1;
 pub const LH: usize = 2;
 pub const RH: usize = 3;
-pub const LEG_NAMES: [&str; 4] = ["LF", "RF", "LH", "RH"];
 
 /// Weights and limits of the footstep planner.
 #[derive(Clone, Debug, PartialEq)]
@@ -161,7 +161,7 @@ pub fn plan_footsteps(terrain: &dyn TerrainCostField, params: &FootstepParams, f
             let next_leg = order.get(i + 1).copied();
             let (to, cost) = best_foothold(terrain, params, &feet, leg, next_leg, after).ok_or_else(|| {
                 let n = body_to_world(&after, params.nominal[leg]);
-                FootstepError::NoFoothold { action, leg: LEG_NAMES[leg], x: n.x, y: n.y, half_width: params.search_half_width, forbidden: params.forbidden_cost }
+                FootstepError::NoFoothold { action, leg: LEG_ORDER[leg], x: n.x, y: n.y, half_width: params.search_half_width, forbidden: params.forbidden_cost }
             })?;
             steps.push(Footstep { leg, from: feet[leg], to, action, body: after, cost });
             feet[leg] = to;

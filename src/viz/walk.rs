@@ -20,6 +20,7 @@ use super::replay::{OverlayFoothold, OverlayPath, OverlaySupport, ReplayOverlay}
 use super::VizError;
 use crate::dynamics::{center_of_mass, Data};
 use crate::io::Trajectory;
+use crate::model::description::LEG_ORDER;
 use crate::model::Model;
 use crate::terrain::Terrain;
 use crate::walk::motion::MotionPlan;
@@ -46,7 +47,6 @@ const FIG8_SWINGS: usize = 3;
 /// inserted four-leg phase is red.
 const PHASE_COLORS: [RGBColor; 6] = [RGBColor(141, 85, 36), RGBColor(46, 160, 67), RGBColor(214, 170, 0), RGBColor(31, 119, 180), RGBColor(148, 103, 189), RGBColor(23, 160, 170)];
 const FOUR_LEG_COLOR: RGBColor = RGBColor(214, 39, 40);
-const LEG_NAMES: [&str; 4] = ["LF", "RF", "LH", "RH"];
 
 fn css(c: RGBColor) -> String {
     format!("#{:02x}{:02x}{:02x}", c.0, c.1, c.2)
@@ -256,7 +256,7 @@ fn draw_fig8(path: &Path, plans: &[PlanRecord], windows: &[(f64, f64)], actual: 
         .build_cartesian_2d(xr, yr)
         .map_err(|e| err(&e))?;
     house_style(&mut chart.configure_mesh()).x_desc("x [m]").y_desc("y [m]").draw().map_err(|e| err(&e))?;
-    for (leg, name) in LEG_NAMES.iter().enumerate() {
+    for (leg, name) in LEG_ORDER.iter().enumerate() {
         let color = LEG_COLORS[leg];
         let done = footholds.iter().filter(|f| f.foot == leg && f.executed).map(|f| Circle::new((f.position[0], f.position[1]), 4, color.filled()));
         chart.draw_series(done).map_err(|e| err(&e))?.label(format!("{name} foothold")).legend(move |(x, y)| Circle::new((x + 9, y), 4, color.filled()));

@@ -169,7 +169,7 @@ impl MotionPlan {
                     let touch_down = Point3::new(s.to.x, s.to.y, s.to.z + gait.foot_radius);
                     let top = terrain_top(terrain, &s.from, &s.to).map(|h| h + gait.foot_radius);
                     let trajectory = SwingTrajectory::new(lift_off, touch_down, planned.phase.duration, top, SwingShape { step_height: gait.step_height, clearance: gait.clearance })
-                        .map_err(|source| MotionError::Swing { leg: crate::plan::footstep::LEG_NAMES[s.leg], step, source })?;
+                        .map_err(|source| MotionError::Swing { leg: crate::model::description::LEG_ORDER[s.leg], step, source })?;
                     current[s.leg] = s.to;
                     yaw = s.body.yaw;
                     Some(PlannedSwing { leg: s.leg, step, trajectory })

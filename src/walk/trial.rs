@@ -412,7 +412,7 @@ pub fn run_trial(model: &Model, scenario: &ScenarioSpec, config: &WalkConfig, se
         if let Some((leg, planned)) = swinging {
             if now_swinging.is_none_or(|(l, p)| l != leg || p != planned) {
                 let foot = &sim.feet()[leg];
-                touchdowns.push(Touchdown { t, leg: crate::plan::footstep::LEG_NAMES[leg], planned: planned.coords.into(), actual: foot.position.into(), in_contact: foot.contact.normal_force > 0.0 });
+                touchdowns.push(Touchdown { t, leg: crate::model::description::LEG_ORDER[leg], planned: planned.coords.into(), actual: foot.position.into(), in_contact: foot.contact.normal_force > 0.0 });
                 landed[leg] = Some(foot.position.xy());
             }
         }
@@ -459,7 +459,7 @@ pub fn run_trial(model: &Model, scenario: &ScenarioSpec, config: &WalkConfig, se
         }
         for (leg, foot) in sim.feet().iter().enumerate() {
             if foot.contact.normal_force > 0.0 && !scenario.supports(sim.state().t, foot.position.x, foot.position.y) {
-                let name = crate::plan::footstep::LEG_NAMES[leg];
+                let name = crate::model::description::LEG_ORDER[leg];
                 if bad_footholds.iter().all(|b: &BadFoothold| b.leg != name || (sim.state().t - b.t) > 0.1) {
                     bad_footholds.push(BadFoothold { t: sim.state().t, leg: name, position: foot.position.into(), surface: scenario.surface_name(sim.state().t, foot.position.x, foot.position.y) });
                 }

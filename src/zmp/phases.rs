@@ -47,7 +47,7 @@ impl Leg {
     }
 
     pub fn name(self) -> &'static str {
-        ["LF", "RF", "LH", "RH"][self.index()]
+        crate::model::description::LEG_ORDER[self.index()]
     }
 }
 
