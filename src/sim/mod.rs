@@ -226,8 +226,16 @@ pub fn standing_on_ground(model: &Model, terrain: &dyn Terrain, drop_height: f64
         return Err(SimError::InitialState(format!("drop height must be a finite number >= 0 m, got {drop_height}")));
     }
     let mut q = model.reference_configuration("standing").cloned().unwrap_or_else(|| model.neutral());
+    lift_onto_ground(model, terrain, &mut q, drop_height);
+    Ok(q)
+}
+
+/// Moves the free-flyer base of `q` up or down so that the lowest foot sphere touches
+/// `terrain`, then `drop_height` higher (the model must have a free flyer and feet, as
+/// [`standing_on_ground`] checks).
+pub fn lift_onto_ground(model: &Model, terrain: &dyn Terrain, q: &mut DVector<f64>, drop_height: f64) {
     let mut data = Data::new(model);
-    forward_kinematics(model, &mut data, &q);
+    forward_kinematics(model, &mut data, q);
     update_frame_placements(model, &mut data);
     // Height the base must rise by for the deepest foot sphere to just touch.
     let rise = model
@@ -241,7 +249,6 @@ pub fn standing_on_ground(model: &Model, terrain: &dyn Terrain, drop_height: f64
         .fold(f64::NEG_INFINITY, f64::max);
     let iz = model.joints[1].idx_q + 2;
     q[iz] += rise + drop_height;
-    Ok(q)
 }
 
 /// Runs a robot on a terrain with a controller; see the module documentation.

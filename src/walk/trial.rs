@@ -16,7 +16,7 @@ use crate::model::Model;
 use crate::plan::body::{BodyPlanner, BodyPlannerConfig, BodyPose};
 use crate::plan::footstep::{plan_footsteps, FootstepParams};
 use crate::plan::search::SearchLimits;
-use crate::sim::{ControlError, SimConfig, Simulator};
+use crate::sim::{lift_onto_ground, standing_on_ground, ControlError, SimConfig, Simulator};
 use crate::terrain::{Terrain, TerrainMap, TerrainMapConfig};
 use crate::zmp::{CogState, ZmpQp, ZmpSettings};
 use nalgebra::{DVector, UnitQuaternion, Vector2, Vector3};
@@ -243,7 +243,9 @@ impl MotionSource for PlanSource {
 }
 
 /// HyQ's standing configuration at `pose` on `terrain`, the feet just touching.
-fn standing_at(model: &Model, terrain: &dyn Terrain, pose: BodyPose) -> DVector<f64> {
+fn standing_at(model: &Model, terrain: &dyn Terrain, pose: BodyPose) -> Result<DVector<f64>, crate::sim::SimError> {
+    // The checks of `standing_on_ground` (a free flyer, feet); its lift happens at the pose.
+    standing_on_ground(model, terrain, 0.0)?;
     let mut q = model.reference_configuration("standing").cloned().unwrap_or_else(|| model.neutral());
     let base = model.joints[1].idx_q;
     q[base] = pose.x;
@@ -253,18 +255,8 @@ fn standing_at(model: &Model, terrain: &dyn Terrain, pose: BodyPose) -> DVector<
     for k in 0..4 {
         q[base + 3 + k] = c[k];
     }
-    let mut data = Data::new(model);
-    crate::dynamics::forward_kinematics(model, &mut data, &q);
-    let rise = model
-        .feet
-        .iter()
-        .map(|f| {
-            let p = crate::dynamics::frame_position(model, &data, f.frame);
-            f.radius - (p.z - terrain.height(p.x, p.y))
-        })
-        .fold(f64::NEG_INFINITY, f64::max);
-    q[base + 2] += rise;
-    q
+    lift_onto_ground(model, terrain, &mut q, 0.0);
+    Ok(q)
 }
 
 /// The planar pose of the base in `q`.
@@ -306,7 +298,7 @@ pub fn run_trial(model: &Model, scenario: &ScenarioSpec, config: &WalkConfig, se
     let world = scenario.world_at(f64::INFINITY);
     let start = BodyPose { x: scenario.start[0] + setup.start_offset[0], y: scenario.start[1] + setup.start_offset[1], yaw: scenario.start[2] + setup.start_offset[2] };
     let goal = BodyPose { x: scenario.goal[0], y: scenario.goal[1], yaw: scenario.goal[2] };
-    let q0 = standing_at(model, &scenario.world_at(0.0), start);
+    let q0 = standing_at(model, &scenario.world_at(0.0), start).map_err(|e| setup_error(e.to_string()))?;
     let sim_config = SimConfig { record_dt: config.record_dt, ..SimConfig::default() };
     let mut sim = Simulator::new(model, &world, sim_config.clone(), q0.clone(), None).map_err(|e| setup_error(e.to_string()))?;
     let control_dt = sim_config.control_dt;
