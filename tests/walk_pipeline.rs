@@ -42,6 +42,10 @@ size = [3.5, 3.0]
     for d in &out.touchdowns {
         let error = ((d.planned[0] - d.actual[0]).powi(2) + (d.planned[1] - d.actual[1]).powi(2)).sqrt();
         assert!(error < 0.02, "{d:?}");
+        // The swing aims below the mapped surface, so the foot is on the ground when its
+        // stance begins, and it stays put under the friction-weighted forces.
+        assert!(d.in_contact, "{d:?}");
+        assert!(d.stance_slip.is_none_or(|s| s < 0.02), "{d:?}");
     }
     for p in &out.plans {
         assert!(p.zmp_min_margin > -1e-3, "ZMP {} m outside the shrunk polygon", -p.zmp_min_margin);

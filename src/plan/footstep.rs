@@ -64,6 +64,11 @@ pub struct FootstepParams {
     pub weights: [f64; 4],
     /// `w_n`, the weight of the distance from the nominal position.
     pub nominal_weight: f64,
+    /// Radius (cells) of the square of cells whose mean terrain cost is `c_t` (0: the
+    /// foothold's cell alone, as in the paper). The foot lands within about a cell of its
+    /// target and then may roll or slide a little: its neighbours are where it can end up, and
+    /// on a 16 cm stepping stone the cell next to the lip is the one to avoid.
+    pub foot_area_cells: usize,
 }
 
 impl FootstepParams {
@@ -80,6 +85,7 @@ impl FootstepParams {
             max_step_height: 0.25,
             weights: [1.0, 0.5, 1.0, 0.3],
             nominal_weight: 0.5,
+            foot_area_cells: 1,
         }
     }
 }
@@ -184,10 +190,11 @@ fn best_foothold(terrain: &dyn TerrainCostField, params: &FootstepParams, feet: 
         for j in -n..=n {
             let (cx, cy) = terrain.cell_center(nominal.x + i as f64 * r, nominal.y + j as f64 * r);
             let p = Vector2::new(cx, cy);
-            let c_t = terrain.cost(p.x, p.y);
-            if c_t >= params.forbidden_cost || !c_t.is_finite() {
+            let c_cell = terrain.cost(p.x, p.y);
+            if c_cell >= params.forbidden_cost || !c_cell.is_finite() {
                 continue;
             }
+            let c_t = foot_area_cost(terrain, p, params.foot_area_cells);
             let to = Vector3::new(p.x, p.y, terrain.height(p.x, p.y));
             if !to.z.is_finite() || (to.z - others_height).abs() > params.max_step_height {
                 continue;
@@ -216,6 +223,21 @@ fn best_foothold(terrain: &dyn TerrainCostField, params: &FootstepParams, feet: 
         }
     }
     best.map(|(to, cost, _)| (to, cost))
+}
+
+/// `c_t`: the mean terrain cost over the `(2 radius + 1)^2` cells centred on `p` (unknown or
+/// non-finite cells count as forbidden, 1).
+fn foot_area_cost(terrain: &dyn TerrainCostField, p: Vector2<f64>, radius: usize) -> f64 {
+    let r = terrain.resolution();
+    let k = radius as i64;
+    let mut sum = 0.0;
+    for i in -k..=k {
+        for j in -k..=k {
+            let c = terrain.cost(p.x + i as f64 * r, p.y + j as f64 * r);
+            sum += if c.is_finite() { c.min(1.0) } else { 1.0 };
+        }
+    }
+    sum / ((2 * k + 1) * (2 * k + 1)) as f64
 }
 
 /// `c_c`: the highest terrain along the straight swing path above the higher end, as a
@@ -302,6 +324,27 @@ mod tests {
         }
         // Some nominal footholds fall in the strip and were moved out of it.
         assert!(displaced >= 2, "{displaced}");
+    }
+
+    /// With `c_t` the mean over the foot's 3 x 3 cells, a foothold keeps a cell of usable
+    /// ground between it and a forbidden strip when the nominal-distance cost allows; with
+    /// the cell alone (the paper's `c_t`), footholds land right at the strip's edge.
+    #[test]
+    fn the_foot_area_keeps_footholds_a_cell_away_from_forbidden_ground() {
+        let path = straight_path(0.15, 10);
+        let strip = [0.9, 1.05];
+        let terrain = TestTerrain { forbidden_x: Some(strip), boxes: vec![] };
+        let at_edge = |params: &FootstepParams| {
+            let steps = plan_footsteps(&terrain, params, standing_feet(params, path[0]), &path).unwrap();
+            let r = terrain.resolution();
+            steps.iter().filter(|s| [-r, r].iter().any(|dx| terrain.cost(s.to.x + dx, s.to.y) >= 1.0)).count()
+        };
+        let area = FootstepParams::hyq(HYQ_STANCE);
+        assert_eq!(area.foot_area_cells, 1);
+        let cell = FootstepParams { foot_area_cells: 0, ..area.clone() };
+        let (with_area, with_cell) = (at_edge(&area), at_edge(&cell));
+        assert_eq!(with_area, 0);
+        assert!(with_cell >= 2, "{with_cell} footholds next to the strip with the cell-only cost");
     }
 
     #[test]

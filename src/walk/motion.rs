@@ -48,6 +48,12 @@ pub struct GaitParams {
     pub stance_width: f64,
     /// Foot sphere radius (m): swing targets are foot centres, one radius above the ground.
     pub foot_radius: f64,
+    /// How far below the mapped surface a swing ends (m). A loaded foot sinks about 1 cm
+    /// into the soft contact and the mapped height is off by the map's noise: a swing that
+    /// ends on the surface leaves the foot hanging at the planned touchdown, and the stance
+    /// controller, which then gives it its share of the weight, slams it down. Aiming below
+    /// makes the foot meet the ground near the end of its (slowing) descent instead.
+    pub touchdown_depth: f64,
 }
 
 /// The slow, smooth parts of the body pose: CoG height (world z) and roll, pitch, yaw.
@@ -166,7 +172,7 @@ impl MotionPlan {
                     let step = j - 1;
                     let s = &footsteps[step];
                     let lift_off = Point3::new(s.from.x, s.from.y, s.from.z + gait.foot_radius);
-                    let touch_down = Point3::new(s.to.x, s.to.y, s.to.z + gait.foot_radius);
+                    let touch_down = Point3::new(s.to.x, s.to.y, s.to.z + gait.foot_radius - gait.touchdown_depth);
                     let top = terrain_top(terrain, &s.from, &s.to).map(|h| h + gait.foot_radius);
                     let trajectory = SwingTrajectory::new(lift_off, touch_down, planned.phase.duration, top, SwingShape { step_height: gait.step_height, clearance: gait.clearance })
                         .map_err(|source| MotionError::Swing { leg: crate::model::description::LEG_ORDER[s.leg], step, source })?;
@@ -306,7 +312,7 @@ mod tests {
 
     #[test]
     fn posture_follows_the_footholds() {
-        let gait = GaitParams { swing_duration: 0.3, swing_time_per_height: 1.3, initial_stance: 0.3, final_stance: 0.5, step_height: 0.1, clearance: 0.05, cog_height: 0.55, stance_length: 0.74, stance_width: 0.65, foot_radius: 0.02 };
+        let gait = GaitParams { swing_duration: 0.3, swing_time_per_height: 1.3, initial_stance: 0.3, final_stance: 0.5, step_height: 0.1, clearance: 0.05, cog_height: 0.55, stance_length: 0.74, stance_width: 0.65, foot_radius: 0.02, touchdown_depth: 0.0 };
         // Front feet 0.15 m up (on a pallet): nose up, i.e. negative pitch.
         let feet = [Vector3::new(0.37, 0.32, 0.15), Vector3::new(0.37, -0.32, 0.15), Vector3::new(-0.37, 0.32, 0.0), Vector3::new(-0.37, -0.32, 0.0)];
         let p = Posture::over_footholds(&feet, 0.2, &gait);

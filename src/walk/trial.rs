@@ -72,6 +72,7 @@ impl WalkConfig {
                 stance_length: 0.5 * (stance[0][0] + stance[1][0] - stance[2][0] - stance[3][0]),
                 stance_width: 0.5 * (stance[0][1] + stance[2][1] - stance[1][1] - stance[3][1]),
                 foot_radius,
+                touchdown_depth: 0.02,
             },
             // ZMP constraints every 50 ms: between the samples the ZMP then stays within 1 mm
             // of the shrunk polygon (0.1 s let it out by 11 mm on these gaits).
@@ -186,6 +187,9 @@ pub struct Touchdown {
     pub planned: [f64; 3],
     pub actual: [f64; 3],
     pub in_contact: bool,
+    /// How far the foot moved horizontally between this touchdown and its next lift-off (m);
+    /// `None` if the trial ended first.
+    pub stance_slip: Option<f64>,
 }
 
 /// The result of a trial.
@@ -404,7 +408,7 @@ pub fn run_trial(model: &Model, scenario: &ScenarioSpec, config: &WalkConfig, se
         if let Some((leg, planned)) = swinging {
             if now_swinging.is_none_or(|(l, p)| l != leg || p != planned) {
                 let foot = &sim.feet()[leg];
-                touchdowns.push(Touchdown { t, leg: crate::model::description::LEG_ORDER[leg], planned: planned.coords.into(), actual: foot.position.into(), in_contact: foot.contact.normal_force > 0.0 });
+                touchdowns.push(Touchdown { t, leg: crate::model::description::LEG_ORDER[leg], planned: planned.coords.into(), actual: foot.position.into(), in_contact: foot.contact.normal_force > 0.0, stance_slip: None });
                 landed[leg] = Some(foot.position.xy());
             }
         }
@@ -413,6 +417,10 @@ pub fn run_trial(model: &Model, scenario: &ScenarioSpec, config: &WalkConfig, se
                 if let Some(p) = landed[leg].take() {
                     let slip = (sim.feet()[leg].position.xy() - p).norm();
                     max_stance_slip = max_stance_slip.max(slip);
+                    let name = crate::model::description::LEG_ORDER[leg];
+                    if let Some(touchdown) = touchdowns.iter_mut().rev().find(|d| d.leg == name) {
+                        touchdown.stance_slip = Some(slip);
+                    }
                 }
             }
         }

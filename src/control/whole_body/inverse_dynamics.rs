@@ -36,10 +36,39 @@ const RANK_TOLERANCE: f64 = 1e-10;
 /// swing feet) and returns the residual `|b_b - J_cb^T lambda|` of the base rows: zero when
 /// the stance feet span every base wrench (three or more feet not on one line).
 pub fn contact_forces(base_rows: &Vector6<f64>, feet: &[FootKinematics], stance: &[bool], tangential_weight: f64, forces: &mut [Vector3<f64>]) -> f64 {
-    let winv = Matrix3::from_diagonal(&Vector3::new(1.0 / tangential_weight, 1.0 / tangential_weight, 1.0));
+    weighted_contact_forces(base_rows, feet, stance, |_| tangential_weight, forces)
+}
+
+/// [`contact_forces`], then once more with each stance foot's tangential weight scaled by
+/// `(F_mean / F_n,i)^2` (its first-pass normal force `F_n,i` against the stance mean, floored
+/// at a tenth of it): the ground gives a foot tangential force only up to `mu F_n`, so a foot
+/// that bears little weight (the third foot of a triangle whose CoG sits near the opposite
+/// edge) must be asked for little of it. The second pass spreads the tangential forces
+/// roughly in proportion to the normal ones; the base rows are met as before. `weights` is
+/// scratch space, one entry per foot. Returns the residual of the base rows.
+pub fn friction_weighted_contact_forces(base_rows: &Vector6<f64>, feet: &[FootKinematics], stance: &[bool], tangential_weight: f64, weights: &mut [f64], forces: &mut [Vector3<f64>]) -> f64 {
+    let residual = contact_forces(base_rows, feet, stance, tangential_weight, forces);
+    let (sum, count) = forces.iter().zip(stance).filter(|(_, &s)| s).fold((0.0, 0usize), |(sum, count), (f, _)| (sum + f.z.max(0.0), count + 1));
+    if count == 0 || sum <= 0.0 {
+        return residual;
+    }
+    let mean = sum / count as f64;
+    for (w, f) in weights.iter_mut().zip(forces.iter()) {
+        *w = tangential_weight * (mean / f.z.max(0.1 * mean)).powi(2);
+    }
+    weighted_contact_forces(base_rows, feet, stance, |i| weights[i], forces)
+}
+
+/// The weighted least-squares, then least-norm forces with foot `i`'s tangential weight
+/// `tangential_weight(i)`.
+fn weighted_contact_forces(base_rows: &Vector6<f64>, feet: &[FootKinematics], stance: &[bool], tangential_weight: impl Fn(usize) -> f64, forces: &mut [Vector3<f64>]) -> f64 {
+    let winv = |i: usize| {
+        let w = tangential_weight(i);
+        Matrix3::from_diagonal(&Vector3::new(1.0 / w, 1.0 / w, 1.0))
+    };
     let mut gram = Matrix6::zeros();
-    for (foot, _) in feet.iter().zip(stance).filter(|(_, &s)| s) {
-        gram += foot.base_jacobian.transpose() * winv * foot.base_jacobian;
+    for (i, foot) in feet.iter().enumerate().filter(|&(i, _)| stance[i]) {
+        gram += foot.base_jacobian.transpose() * winv(i) * foot.base_jacobian;
     }
     let eigen = gram.symmetric_eigen();
     let largest = eigen.eigenvalues.amax();
@@ -52,8 +81,8 @@ pub fn contact_forces(base_rows: &Vector6<f64>, feet: &[FootKinematics], stance:
         }
     }
     let mut produced = Vector6::zeros();
-    for ((foot, &s), force) in feet.iter().zip(stance).zip(forces.iter_mut()) {
-        *force = if s { winv * (foot.base_jacobian * y) } else { Vector3::zeros() };
+    for (i, (foot, force)) in feet.iter().zip(forces.iter_mut()).enumerate() {
+        *force = if stance[i] { winv(i) * (foot.base_jacobian * y) } else { Vector3::zeros() };
         produced += foot.base_jacobian.transpose() * *force;
     }
     (base_rows - produced).norm()

@@ -53,7 +53,7 @@ pub mod virtual_model;
 #[cfg(test)]
 mod tests;
 
-pub use inverse_dynamics::{contact_forces, joint_torques};
+pub use inverse_dynamics::{contact_forces, friction_weighted_contact_forces, joint_torques};
 pub use legs::{leg_chains, legs_inverse_kinematics, solve_leg, velocities_and_bias, FootKinematics, LegChain};
 pub use reference::{BodyMotion, FootMotion, LegMotion, MotionSource, WholeBodyReference};
 
@@ -116,6 +116,9 @@ pub struct WholeBodyGains {
     /// `w_t`, the weight of the tangential contact forces against the normal ones in the
     /// distribution of eq. (11) ([`contact_forces`]; 1 = the paper's Moore-Penrose).
     pub tangential_force_weight: f64,
+    /// Re-weight the tangential forces by each foot's normal force
+    /// ([`friction_weighted_contact_forces`]) rather than one pass of [`contact_forces`].
+    pub friction_weighting: bool,
 }
 
 impl WholeBodyGains {
@@ -141,7 +144,7 @@ impl WholeBodyGains {
         let mut joint = PdGains::from_model(model, q_ref, control_dt);
         joint.kp *= JOINT_STIFFNESS_FRACTION;
         joint.kd *= JOINT_DAMPING_FRACTION;
-        Self { virtual_model, swing_foot: (Vector3::repeat(wf * wf), Vector3::repeat(2.0 * wf)), joint, tangential_force_weight: TANGENTIAL_FORCE_WEIGHT }
+        Self { virtual_model, swing_foot: (Vector3::repeat(wf * wf), Vector3::repeat(2.0 * wf)), joint, tangential_force_weight: TANGENTIAL_FORCE_WEIGHT, friction_weighting: true }
     }
 
     fn check(&self, nv: usize) -> Result<(), WholeBodyError> {
@@ -232,6 +235,8 @@ struct Workspace {
     bias: Vec<Motion>,
     feet: Vec<FootKinematics>,
     stance: Vec<bool>,
+    /// Per-foot tangential weights of the friction-weighted second pass.
+    tangential_weights: Vec<f64>,
     ik_targets: Vec<Vector3<f64>>,
     /// The inverse kinematics has a previous solution to start from.
     ik_warm: bool,
@@ -297,6 +302,7 @@ impl<S: MotionSource> WholeBodyController<S> {
                 bias: vec![Motion::zero(); model.njoints()],
                 feet: vec![FootKinematics::default(); nfeet],
                 stance: vec![true; nfeet],
+                tangential_weights: vec![0.0; nfeet],
                 ik_targets: vec![Vector3::zeros(); nfeet],
                 ik_warm: false,
             },
@@ -451,7 +457,11 @@ impl<S> WholeBodyController<S> {
         // 4. Inverse dynamics by partitioning, eq. (11).
         rnea(model, &mut ws.data, q, v, acc);
         let base_rows = ws.data.tau.fixed_rows::<6>(0).into_owned();
-        tick.base_row_residual = contact_forces(&base_rows, &ws.feet, &ws.stance, self.gains.tangential_force_weight, &mut tick.contact_forces);
+        tick.base_row_residual = if self.gains.friction_weighting {
+            friction_weighted_contact_forces(&base_rows, &ws.feet, &ws.stance, self.gains.tangential_force_weight, &mut ws.tangential_weights, &mut tick.contact_forces)
+        } else {
+            contact_forces(&base_rows, &ws.feet, &ws.stance, self.gains.tangential_force_weight, &mut tick.contact_forces)
+        };
         joint_torques(&ws.data.tau, &self.legs, &ws.feet, &tick.contact_forces, &mut tick.inverse_dynamics_torque);
 
         // 5. Joint-space targets: the base at its desired pose, the legs by inverse

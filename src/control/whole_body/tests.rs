@@ -178,17 +178,22 @@ fn rigid_contact_forward_dynamics_of_the_torques_gives_the_reference() {
     }
 }
 
-/// `lambda = (J_cb^T)^+ b_b` against nalgebra's SVD pseudo-inverse of the 6 x 3k matrix:
-/// four and three feet (exact base rows) and two diagonal feet (rank 5: least squares).
-#[test]
-fn contact_forces_are_the_moore_penrose_solution() {
+/// The feet's kinematics (base and leg Jacobians) at a moving state of HyQ, after one tick.
+fn moving_feet() -> Vec<FootKinematics> {
     let model = hyq();
     let (q, v) = moving_state(&model, 21);
     let mut c = controller(&model);
     let reference = moving_reference(&model, &q, &[], 7);
     let mut tau = DVector::zeros(model.nv);
     c.execute(&model, &q, &v, &reference, &mut tau).unwrap();
-    let feet = c.ws.feet.clone();
+    c.ws.feet.clone()
+}
+
+/// `lambda = (J_cb^T)^+ b_b` against nalgebra's SVD pseudo-inverse of the 6 x 3k matrix:
+/// four and three feet (exact base rows) and two diagonal feet (rank 5: least squares).
+#[test]
+fn contact_forces_are_the_moore_penrose_solution() {
+    let feet = moving_feet();
     let b = Vector6::new(30.0, -20.0, 850.0, 15.0, -40.0, 5.0);
     for stance in [[true, true, true, true], [false, true, true, true], [true, false, false, true]] {
         let mut forces = vec![Vector3::zeros(); 4];
@@ -221,13 +226,7 @@ fn contact_forces_are_the_moore_penrose_solution() {
 /// the tangential forces shrink.
 #[test]
 fn weighted_contact_forces_trade_tangential_for_normal_force() {
-    let model = hyq();
-    let (q, v) = moving_state(&model, 21);
-    let mut c = controller(&model);
-    let reference = moving_reference(&model, &q, &[], 7);
-    let mut tau = DVector::zeros(model.nv);
-    c.execute(&model, &q, &v, &reference, &mut tau).unwrap();
-    let feet = c.ws.feet.clone();
+    let feet = moving_feet();
     let b = Vector6::new(120.0, -80.0, 850.0, 15.0, -40.0, 5.0);
     let w = 10.0;
     for stance in [[true, true, true, true], [false, true, true, true]] {
@@ -249,6 +248,34 @@ fn weighted_contact_forces_trade_tangential_for_normal_force() {
         let tangential = |f: &[Vector3<f64>]| f.iter().map(|f| f.xy().norm_squared()).sum::<f64>();
         assert!(tangential(&weighted) < tangential(&plain), "{} vs {}", tangential(&weighted), tangential(&plain));
     }
+}
+
+/// The friction-weighted second pass meets the base rows as the first does, and the foot
+/// bearing the least weight is asked for a smaller share of tangential force: its
+/// `|f_t| / f_n` drops (the ratio the ground must allow before the foot slides).
+#[test]
+fn friction_weighted_forces_unload_the_light_foot_tangentially() {
+    let feet = moving_feet();
+    let mut weights = vec![0.0; 4];
+    let mut light_cases = 0;
+    for stance in [[true, true, true, true], [false, true, true, true], [true, false, true, true], [true, true, false, true]] {
+        for (mx, my) in [(0.0, 0.0), (60.0, 0.0), (-60.0, 40.0), (0.0, -90.0), (90.0, 90.0)] {
+            let b = Vector6::new(120.0, -80.0, 850.0, mx, my, 15.0);
+            let (mut single, mut weighted) = (vec![Vector3::zeros(); 4], vec![Vector3::zeros(); 4]);
+            contact_forces(&b, &feet, &stance, 10.0, &mut single);
+            let residual = friction_weighted_contact_forces(&b, &feet, &stance, 10.0, &mut weights, &mut weighted);
+            assert!(residual < 1e-9, "stance {stance:?}, b {b:?}: residual {residual:e}");
+            let stance_feet: Vec<usize> = (0..4).filter(|&i| stance[i]).collect();
+            let mean = stance_feet.iter().map(|&i| single[i].z).sum::<f64>() / stance_feet.len() as f64;
+            let light = *stance_feet.iter().min_by(|&&a, &&b| single[a].z.total_cmp(&single[b].z)).unwrap();
+            if single[light].z > 0.0 && single[light].z < 0.5 * mean && weighted[light].z > 0.0 {
+                light_cases += 1;
+                let ratio = |f: &Vector3<f64>| f.xy().norm() / f.z;
+                assert!(ratio(&weighted[light]) < ratio(&single[light]), "stance {stance:?}, b {b:?}, light foot {light}: {} -> {}", ratio(&single[light]), ratio(&weighted[light]));
+            }
+        }
+    }
+    assert!(light_cases >= 3, "only {light_cases} cases with a lightly loaded foot");
 }
 
 /// `Jd v` of each foot against central differences of `J(q) v` along `q(t) = q (+) t v`.
