@@ -58,10 +58,10 @@ impl CogSpline {
 pub struct SolveInfo {
     pub phases: usize,
     pub splines: usize,
-    /// QP unknowns: 12 per spline.
+    /// QP unknowns: the CoG state of both axes (6) at every junction between two splines.
+    /// The QP has no equality rows: eq. (4) and the initial and goal states hold by
+    /// construction (see [`super::qp`]).
     pub variables: usize,
-    /// Rows of eq. (4) plus the initial and goal states.
-    pub equality_constraints: usize,
     /// Rows of eq. (6): one per edge of the shrunk support polygon per ZMP sample.
     pub inequality_constraints: usize,
     pub iterations: u32,
@@ -72,9 +72,6 @@ pub struct SolveInfo {
     pub solver_seconds: f64,
     /// Cost eq. (7) of the returned trajectory.
     pub cost: f64,
-    /// Largest change (m, in normalized-time coefficients) made after the interior-point
-    /// solve to meet eq. (4) and the boundary states exactly: the solver's own residual.
-    pub continuity_correction: f64,
 }
 
 /// Worst ZMP margin found on a time grid (see [`CogTrajectory::check_zmp`]).
