@@ -127,7 +127,9 @@ struct SplineSlot {
 /// of phases changes from plan to plan.)
 pub struct ZmpQp {
     settings: ZmpSettings,
+    /// Clarabel's settings for the plan (see [`ZmpQp::new`]) and for the elastic re-solve.
     solver_settings: DefaultSettings<f64>,
+    elastic_solver_settings: DefaultSettings<f64>,
     phases: Vec<PlannedPhase>,
     splines: Vec<SplineSlot>,
     /// Per spline, the Gram matrix of eq. (7) over its two end states in unknown units (see
@@ -154,16 +156,40 @@ enum Run {
 }
 
 impl ZmpQp {
+    /// Clarabel's settings, measured on HyQ crawls of 8 to 52 steps (benches/zmp.rs):
+    ///
+    /// * no equilibration: the unknowns are lengths of similar size already (module docs),
+    ///   and Ruiz scaling made the interior-point iterations slower to converge (52 steps,
+    ///   samples every 0.05 s: 15 iterations against 10), and at tighter tolerances stall at
+    ///   reduced accuracy (cost 0.6 % off);
+    /// * no static regularization and no iterative refinement: `P` is positive definite
+    ///   over the junction states (the Gram matrices' null space, straight-line motion, is
+    ///   removed by the given first and last states), so the KKT matrix is quasi-definite as
+    ///   it is; refinement took 45 % of the run time. Dynamic regularization stays on as the
+    ///   guard against a tiny pivot;
+    /// * duality-gap tolerances 1e-9 (default 1e-8): at 1e-8 eq. (7) came out up to 7e-7
+    ///   relative above the optimum, at 1e-9 within 3e-8, for one more iteration.
+    ///
+    /// The elastic re-solve, whose slack columns have no quadratic term, keeps Clarabel's
+    /// defaults.
     pub fn new(settings: ZmpSettings) -> Result<Self, ZmpError> {
         settings.validate()?;
+        let setup_error = |e: clarabel::solver::DefaultSettingsBuilderError| ZmpError::SolverSetup(e.to_string());
         let solver_settings = DefaultSettingsBuilder::default()
             .verbose(false)
+            .equilibrate_enable(false)
+            .static_regularization_enable(false)
+            .iterative_refinement_enable(false)
+            .tol_gap_abs(1e-9)
+            .tol_gap_rel(1e-9)
             .build()
-            .map_err(|e| ZmpError::SolverSetup(e.to_string()))?;
+            .map_err(setup_error)?;
+        let elastic_solver_settings = DefaultSettingsBuilder::default().verbose(false).build().map_err(setup_error)?;
         let empty = || CscMatrix::new(0, 0, vec![0], Vec::new(), Vec::new());
         Ok(Self {
             settings,
             solver_settings,
+            elastic_solver_settings,
             phases: Vec::new(),
             splines: Vec::new(),
             grams: Vec::new(),
@@ -364,7 +390,8 @@ impl ZmpQp {
             });
         }
         let cones = [SupportedConeT::NonnegativeConeT(inequality_rows)];
-        let mut solver = DefaultSolver::new(&self.p, &self.q, &self.a, &self.b, &cones, self.solver_settings.clone())
+        let solver_settings = if elastic { &self.elastic_solver_settings } else { &self.solver_settings };
+        let mut solver = DefaultSolver::new(&self.p, &self.q, &self.a, &self.b, &cones, solver_settings.clone())
             .map_err(|e| ZmpError::SolverSetup(e.to_string()))?;
         solver.solve();
         let solution = &solver.solution;
