@@ -22,6 +22,17 @@
 //! a nonnegative cone: for an edge line `p x + q y + r >= 0` at a sample,
 //! `-(p x_zmp + q y_zmp) <= r`, the ZMP's dependence on the fixed end states moved into `b`.
 //!
+//! Lazy rows. Most edges of most support polygons are never approached: on the HyQ crawls,
+//! the ZMP comes within 1 cm of only a quarter of the eq. (6) rows (the diagonal edge of
+//! each swing triangle) and stays more than 10 cm from all others. The QP is therefore first
+//! solved with the edges the ZMP is predicted to approach (an edge whose line is nearer to
+//! the centre of the previous or the next phase's shrunk polygon than half the distance to
+//! its own phase's centre: the ZMP travels between them), then every left-out row is
+//! checked at the solution; edges with a violated row join the QP, which is solved again,
+//! until no row is violated. The result is the optimum of the full QP: the optimum of a
+//! relaxation that meets all the rows left out is feasible for the full problem, hence its
+//! optimum. (A prediction that misses costs one more solve, never a different answer.)
+//!
 //! ZMP samples: every spline is sampled at `ceil(T / sample_interval)` equal steps, its end
 //! included; the first spline of each phase also at its start, so each phase's closed time
 //! interval is constrained, both sides of a phase switch included.
@@ -45,6 +56,10 @@ const ELASTIC_PENALTY: f64 = 1e4;
 
 /// Slacks above this (m) count as a phase that needs one.
 const ELASTIC_SLACK_REPORTED: f64 = 1e-6;
+
+/// Eq. (6) rows left out of the QP (see "Lazy rows" in the module docs) count as violated at
+/// its solution below this (m): about Clarabel's own feasibility on the rows it has.
+const VIOLATION_TOLERANCE: f64 = 1e-9;
 
 /// A plan of a single spline has no unknown (both end states are given): its ZMP samples
 /// are checked directly, and count as inside up to this distance (m), Clarabel's own
@@ -147,6 +162,10 @@ pub struct ZmpQp {
     b: Vec<f64>,
     /// Solution: junction states, then (elastic mode) slacks.
     solution: Vec<f64>,
+    /// Index of phase k's first edge in `candidate_edges`.
+    edge_offsets: Vec<usize>,
+    /// Per phase and edge of its shrunk polygon: are its eq. (6) rows in the QP?
+    candidate_edges: Vec<bool>,
 }
 
 /// Outcome of one Clarabel run.
@@ -168,7 +187,7 @@ impl ZmpQp {
     ///   it is; refinement took 45 % of the run time. Dynamic regularization stays on as the
     ///   guard against a tiny pivot;
     /// * duality-gap tolerances 1e-9 (default 1e-8): at 1e-8 eq. (7) came out up to 7e-7
-    ///   relative above the optimum, at 1e-9 within 3e-8, for one more iteration.
+    ///   relative above the optimum, at 1e-9 within 2e-7, for one more iteration.
     ///
     /// The elastic re-solve, whose slack columns have no quadratic term, keeps Clarabel's
     /// defaults.
@@ -201,6 +220,8 @@ impl ZmpQp {
             q: Vec::new(),
             b: Vec::new(),
             solution: Vec::new(),
+            edge_offsets: Vec::new(),
+            candidate_edges: Vec::new(),
         })
     }
 
@@ -240,40 +261,119 @@ impl ZmpQp {
             self.fixed_end[axis] = [goal[axis], 0.0, 0.0];
         }
 
-        match self.run(false)? {
-            Run::Solved { iterations, seconds, inequality_rows, reduced_accuracy } => {
-                let splines: Vec<CogSpline> = (0..self.splines.len())
-                    .map(|index| {
-                        let slot = &self.splines[index];
-                        let [x, y] = [0, 1].map(|axis| {
-                            let alpha = normalized_from_hermite(&self.boundary_values(index, axis));
-                            Quintic::from_normalized(&alpha, slot.duration)
-                        });
-                        CogSpline { start_time: slot.start_time, duration: slot.duration, phase: slot.phase, x, y }
-                    })
-                    .collect();
-                let info = SolveInfo {
-                    phases: self.phases.len(),
-                    splines: splines.len(),
-                    variables: self.junction_unknowns(),
-                    inequality_constraints: inequality_rows,
-                    iterations,
-                    reduced_accuracy,
-                    solver_seconds: seconds,
-                    cost: 0.0,
-                };
-                let mut trajectory = CogTrajectory {
-                    splines,
-                    phases: self.phases.clone(),
-                    gravity: s.gravity,
-                    weights: [s.weight_x, s.weight_y],
-                    info,
-                };
-                trajectory.info.cost = trajectory.cost();
-                Ok(trajectory)
+        self.layout_splines();
+        let zmp_constraints = self.predict_candidate_edges(initial.zmp(self.phases[0].phase.cog_height, s.gravity), goal);
+        let (mut iterations, mut seconds, mut rounds) = (0, 0.0, 0);
+        loop {
+            rounds += 1;
+            let run = self.run(false)?;
+            if let Run::Solved { iterations: round_iterations, seconds: round_seconds, .. } = run {
+                iterations += round_iterations;
+                seconds += round_seconds;
             }
-            Run::Infeasible => Err(self.diagnose_infeasibility()?),
+            match run {
+                Run::Solved { .. } if self.admit_violated_edges() => continue,
+                Run::Solved { inequality_rows, reduced_accuracy, .. } => {
+                    return Ok(self.trajectory(SolveInfo {
+                        phases: self.phases.len(),
+                        splines: self.splines.len(),
+                        variables: self.junction_unknowns(),
+                        inequality_constraints: inequality_rows,
+                        zmp_constraints,
+                        rounds,
+                        iterations,
+                        reduced_accuracy,
+                        solver_seconds: seconds,
+                        cost: 0.0,
+                    }))
+                }
+                // The relaxation is infeasible, so is the full problem.
+                Run::Infeasible => return Err(self.diagnose_infeasibility()?),
+            }
         }
+    }
+
+    /// The plan from the solved junction states.
+    fn trajectory(&self, info: SolveInfo) -> CogTrajectory {
+        let s = &self.settings;
+        let splines = (0..self.splines.len())
+            .map(|index| {
+                let slot = &self.splines[index];
+                let [x, y] = [0, 1].map(|axis| {
+                    let alpha = normalized_from_hermite(&self.boundary_values(index, axis));
+                    Quintic::from_normalized(&alpha, slot.duration)
+                });
+                CogSpline { start_time: slot.start_time, duration: slot.duration, phase: slot.phase, x, y }
+            })
+            .collect();
+        let mut trajectory =
+            CogTrajectory { splines, phases: self.phases.clone(), gravity: s.gravity, weights: [s.weight_x, s.weight_y], info };
+        trajectory.info.cost = trajectory.cost();
+        trajectory
+    }
+
+    /// The edges whose rows start in the QP (see "Lazy rows" in the module docs): per phase,
+    /// those whose line has the centre (vertex centroid) of the previous or next phase's
+    /// shrunk polygon (the initial ZMP, the goal at the ends) nearer than half its own
+    /// centre. Returns the number of eq. (6) rows of the full problem.
+    fn predict_candidate_edges(&mut self, initial_zmp: Point2<f64>, goal: Point2<f64>) -> usize {
+        self.edge_offsets.clear();
+        self.candidate_edges.clear();
+        let last = self.phases.len() - 1;
+        for (k, planned) in self.phases.iter().enumerate() {
+            self.edge_offsets.push(self.candidate_edges.len());
+            let centre = |k: usize| self.phases[k].shrunk_support.vertex_centroid();
+            let previous = if k == 0 { initial_zmp } else { centre(k - 1) };
+            let next = if k == last { goal } else { centre(k + 1) };
+            let own = centre(k);
+            for edge in planned.shrunk_support.edges() {
+                let neighbours = edge.value(previous).min(edge.value(next));
+                self.candidate_edges.push(neighbours < 0.5 * edge.value(own));
+            }
+        }
+        self.edge_offsets.push(self.candidate_edges.len());
+        self.splines
+            .iter()
+            .map(|slot| {
+                let (first, intervals) = self.sample_range(slot);
+                (intervals + 1 - first) * (self.edge_offsets[slot.phase + 1] - self.edge_offsets[slot.phase])
+            })
+            .sum()
+    }
+
+    /// Checks every eq. (6) row left out of the QP at its solution; the edges with a row
+    /// violated by more than `VIOLATION_TOLERANCE` join the QP. Returns whether any did.
+    fn admit_violated_edges(&mut self) -> bool {
+        let gravity = self.settings.gravity;
+        let mut admitted = false;
+        for (s, slot) in self.splines.iter().enumerate() {
+            let planned = &self.phases[slot.phase];
+            let offset = self.edge_offsets[slot.phase];
+            if self.candidate_edges[offset..self.edge_offsets[slot.phase + 1]].iter().all(|&c| c) {
+                continue;
+            }
+            let [x, y] = [0, 1].map(|axis| self.boundary_values(s, axis));
+            let (first, intervals) = self.sample_range(slot);
+            for j in first..=intervals {
+                let zmp = hermite_row(&zmp_row(j as f64 / intervals as f64, slot.duration, planned.phase.cog_height, gravity));
+                let dot = |h: &[f64; 6]| zmp.iter().zip(h).map(|(z, v)| z * v).sum::<f64>();
+                let point = Point2::new(dot(&x), dot(&y));
+                for (e, edge) in planned.shrunk_support.edges().enumerate() {
+                    if !self.candidate_edges[offset + e] && edge.value(point) < -VIOLATION_TOLERANCE {
+                        self.candidate_edges[offset + e] = true;
+                        admitted = true;
+                    }
+                }
+            }
+        }
+        admitted
+    }
+
+    /// The ZMP samples of a spline: `j / intervals` of its duration for `j` in
+    /// `first ..= intervals` (module docs).
+    fn sample_range(&self, slot: &SplineSlot) -> (usize, usize) {
+        let intervals = (slot.duration / self.settings.sample_interval - 1e-9).ceil().max(1.0) as usize;
+        (usize::from(!slot.first_in_phase), intervals)
     }
 
     /// The initial ZMP must lie in the first shrunk polygon and the goal (where the CoG rests,
@@ -371,11 +471,10 @@ impl ZmpQp {
         std::array::from_fn(|i| scale[i] * if i < 3 { start[i] } else { end[i - 3] })
     }
 
-    /// Lays out the splines, assembles the QP (elastic: with one slack per phase on eq. 6)
-    /// and runs Clarabel; the solution goes to `self.solution` (junction states, then
-    /// slacks).
+    /// Assembles the QP over the laid-out splines (the candidate edges' rows of eq. 6; elastic:
+    /// all rows, with one slack per phase) and runs Clarabel; the solution goes to
+    /// `self.solution` (junction states, then slacks).
     fn run(&mut self, elastic: bool) -> Result<Run, ZmpError> {
-        self.layout_splines();
         let slacks = if elastic { self.phases.len() } else { 0 };
         self.assemble_cost(slacks);
         let inequality_rows = self.assemble_constraints(elastic);
@@ -493,10 +592,10 @@ impl ZmpQp {
         }
     }
 
-    /// Rows of `A` and `b`: eq. (6) at every sample, the ZMP written over the end states of
-    /// its spline, the given ones moved to `b`. Elastic mode: each row of phase k gets
-    /// `- sigma_k` (its line moved out by the slack), and rows `-sigma_k <= 0` follow.
-    /// Returns the row count.
+    /// Rows of `A` and `b`: eq. (6) at every sample for the candidate edges, the ZMP written
+    /// over the end states of its spline, the given ones moved to `b`. Elastic mode: all
+    /// edges, and each row of phase k gets `- sigma_k` (its line moved out by the slack),
+    /// and rows `-sigma_k <= 0` follow. Returns the row count.
     fn assemble_constraints(&mut self, elastic: bool) -> usize {
         self.triplets.clear();
         self.b.clear();
@@ -508,13 +607,13 @@ impl ZmpQp {
             let height = planned.phase.cog_height;
             let scale = self.hermite_scale(s);
             let ends = [s, s + 1].map(|j| (self.junction_column(j), [0, 1].map(|axis| self.given_state(j, axis))));
-            let intervals = (slot.duration / self.settings.sample_interval - 1e-9).ceil().max(1.0) as usize;
-            let first_sample = if slot.first_in_phase { 0 } else { 1 };
+            let (first_sample, intervals) = self.sample_range(slot);
+            let candidates = &self.candidate_edges[self.edge_offsets[slot.phase]..self.edge_offsets[slot.phase + 1]];
             for j in first_sample..=intervals {
                 // ZMP (eq. 5) = zmp · u over the spline's end states in unknown units.
                 let hermite = hermite_row(&zmp_row(j as f64 / intervals as f64, slot.duration, height, gravity));
                 let zmp: [f64; 6] = std::array::from_fn(|i| hermite[i] * scale[i]);
-                for edge in planned.shrunk_support.edges() {
+                for (edge, _) in planned.shrunk_support.edges().zip(candidates).filter(|(_, &c)| c || elastic) {
                     let mut bound = edge.r;
                     for (side, (column, given)) in ends.iter().enumerate() {
                         for (axis, weight) in [edge.p, edge.q].into_iter().enumerate() {
@@ -686,8 +785,8 @@ mod tests {
     /// rows of eq. (4) (`coefficient_qp`, the former formulation): on crawls where eq. (6)
     /// is active, with a moving initial state and per-phase CoG heights, eq. (7) agrees to
     /// 1e-6 relative and the CoG and ZMP paths to 2e-5 m on a 1 ms grid. (Eq. 7 is flat
-    /// along slow deformations of the path: within Clarabel's 1e-8 gap, the two solutions
-    /// differ by up to 9e-6 m in the ZMP, measured.)
+    /// along slow deformations of the path: within Clarabel's gap tolerances, the two
+    /// solutions differ by up to 4e-6 m in the ZMP, measured.)
     #[test]
     fn optimum_matches_coefficient_form() {
         let moving = CogState {
@@ -726,6 +825,29 @@ mod tests {
             );
             assert!(relative < 1e-6 && position < 2e-5 && zmp < 2e-5, "{steps} steps: {relative} {position} {zmp}");
         }
+    }
+
+    /// A left-out row that the solution violates joins the QP. One four-leg phase of 0.5 s,
+    /// from rest at the centre to rest at 0.15 m forward: the goal is farther from the front
+    /// edge (0.17 m) than half the centre's distance (0.16 m), so the first QP has no row of
+    /// that edge, yet the braking at the end pushes the ZMP (eq. 5) past it; the second
+    /// round includes it, and the result is the coefficient form's optimum with every row.
+    #[test]
+    fn violated_left_out_rows_join_the_qp() {
+        let settings = ZmpSettings::default();
+        let phases = [SupportPhase::four_leg(hyq_feet(), 0.5, 0.6)];
+        let (initial, goal) = (CogState::at_rest(Vector2::zeros()), Point2::new(0.15, 0.0));
+        let plan = ZmpQp::new(settings).unwrap().solve(&phases, &initial, goal).unwrap();
+        let info = *plan.info();
+        eprintln!("{info:?}");
+        assert_eq!(info.rounds, 2);
+        assert_eq!((info.inequality_constraints, info.zmp_constraints), (7, 28), "the front edge's 7 samples of 4 edges' 28");
+        let at_samples = margin_at_constraint_samples(&plan, &settings);
+        assert!(at_samples > -1e-6 && at_samples < 1e-6, "the front edge is active: {at_samples}");
+        let reference = crate::zmp::coefficient_qp::solve(plan.phases(), &settings, &initial, goal).unwrap();
+        let reference =
+            CogTrajectory { splines: reference, phases: plan.phases().to_vec(), gravity: 9.81, weights: [1.0, 1.5], info };
+        assert!((plan.cost() - reference.cost()).abs() < 1e-6 * reference.cost(), "{} vs {}", plan.cost(), reference.cost());
     }
 
     /// How far (m) the ZMP may leave the shrunk polygon between the default 0.1 s constraint

@@ -62,13 +62,19 @@ pub struct SolveInfo {
     /// The QP has no equality rows: eq. (4) and the initial and goal states hold by
     /// construction (see [`super::qp`]).
     pub variables: usize,
-    /// Rows of eq. (6): one per edge of the shrunk support polygon per ZMP sample.
+    /// Rows of eq. (6) in the last QP solved: one per ZMP sample and edge of the shrunk
+    /// support polygon, for the edges the ZMP approaches (see "Lazy rows" in [`super::qp`]).
     pub inequality_constraints: usize,
+    /// All rows of eq. (6), each checked at the solution.
+    pub zmp_constraints: usize,
+    /// QPs solved: one, plus one per round of left-out rows found violated.
+    pub rounds: u32,
+    /// Interior-point iterations, all rounds.
     pub iterations: u32,
     /// Clarabel stopped at its reduced tolerances (status `AlmostSolved`, about 1e-4
     /// instead of 1e-8): [`CogTrajectory::check_zmp`] tells how well eq. (6) holds.
     pub reduced_accuracy: bool,
-    /// Clarabel's own solve time (s); the setup (factorization structure) is outside it.
+    /// Clarabel's own time (s), setup and solve, all rounds.
     pub solver_seconds: f64,
     /// Cost eq. (7) of the returned trajectory.
     pub cost: f64,
