@@ -756,8 +756,8 @@ mod tests {
         );
         let info = *plan.info();
         eprintln!("crawl 8 steps: {info:?}");
-        // Eq. (4) and boundary states.
-        assert!(plan.continuity_error() < 1e-9, "{}", plan.continuity_error());
+        // Eq. (4) and boundary states: by construction, up to rounding (measured 1e-13).
+        assert!(plan.continuity_error() < 1e-11, "{}", plan.continuity_error());
         let start = plan.state(0.0).unwrap();
         assert!((start.position - initial.position).amax() < 1e-12 && start.velocity.amax() < 1e-12);
         let end = plan.state(plan.duration()).unwrap();
