@@ -36,6 +36,8 @@
 //! assert!(plan.check_zmp(0.002).worst_margin > -1e-3);
 //! ```
 
+#[cfg(test)]
+mod coefficient_qp;
 pub mod phases;
 pub mod polygon;
 pub mod qp;

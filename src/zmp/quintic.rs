@@ -114,6 +114,54 @@ pub fn squared_acceleration_gram(duration: f64) -> [[f64; 6]; 6] {
     gram
 }
 
+/// The quintic Hermite basis: `alpha = HERMITE_BASIS h` gives the normalized-time
+/// coefficients (ascending powers of `tau`) of the quintic with boundary values
+/// `h = (x(0), x'(0), x''(0), x(1), x'(1), x''(1))`, derivatives taken in `tau`; in time,
+/// `h = (x_0, T v_0, T^2 a_0, x_1, T v_1, T^2 a_1)`. Column `i` holds the coefficients of the
+/// basis polynomial that has boundary value `i` equal to one and the other five zero:
+/// `1 - 10 tau^3 + 15 tau^4 - 6 tau^5`, `tau - 6 tau^3 + 8 tau^4 - 3 tau^5`,
+/// `(tau^2 - 3 tau^3 + 3 tau^4 - tau^5) / 2`, `10 tau^3 - 15 tau^4 + 6 tau^5`,
+/// `-4 tau^3 + 7 tau^4 - 3 tau^5`, `(tau^3 - 2 tau^4 + tau^5) / 2`. Splines written in these
+/// boundary states meet eq. (4) by construction when neighbours share their junction state.
+pub const HERMITE_BASIS: [[f64; 6]; 6] = [
+    [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0, 0.0, 0.0, 0.0],
+    [0.0, 0.0, 0.5, 0.0, 0.0, 0.0],
+    [-10.0, -6.0, -1.5, 10.0, -4.0, 0.5],
+    [15.0, 8.0, 1.5, -15.0, 7.0, -1.0],
+    [-6.0, -3.0, -0.5, 6.0, -3.0, 0.5],
+];
+
+/// Normalized-time coefficients `alpha = HERMITE_BASIS h` of the quintic with boundary
+/// values `h` (see [`HERMITE_BASIS`]).
+pub fn normalized_from_hermite(h: &[f64; 6]) -> [f64; 6] {
+    std::array::from_fn(|k| HERMITE_BASIS[k].iter().zip(h).map(|(m, v)| m * v).sum())
+}
+
+/// A row over normalized-time coefficients (`value = row · alpha`, as [`position_row`] and
+/// the others) rewritten over the boundary values: `value = (row HERMITE_BASIS) · h`.
+pub fn hermite_row(row: &[f64; 6]) -> [f64; 6] {
+    std::array::from_fn(|i| (0..6).map(|k| row[k] * HERMITE_BASIS[k][i]).sum())
+}
+
+/// `K` with `∫_0^T ẍ(t)^2 dt = h^T K h` over the boundary values `h` (see
+/// [`HERMITE_BASIS`]): `K = M^T G M` with `M = HERMITE_BASIS` and `G` of
+/// [`squared_acceleration_gram`], `1 / T^3` times the exact rational matrix below (worked out
+/// by hand from the basis polynomials; the tests compare it with `M^T G M` and quadrature).
+/// Its top-left entry is the rest-to-rest cost `120 / (7 T^3)` per squared metre.
+pub fn hermite_squared_acceleration_gram(duration: f64) -> [[f64; 6]; 6] {
+    const UNIT: [[f64; 6]; 6] = [
+        [120.0 / 7.0, 60.0 / 7.0, 3.0 / 7.0, -120.0 / 7.0, 60.0 / 7.0, -3.0 / 7.0],
+        [60.0 / 7.0, 192.0 / 35.0, 11.0 / 35.0, -60.0 / 7.0, 108.0 / 35.0, -4.0 / 35.0],
+        [3.0 / 7.0, 11.0 / 35.0, 3.0 / 35.0, -3.0 / 7.0, 4.0 / 35.0, 1.0 / 70.0],
+        [-120.0 / 7.0, -60.0 / 7.0, -3.0 / 7.0, 120.0 / 7.0, -60.0 / 7.0, 3.0 / 7.0],
+        [60.0 / 7.0, 108.0 / 35.0, 4.0 / 35.0, -60.0 / 7.0, 192.0 / 35.0, -11.0 / 35.0],
+        [-3.0 / 7.0, -4.0 / 35.0, 1.0 / 70.0, 3.0 / 7.0, -11.0 / 35.0, 3.0 / 35.0],
+    ];
+    let scale = 1.0 / duration.powi(3);
+    UNIT.map(|row| row.map(|entry| entry * scale))
+}
+
 /// 8-point Gauss-Legendre nodes and weights on [-1, 1] (exact for degree 15): the reference
 /// quadrature of the tests.
 #[cfg(test)]
@@ -177,6 +225,52 @@ mod tests {
         let quadratic: f64 = (0..6).map(|j| (0..6).map(|k| ALPHA[j] * gram[j][k] * ALPHA[k]).sum::<f64>()).sum();
         assert!((quadratic - quadrature).abs() < 1e-10 * quadrature, "{quadratic} {quadrature}");
         assert!((poly.squared_acceleration_integral(duration) - quadrature).abs() < 1e-10 * quadrature);
+    }
+
+    const BOUNDARY: [f64; 6] = [0.2, -0.4, 0.9, 0.5, 0.3, -1.3];
+
+    /// The Hermite basis takes each boundary value to itself: position, first and second
+    /// derivative in `tau` at both ends of the quintic built from them.
+    #[test]
+    fn hermite_basis_reproduces_boundary_values() {
+        let alpha = normalized_from_hermite(&BOUNDARY);
+        for (end, tau) in [(0, 0.0), (3, 1.0)] {
+            assert!((dot(&position_row(tau), &alpha) - BOUNDARY[end]).abs() < 1e-14);
+            assert!((dot(&velocity_row(tau, 1.0), &alpha) - BOUNDARY[end + 1]).abs() < 1e-14);
+            assert!((dot(&acceleration_row(tau, 1.0), &alpha) - BOUNDARY[end + 2]).abs() < 1e-13);
+        }
+        // In time: h = (x0, T v0, T^2 a0, ...) gives v0 and a0 back.
+        let duration = 0.35;
+        let poly = Quintic::from_normalized(&alpha, duration);
+        assert!((poly.velocity(0.0) * duration - BOUNDARY[1]).abs() < 1e-14);
+        assert!((poly.acceleration(duration) * duration * duration - BOUNDARY[5]).abs() < 1e-12);
+    }
+
+    /// A row rewritten over the boundary values gives the same value; the Hermite Gram
+    /// matrix gives the closed-form `ẍ^2` integral of the quintic with these boundary values
+    /// (itself checked against quadrature above) and equals `M^T G M`.
+    #[test]
+    fn hermite_row_and_gram_match_coefficient_form() {
+        let duration = 0.45;
+        let alpha = normalized_from_hermite(&BOUNDARY);
+        let zmp = zmp_row(0.3, duration, 0.6, 9.81);
+        assert!((dot(&hermite_row(&zmp), &BOUNDARY) - dot(&zmp, &alpha)).abs() < 1e-13);
+        let poly = Quintic::from_normalized(&alpha, duration);
+        let gram = hermite_squared_acceleration_gram(duration);
+        let quadratic: f64 =
+            (0..6).map(|j| (0..6).map(|k| BOUNDARY[j] * gram[j][k] * BOUNDARY[k]).sum::<f64>()).sum();
+        let expected = poly.squared_acceleration_integral(duration);
+        assert!((quadratic - expected).abs() < 1e-12 * expected, "{quadratic} {expected}");
+        // K = M^T G M entry by entry.
+        let coefficient_gram = squared_acceleration_gram(duration);
+        for i in 0..6 {
+            for l in 0..6 {
+                let product: f64 = (0..6)
+                    .map(|a| (0..6).map(|b| HERMITE_BASIS[a][i] * coefficient_gram[a][b] * HERMITE_BASIS[b][l]).sum::<f64>())
+                    .sum();
+                assert!((gram[i][l] - product).abs() < 1e-12 * gram[0][0], "K[{i}][{l}]: {} vs {product}", gram[i][l]);
+            }
+        }
     }
 
     /// Hand computation: the rest-to-rest quintic `Δ (10 tau^3 - 15 tau^4 + 6 tau^5)` has

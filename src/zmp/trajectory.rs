@@ -58,23 +58,26 @@ impl CogSpline {
 pub struct SolveInfo {
     pub phases: usize,
     pub splines: usize,
-    /// QP unknowns: 12 per spline.
+    /// QP unknowns: the CoG state of both axes (6) at every junction between two splines.
+    /// The QP has no equality rows: eq. (4) and the initial and goal states hold by
+    /// construction (see [`super::qp`]).
     pub variables: usize,
-    /// Rows of eq. (4) plus the initial and goal states.
-    pub equality_constraints: usize,
-    /// Rows of eq. (6): one per edge of the shrunk support polygon per ZMP sample.
+    /// Rows of eq. (6) in the last QP solved: one per ZMP sample and edge of the shrunk
+    /// support polygon, for the edges the ZMP approaches (see "Lazy rows" in [`super::qp`]).
     pub inequality_constraints: usize,
+    /// All rows of eq. (6), each checked at the solution.
+    pub zmp_constraints: usize,
+    /// QPs solved: one, plus one per round of left-out rows found violated.
+    pub rounds: u32,
+    /// Interior-point iterations, all rounds.
     pub iterations: u32,
     /// Clarabel stopped at its reduced tolerances (status `AlmostSolved`, about 1e-4
     /// instead of 1e-8): [`CogTrajectory::check_zmp`] tells how well eq. (6) holds.
     pub reduced_accuracy: bool,
-    /// Clarabel's own solve time (s); the setup (factorization structure) is outside it.
+    /// Clarabel's own time (s), setup and solve, all rounds.
     pub solver_seconds: f64,
     /// Cost eq. (7) of the returned trajectory.
     pub cost: f64,
-    /// Largest change (m, in normalized-time coefficients) made after the interior-point
-    /// solve to meet eq. (4) and the boundary states exactly: the solver's own residual.
-    pub continuity_correction: f64,
 }
 
 /// Worst ZMP margin found on a time grid (see [`CogTrajectory::check_zmp`]).
