@@ -12,10 +12,12 @@
 //! minimum-norm forces; legwork weights the tangential components, see [`contact_forces`]);
 //! the joint rows then give `tau^id = b_q - J_cq^T lambda`.
 //!
-//! As in the paper, nothing keeps `lambda` inside the friction cones or pushing (not
-//! pulling) on the ground: the minimum-norm forces of a standing or slowly moving robot
-//! are close to vertical and positive, but an aggressive reference can ask for forces the
-//! ground cannot give; the simulator's contact model then decides what happens.
+//! In the paper nothing keeps `lambda` inside the friction cones or pushing (not pulling) on
+//! the ground: the minimum-norm forces of a standing or slowly moving robot are close to
+//! vertical and positive, but an aggressive reference can ask for forces the ground cannot
+//! give. legwork spreads the tangential forces by the normal ones
+//! ([`friction_weighted_contact_forces`]) and clips what still leaves a cone
+//! ([`clip_to_friction_cones`], which also zeroes pulling forces).
 
 use super::legs::{FootKinematics, LegChain};
 use nalgebra::{DVector, Matrix3, Matrix6, Vector3, Vector6};
@@ -86,6 +88,35 @@ fn weighted_contact_forces(base_rows: &Vector6<f64>, feet: &[FootKinematics], st
         produced += foot.base_jacobian.transpose() * *force;
     }
     (base_rows - produced).norm()
+}
+
+/// Clips each stance force into its friction cone about the world vertical, `|f_t| <= mu
+/// f_n` with `f_n >= 0`: a pulling force becomes zero, and a tangential part beyond the cone
+/// is scaled down. Eq. (11) does not bound the forces, and a fast swing leg's reaction or a
+/// correction of the virtual model can ask a lightly loaded foot to pull (its leg then
+/// lifts it off the ground, measured: 14 cm, landing 8 cm away) or for more tangential force
+/// than the ground gives (the foot slides; off a pallet's edge it takes the robot with it).
+/// With the forces clipped the base rows are no longer met exactly: the base falls a little
+/// behind its reference, which the virtual model then corrects. The cones are vertical
+/// because the walk's terrains are level blocks. Returns the number of clipped feet.
+pub fn clip_to_friction_cones(forces: &mut [Vector3<f64>], stance: &[bool], mu: f64) -> usize {
+    let mut clipped = 0;
+    for (force, _) in forces.iter_mut().zip(stance).filter(|(_, &s)| s) {
+        if force.z < 0.0 {
+            *force = Vector3::zeros();
+            clipped += 1;
+            continue;
+        }
+        let bound = mu * force.z;
+        let tangential = force.xy().norm();
+        if tangential > bound {
+            let scale = bound / tangential;
+            force.x *= scale;
+            force.y *= scale;
+            clipped += 1;
+        }
+    }
+    clipped
 }
 
 /// The joint rows of eq. (11): `tau^id = b_q - J_cq^T lambda`, into `tau` (`nv` entries,

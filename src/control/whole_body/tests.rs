@@ -66,6 +66,14 @@ fn controller(model: &Model) -> WholeBodyController<fn(f64, &mut WholeBodyRefere
     WholeBodyController::with_default_gains(model, nothing as fn(f64, &mut WholeBodyReference), 0.001).unwrap()
 }
 
+/// The controller with eq. (11)'s forces left unclipped, for the identities that hold only
+/// then (the random moving states ask for forces outside the friction cones).
+fn unclipped_controller(model: &Model) -> WholeBodyController<fn(f64, &mut WholeBodyReference)> {
+    let mut c = controller(model);
+    c.gains.friction_coefficient = None;
+    c
+}
+
 /// The contact forces as external forces on the feet's bodies (joint frames), as the
 /// simulator applies them.
 fn contact_wrenches(model: &Model, data: &Data, legs: &[LegChain], forces: &[Vector3<f64>]) -> Vec<Force> {
@@ -87,7 +95,7 @@ fn torques_and_contact_forces_reproduce_the_reference_acceleration() {
     for (seed, swing) in [(1u64, vec![]), (2, vec![0]), (3, vec![3]), (4, vec![1]), (5, vec![2])] {
         let (q, v) = moving_state(&model, seed);
         let reference = moving_reference(&model, &q, &swing, seed + 100);
-        let mut c = controller(&model);
+        let mut c = unclipped_controller(&model);
         let mut tau = DVector::zeros(model.nv);
         c.execute(&model, &q, &v, &reference, &mut tau).unwrap();
         let tick = c.last_tick().clone();
@@ -129,7 +137,7 @@ fn rigid_contact_forward_dynamics_of_the_torques_gives_the_reference() {
     for (seed, swing) in [(11u64, vec![]), (12, vec![2])] {
         let (q, v) = moving_state(&model, seed);
         let reference = moving_reference(&model, &q, &swing, seed + 100);
-        let mut c = controller(&model);
+        let mut c = unclipped_controller(&model);
         let mut tau = DVector::zeros(model.nv);
         c.execute(&model, &q, &v, &reference, &mut tau).unwrap();
         let tick = c.last_tick().clone();
@@ -276,6 +284,35 @@ fn friction_weighted_forces_unload_the_light_foot_tangentially() {
         }
     }
     assert!(light_cases >= 3, "only {light_cases} cases with a lightly loaded foot");
+}
+
+/// With the default gains every stance force ends inside its friction cone (mu = 0.6), and
+/// on these random moving states some had to be clipped; clipping scales only the tangential
+/// part, and a pulling foot gets no force at all.
+#[test]
+fn stance_forces_end_inside_the_friction_cones() {
+    let model = hyq();
+    let mut clipped = 0;
+    for (seed, swing) in [(1u64, vec![]), (2, vec![0]), (3, vec![3]), (4, vec![1]), (5, vec![2])] {
+        let (q, v) = moving_state(&model, seed);
+        let reference = moving_reference(&model, &q, &swing, seed + 100);
+        let mut c = controller(&model);
+        let mut tau = DVector::zeros(model.nv);
+        c.execute(&model, &q, &v, &reference, &mut tau).unwrap();
+        let mu = c.gains().friction_coefficient.unwrap();
+        for (foot, f) in c.last_tick().contact_forces.iter().enumerate() {
+            assert!(f.z >= 0.0 && f.xy().norm() <= mu * f.z + 1e-9, "seed {seed}, foot {foot}: {f:?}");
+        }
+        clipped += c.last_tick().cone_clipped_feet;
+    }
+    assert!(clipped > 0, "no force needed clipping: the test does not exercise it");
+    let mut forces = [Vector3::new(30.0, 40.0, 100.0), Vector3::new(30.0, 40.0, -10.0), Vector3::new(3.0, 4.0, 100.0), Vector3::new(90.0, 0.0, 50.0)];
+    let n = clip_to_friction_cones(&mut forces, &[true, true, true, false], 0.25);
+    assert_eq!(n, 2);
+    assert!((forces[0] - Vector3::new(15.0, 20.0, 100.0)).norm() < 1e-12);
+    assert_eq!(forces[1], Vector3::zeros());
+    assert_eq!(forces[2], Vector3::new(3.0, 4.0, 100.0));
+    assert_eq!(forces[3], Vector3::new(90.0, 0.0, 50.0), "swing feet are left alone");
 }
 
 /// `Jd v` of each foot against central differences of `J(q) v` along `q(t) = q (+) t v`.
