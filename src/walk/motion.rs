@@ -32,6 +32,11 @@ pub struct GaitParams {
     /// clear the terrain between, or from one level to another) (s/m): stepping onto a
     /// pallet takes longer than a level step.
     pub swing_time_per_height: f64,
+    /// Extra swing time when forbidden ground (cost 1: a lip, a gap, the pit around a
+    /// stepping stone) lies within a cell of the foothold or of a stance foot (s): those
+    /// feet have a few centimetres of room, and a slower swing lands more softly and asks
+    /// the stance feet for smaller forces, so they slide less.
+    pub careful_swing_extra: f64,
     /// Four-leg support before the first step of a plan (s).
     pub initial_stance: f64,
     /// Four-leg support after the last step, while the CoG settles at the goal (s).
@@ -82,6 +87,12 @@ impl Posture {
         // Nose up (front higher) is a negative rotation about the base y axis (z up).
         Self { cog_z: mean + gait.cog_height, roll: ((left - right) / gait.stance_width).atan(), pitch: -((front - hind) / gait.stance_length).atan(), yaw }
     }
+}
+
+/// Whether a cell next to the foothold `p` (or its own) is forbidden (terrain cost 1).
+fn next_to_forbidden_ground(terrain: &dyn TerrainCostField, p: &Vector3<f64>) -> bool {
+    let r = terrain.resolution();
+    (-1..=1).any(|i| (-1..=1).any(|j| terrain.cost(p.x + i as f64 * r, p.y + j as f64 * r) >= 1.0))
 }
 
 /// Orientation `Rz(yaw) Ry(pitch) Rx(roll)` and its world angular velocity for the rates.
@@ -148,14 +159,18 @@ impl MotionPlan {
         // The support phases: four-leg stance, one swing per step (its duration from the
         // height the foot must travel), four-leg stance at the end.
         let mut support = feet.map(|f| Point2::new(f.x, f.y));
+        let mut placed = feet;
         let mut phases = Vec::with_capacity(footsteps.len() + 2);
         phases.push(SupportPhase::four_leg(support, gait.initial_stance, gait.cog_height));
         for s in &footsteps {
             let top = terrain_top(terrain, &s.from, &s.to).unwrap_or(f64::NEG_INFINITY);
             let travel = (s.to.z - s.from.z).abs().max(top - s.from.z.max(s.to.z)).max(0.0);
-            let duration = gait.swing_duration + gait.swing_time_per_height * travel;
+            let stance_near_forbidden = (0..4).filter(|&l| l != s.leg).any(|l| next_to_forbidden_ground(terrain, &placed[l]));
+            let careful = if stance_near_forbidden || next_to_forbidden_ground(terrain, &s.to) { gait.careful_swing_extra } else { 0.0 };
+            let duration = gait.swing_duration + gait.swing_time_per_height * travel + careful;
             phases.push(SupportPhase::swing(support, zmp::Leg::ALL[s.leg], duration, gait.cog_height));
             support[s.leg] = Point2::new(s.to.x, s.to.y);
+            placed[s.leg] = s.to;
         }
         phases.push(SupportPhase::four_leg(support, gait.final_stance, gait.cog_height));
         let cog = qp.solve(&phases, cog_start, Point2::from(goal_cog))?;
@@ -312,7 +327,7 @@ mod tests {
 
     #[test]
     fn posture_follows_the_footholds() {
-        let gait = GaitParams { swing_duration: 0.3, swing_time_per_height: 1.3, initial_stance: 0.3, final_stance: 0.5, step_height: 0.1, clearance: 0.05, cog_height: 0.55, stance_length: 0.74, stance_width: 0.65, foot_radius: 0.02, touchdown_depth: 0.0 };
+        let gait = GaitParams { swing_duration: 0.3, swing_time_per_height: 1.3, careful_swing_extra: 0.0, initial_stance: 0.3, final_stance: 0.5, step_height: 0.1, clearance: 0.05, cog_height: 0.55, stance_length: 0.74, stance_width: 0.65, foot_radius: 0.02, touchdown_depth: 0.0 };
         // Front feet 0.15 m up (on a pallet): nose up, i.e. negative pitch.
         let feet = [Vector3::new(0.37, 0.32, 0.15), Vector3::new(0.37, -0.32, 0.15), Vector3::new(-0.37, 0.32, 0.0), Vector3::new(-0.37, -0.32, 0.0)];
         let p = Posture::over_footholds(&feet, 0.2, &gait);

@@ -56,12 +56,18 @@ impl MotionPrimitive {
 /// `stride` is the long step that crosses a 35 cm gap (Winkler 2015 sec. VI: "a gap of 35
 /// cm, which is approximately half the robot's body length"): each foot moves 0.36 m, to
 /// 0.18 m either side of its nominal point, within HyQ's reach at its walking height.
+/// `long_stride` (0.44 m, feet to 0.22 m either side: the leg 0.62 m long, knee flexed about
+/// 55 deg) is the cruising step where the terrain allows it.
 ///
-/// Difficulties `c_a` per action; per metre: stride 3.9, forward_long 4.1, forward 4.2, short forward 5.0, forward with a
-/// turn 5.5, diagonal 6.5, sideways and backward 10 (the robot sees and steps best forward).
+/// Difficulties `c_a` per action; per metre: long stride 2.7, stride 3.1, forward_long 4.1,
+/// forward 4.2, short forward 5.0, forward with a turn 5.5, diagonal 6.5, sideways and
+/// backward 10 (the robot sees and steps best forward). A cycle takes about the same time
+/// whatever its length, so the long steps are the cheap ones per metre; a cycle's cost still
+/// grows a little with its length, for the reach it asks of the legs.
 pub fn hyq_crawl_primitives() -> Vec<MotionPrimitive> {
     vec![
-        MotionPrimitive::new("stride", 0.36, 0.0, 0.0, 1.4),
+        MotionPrimitive::new("long_stride", 0.44, 0.0, 0.0, 1.2),
+        MotionPrimitive::new("stride", 0.36, 0.0, 0.0, 1.1),
         MotionPrimitive::new("forward_long", 0.28, 0.0, 0.0, 1.15),
         MotionPrimitive::new("forward", 0.24, 0.0, 0.0, 1.0),
         MotionPrimitive::new("forward_short", 0.12, 0.0, 0.0, 0.6),

@@ -104,28 +104,29 @@ fn straight_path_on_flat_ground_has_the_closed_form_cost() {
     let mut planner = hyq_planner(BodyPlannerConfig::default());
     let (start, goal) = (pose(0.0, 0.0, 0.0), pose(2.0, 0.0, 0.0));
     // 2 m within 5 cm on flat ground, where only the difficulty c_a counts: the cheapest
-    // multiset of the straight primitives (stride 0.36 m / 1.4, forward_long 0.28 / 1.15,
-    // forward 0.24 / 1.0, forward_short 0.12 / 0.6) whose lengths add up to 1.95-2.05 m,
-    // by enumeration.
+    // multiset of the straight primitives (long stride 0.44 m / 1.2, stride 0.36 / 1.1,
+    // forward_long 0.28 / 1.15, forward 0.24 / 1.0, forward_short 0.12 / 0.6) whose lengths
+    // add up to 1.95-2.05 m, by enumeration.
     // `per_step` is what every action pays besides its difficulty.
-    let straight = [(0.36, 1.4), (0.28, 1.15), (0.24, 1.0), (0.12, 0.6)];
-    let cheapest_with = |per_step: f64| {
-        let mut cheapest = f64::INFINITY;
-        for a in 0..7 {
-            for b in 0..9 {
-                for c in 0..10 {
-                    for d in 0..18 {
-                        let n = [a, b, c, d];
-                        let length: f64 = n.iter().zip(&straight).map(|(k, p)| *k as f64 * p.0).sum();
-                        if (length - 2.0).abs() <= 0.05 + 1e-9 {
-                            cheapest = cheapest.min(n.iter().zip(&straight).map(|(k, p)| *k as f64 * (p.1 + per_step)).sum());
-                        }
-                    }
-                }
+    let straight = [(0.44, 1.2), (0.36, 1.1), (0.28, 1.15), (0.24, 1.0), (0.12, 0.6)];
+    let config = BodyPlannerConfig::default();
+    for (dx, difficulty) in straight {
+        assert!(config.primitives.iter().any(|p| p.dx == dx && p.dy == 0.0 && p.dyaw == 0.0 && p.difficulty == difficulty), "({dx}, {difficulty}) is not a primitive");
+    }
+    // Every multiset with at most 2.05 m in total: counts `n[i]` of `straight[i]`.
+    fn cheapest_from(straight: &[(f64, f64)], length: f64, cost: f64, per_step: f64) -> f64 {
+        let mut best = if (length - 2.0).abs() <= 0.05 + 1e-9 { cost } else { f64::INFINITY };
+        if let Some((&(dx, c), rest)) = straight.split_first() {
+            best = best.min(cheapest_from(rest, length, cost, per_step));
+            let mut k = 1.0;
+            while length + k * dx <= 2.05 + 1e-9 {
+                best = best.min(cheapest_from(rest, length + k * dx, cost + k * (c + per_step), per_step));
+                k += 1.0;
             }
         }
-        cheapest
-    };
+        best
+    }
+    let cheapest_with = |per_step: f64| cheapest_from(&straight, 0.0, 0.0, per_step);
     let cheapest = cheapest_with(0.0);
     let plans = planner.plan(&flat(), start, goal, &SearchLimits::none()).unwrap();
     let best = plans.best();
