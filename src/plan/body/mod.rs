@@ -28,11 +28,11 @@
 //! let goal = BodyPose { x: 1.0, y: 0.0, yaw: 0.0 };
 //! let plans = planner.plan(&Flat, start, goal, &SearchLimits::none()).unwrap();
 //! let best = plans.best();
-//! // Two 0.36 m strides and one 0.24 m step reach x = 0.96, within the 5 cm goal tolerance,
-//! // for a difficulty of 1.4 + 1.4 + 1.0 = 3.8 (four 0.24 m steps would cost 4.0).
+//! // Two 0.44 m long strides and one 0.12 m short step reach x = 1.00, for a difficulty of
+//! // 1.2 + 1.2 + 0.6 = 3.0 (two 0.36 m strides and a 0.24 m step, to 0.96, would cost 3.2).
 //! assert_eq!(best.steps.len(), 3);
-//! assert!((best.poses.last().unwrap().x - 0.96).abs() < 1e-9);
-//! assert!((best.cost - 3.8).abs() < 1e-9);
+//! assert!((best.poses.last().unwrap().x - 1.0).abs() < 1e-9);
+//! assert!((best.cost - 3.0).abs() < 1e-9);
 //! assert_eq!(best.bound, 1.0);
 //! ```
 
@@ -467,6 +467,14 @@ fn validate(config: &BodyPlannerConfig) -> Result<(), BodyPlanError> {
                 field("dyaw"),
                 format!("{} rad (expected a multiple of the heading step {heading_step:.6} rad)", primitive.dyaw),
             ));
+        }
+        // At heading 0 the lattice step is (dx, dy) in cells: a length between two cells would
+        // be rounded silently (0.42 m becomes 0.44 m on 4 cm cells).
+        for (name, value) in [("dx", primitive.dx), ("dy", primitive.dy)] {
+            let cells = value / config.cell_size;
+            if (cells - cells.round()).abs() > 1e-6 {
+                return Err(invalid(field(name), format!("{value} m (expected a multiple of the cell size {} m)", config.cell_size)));
+            }
         }
         positive(&field("difficulty"), primitive.difficulty)?;
         // A move of at least one cell ends in another cell at every heading (rounding both

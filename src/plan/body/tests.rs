@@ -376,8 +376,11 @@ fn invalid_settings_name_the_field() {
     assert_eq!(try_config(BodyPlannerConfig { primitives: bad_turn, ..Default::default() }), format!("primitives[{turn}] (turn_left).dyaw"));
     let mut tiny = hyq_crawl_primitives();
     let short = tiny.iter().position(|p| p.name == "forward_short").unwrap();
-    tiny[short].dx = 0.01;
+    tiny[short].dx = 0.0;
     assert_eq!(try_config(BodyPlannerConfig { primitives: tiny, ..Default::default() }), format!("primitives[{short}] (forward_short)"));
+    let mut between_cells = hyq_crawl_primitives();
+    between_cells[short].dx = 0.42;
+    assert_eq!(try_config(BodyPlannerConfig { primitives: between_cells, ..Default::default() }), format!("primitives[{short}] (forward_short).dx"));
     let turns_only = hyq_crawl_primitives().into_iter().filter(|p| p.dx == 0.0 && p.dy == 0.0).collect();
     assert_eq!(try_config(BodyPlannerConfig { primitives: turns_only, ..Default::default() }), "primitives");
     let weights = ActionCostWeights { difficulty: 0.0, ..Default::default() };
