@@ -8,7 +8,8 @@
 //!
 //! in a search area around the leg's nominal stance position after the action:
 //!
-//! * `c_t`, the terrain cost below the foothold (the cost map's, 1 = forbidden);
+//! * `c_t`, the terrain cost below the foothold (the cost map's, 1 = forbidden; legwork
+//!   averages it over the foot's 3 x 3 cells, [`FootstepParams::foot_area_cells`]);
 //! * `c_st`, the support-triangle cost: how much smaller than a wanted inscribed radius the
 //!   triangle is on which the robot stands while the *next* leg swings;
 //! * `c_c`, the leg-collision cost: how far the terrain along the straight swing path rises

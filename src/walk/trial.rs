@@ -55,8 +55,9 @@ pub struct WalkConfig {
 }
 
 impl WalkConfig {
-    /// HyQ's walk: 0.25 s swings on level ground (0.05 s more next to forbidden ground) (longer where the foot climbs), a 10 cm step
-    /// height, a 5 cm ZMP margin, the nominal stance of the standing pose.
+    /// HyQ's walk: 0.25 s swings on level ground (longer where the foot climbs, 0.05 s longer
+    /// next to forbidden ground), 0.15 s four-leg phases, a 10 cm step height, a 5 cm ZMP
+    /// margin, the nominal stance of the standing pose.
     pub fn hyq(model: &Model) -> Result<Self, crate::plan::body::BodyPlanError> {
         let foot_radius = model.feet.first().map(|f| f.radius).unwrap_or(0.02);
         let stance = crate::plan::body::NominalStance::from_model(model)?.feet.map(|f| [f.x, f.y]);
@@ -75,7 +76,6 @@ impl WalkConfig {
                 foot_radius,
                 touchdown_depth: 0.02,
             },
-
             // ZMP constraints every 30 ms: between the samples the ZMP then stays within about
             // 0.5 mm of the shrunk polygon (50 ms let it out by 1.3 mm on these 0.25 s swings,
             // 0.1 s by 11 mm on 0.3 s ones).
