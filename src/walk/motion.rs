@@ -325,6 +325,30 @@ mod tests {
         assert!((numeric - w).norm() < 1e-5, "{numeric} vs {w}");
     }
 
+    /// Flat ground whose cells beyond x = 1 m are forbidden (a gap's lip), 4 cm cells.
+    struct LipAtOneMetre;
+
+    impl TerrainCostField for LipAtOneMetre {
+        fn cost(&self, x: f64, _y: f64) -> f64 {
+            if x > 1.0 { 1.0 } else { 0.1 }
+        }
+        fn height(&self, _x: f64, _y: f64) -> f64 {
+            0.0
+        }
+        fn resolution(&self) -> f64 {
+            0.04
+        }
+    }
+
+    /// A foothold within a cell (4 cm) of forbidden ground asks for a careful swing; one two
+    /// cells away does not.
+    #[test]
+    fn forbidden_ground_within_a_cell_is_noticed() {
+        let near = |x: f64| next_to_forbidden_ground(&LipAtOneMetre, &Vector3::new(x, 0.3, 0.0));
+        assert!(near(1.02) && near(0.97) && near(0.965));
+        assert!(!near(0.95) && !near(0.9) && !near(0.0));
+    }
+
     #[test]
     fn posture_follows_the_footholds() {
         let gait = GaitParams { swing_duration: 0.3, swing_time_per_height: 1.3, careful_swing_extra: 0.0, initial_stance: 0.3, final_stance: 0.5, step_height: 0.1, clearance: 0.05, cog_height: 0.55, stance_length: 0.74, stance_width: 0.65, foot_radius: 0.02, touchdown_depth: 0.0 };
