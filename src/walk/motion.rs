@@ -90,7 +90,7 @@ impl Posture {
 }
 
 /// Whether a cell next to the foothold `p` (or its own) is forbidden (terrain cost 1).
-fn next_to_forbidden_ground(terrain: &dyn TerrainCostField, p: &Vector3<f64>) -> bool {
+fn next_to_forbidden_ground(terrain: &dyn TerrainCostField, p: Point2<f64>) -> bool {
     let r = terrain.resolution();
     (-1..=1).any(|i| (-1..=1).any(|j| terrain.cost(p.x + i as f64 * r, p.y + j as f64 * r) >= 1.0))
 }
@@ -159,18 +159,17 @@ impl MotionPlan {
         // The support phases: four-leg stance, one swing per step (its duration from the
         // height the foot must travel), four-leg stance at the end.
         let mut support = feet.map(|f| Point2::new(f.x, f.y));
-        let mut placed = feet;
         let mut phases = Vec::with_capacity(footsteps.len() + 2);
         phases.push(SupportPhase::four_leg(support, gait.initial_stance, gait.cog_height));
         for s in &footsteps {
             let top = terrain_top(terrain, &s.from, &s.to).unwrap_or(f64::NEG_INFINITY);
             let travel = (s.to.z - s.from.z).abs().max(top - s.from.z.max(s.to.z)).max(0.0);
-            let stance_near_forbidden = (0..4).filter(|&l| l != s.leg).any(|l| next_to_forbidden_ground(terrain, &placed[l]));
-            let careful = if stance_near_forbidden || next_to_forbidden_ground(terrain, &s.to) { gait.careful_swing_extra } else { 0.0 };
+            let target = Point2::new(s.to.x, s.to.y);
+            let stance_near_forbidden = (0..4).filter(|&l| l != s.leg).any(|l| next_to_forbidden_ground(terrain, support[l]));
+            let careful = if stance_near_forbidden || next_to_forbidden_ground(terrain, target) { gait.careful_swing_extra } else { 0.0 };
             let duration = gait.swing_duration + gait.swing_time_per_height * travel + careful;
             phases.push(SupportPhase::swing(support, zmp::Leg::ALL[s.leg], duration, gait.cog_height));
-            support[s.leg] = Point2::new(s.to.x, s.to.y);
-            placed[s.leg] = s.to;
+            support[s.leg] = target;
         }
         phases.push(SupportPhase::four_leg(support, gait.final_stance, gait.cog_height));
         let cog = qp.solve(&phases, cog_start, Point2::from(goal_cog))?;
@@ -344,7 +343,7 @@ mod tests {
     /// cells away does not.
     #[test]
     fn forbidden_ground_within_a_cell_is_noticed() {
-        let near = |x: f64| next_to_forbidden_ground(&LipAtOneMetre, &Vector3::new(x, 0.3, 0.0));
+        let near = |x: f64| next_to_forbidden_ground(&LipAtOneMetre, Point2::new(x, 0.3));
         assert!(near(1.02) && near(0.97) && near(0.965));
         assert!(!near(0.95) && !near(0.9) && !near(0.0));
     }
