@@ -86,13 +86,16 @@ fn contact_wrenches(model: &Model, data: &Data, legs: &[LegChain], forces: &[Vec
     f_ext
 }
 
+/// Moving states (seed) with no swing leg and with each leg swinging in turn.
+const MOVING_CASES: &[(u64, &[usize])] = &[(1, &[]), (2, &[0]), (3, &[3]), (4, &[1]), (5, &[2])];
+
 /// Winkler 2015 eq. (11) as an identity: the torques and contact forces of a tick, given to
 /// ABA, give back the reference acceleration, and under it the stance feet do not
 /// accelerate while the swing feet follow their PD (ABA's own world accelerations).
 #[test]
 fn torques_and_contact_forces_reproduce_the_reference_acceleration() {
     let model = hyq();
-    for (seed, swing) in [(1u64, vec![]), (2, vec![0]), (3, vec![3]), (4, vec![1]), (5, vec![2])] {
+    for &(seed, swing) in MOVING_CASES {
         let (q, v) = moving_state(&model, seed);
         let reference = moving_reference(&model, &q, &swing, seed + 100);
         let mut c = unclipped_controller(&model);
@@ -293,7 +296,7 @@ fn friction_weighted_forces_unload_the_light_foot_tangentially() {
 fn stance_forces_end_inside_the_friction_cones() {
     let model = hyq();
     let mut clipped = 0;
-    for (seed, swing) in [(1u64, vec![]), (2, vec![0]), (3, vec![3]), (4, vec![1]), (5, vec![2])] {
+    for &(seed, swing) in MOVING_CASES {
         let (q, v) = moving_state(&model, seed);
         let reference = moving_reference(&model, &q, &swing, seed + 100);
         let mut c = controller(&model);
