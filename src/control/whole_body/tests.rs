@@ -97,7 +97,7 @@ fn torques_and_contact_forces_reproduce_the_reference_acceleration() {
     let model = hyq();
     for &(seed, swing) in MOVING_CASES {
         let (q, v) = moving_state(&model, seed);
-        let reference = moving_reference(&model, &q, &swing, seed + 100);
+        let reference = moving_reference(&model, &q, swing, seed + 100);
         let mut c = unclipped_controller(&model);
         let mut tau = DVector::zeros(model.nv);
         c.execute(&model, &q, &v, &reference, &mut tau).unwrap();
@@ -298,7 +298,7 @@ fn stance_forces_end_inside_the_friction_cones() {
     let mut clipped = 0;
     for &(seed, swing) in MOVING_CASES {
         let (q, v) = moving_state(&model, seed);
-        let reference = moving_reference(&model, &q, &swing, seed + 100);
+        let reference = moving_reference(&model, &q, swing, seed + 100);
         let mut c = controller(&model);
         let mut tau = DVector::zeros(model.nv);
         c.execute(&model, &q, &v, &reference, &mut tau).unwrap();
