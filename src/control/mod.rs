@@ -9,5 +9,5 @@ pub mod whole_body;
 pub use joint_pd::{JointPd, PdGains};
 pub use tracking::{BaseGains, TrackingController};
 pub use whole_body::{
-    BodyMotion, FootMotion, LegMotion, MotionSource, WholeBodyController, WholeBodyError, WholeBodyGains, WholeBodyReference, WholeBodyStats, WholeBodyTick,
+    clip_to_friction_cones, contact_forces, BodyMotion, DistributionInfo, DistributionProblem, DistributionSettings, FootKinematics, FootMotion, FrictionConeDistribution, LegMotion, MotionSource, WholeBodyController, WholeBodyError, WholeBodyGains, WholeBodyReference, WholeBodyStats, WholeBodyTick,
 };

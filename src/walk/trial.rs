@@ -9,7 +9,7 @@
 
 use super::motion::{GaitParams, MotionPlan, Posture};
 use super::scenario::ScenarioSpec;
-use crate::control::{MotionSource, WholeBodyController, WholeBodyReference};
+use crate::control::{MotionSource, WholeBodyController, WholeBodyReference, WholeBodyStats};
 use crate::dynamics::{base_orientation, center_of_mass, Data};
 use crate::io::Trajectory;
 use crate::model::Model;
@@ -222,6 +222,8 @@ pub struct TrialOutcome {
     /// swing to the start of its next (m).
     pub max_stance_slip: f64,
     pub clipped_ticks: u64,
+    /// The whole-body controller's counts over the trial.
+    pub controller: WholeBodyStats,
     pub trajectory: Trajectory,
     /// The map at the end (for drawing).
     pub map: TerrainMap,
@@ -511,6 +513,7 @@ pub fn run_trial(model: &Model, scenario: &ScenarioSpec, config: &WalkConfig, se
         touchdowns,
         max_stance_slip,
         clipped_ticks: controller.stats().clipped_ticks,
+        controller: controller.stats().clone(),
         trajectory,
         map,
     })

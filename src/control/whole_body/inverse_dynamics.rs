@@ -17,7 +17,9 @@
 //! vertical and positive, but an aggressive reference can ask for forces the ground cannot
 //! give. legwork spreads the tangential forces by the normal ones
 //! ([`friction_weighted_contact_forces`]) and clips what still leaves a cone
-//! ([`clip_to_friction_cones`], which also zeroes pulling forces).
+//! ([`clip_to_friction_cones`], which also zeroes pulling forces); the controller then
+//! redistributes the clipped forces inside the cones
+//! ([`FrictionConeDistribution`](super::FrictionConeDistribution)).
 
 use super::legs::{FootKinematics, LegChain};
 use nalgebra::{DVector, Matrix3, Matrix6, Vector3, Vector6};

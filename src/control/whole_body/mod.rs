@@ -36,8 +36,10 @@
 //!    `J_c vd + Jd_c v = 0`; swing legs those that give the foot
 //!    `pdd^d + K_p (p^d - p) + K_d (pd^d - pd)` (task-space PD through the 3 x 3 leg
 //!    Jacobian; a damped least-squares solve near a stretched knee);
-//! 4. eq. (11): `b = RNEA(q, v, vd^ref)`, `lambda = (J_cb^T)^+ b_b` over the stance feet,
-//!    `tau^id = b_q - J_cq^T lambda`;
+//! 4. eq. (11): `b = RNEA(q, v, vd^ref)`, `lambda = (J_cb^T)^+ b_b` over the stance feet
+//!    (tangential components weighted), clipped into the friction cones and, if that
+//!    changed a force, redistributed inside them by the priority of each base row
+//!    ([`FrictionConeDistribution`]); `tau^id = b_q - J_cq^T lambda`;
 //! 5. joint targets for the PD: Newton inverse kinematics of every leg with the base at
 //!    its desired pose (stance feet where they are, swing feet at their targets), joint
 //!    velocities from the leg Jacobians; `tau = tau^id + K_p (q^d - q) + K_d (qd^d - qd)`;
@@ -45,6 +47,7 @@
 //!
 //! Nothing allocates in a tick: every buffer lives in the controller.
 
+mod force_distribution;
 mod inverse_dynamics;
 mod legs;
 mod reference;
@@ -53,6 +56,7 @@ pub mod virtual_model;
 #[cfg(test)]
 mod tests;
 
+pub use force_distribution::{project_to_cone, DistributionInfo, DistributionProblem, DistributionSettings, FrictionConeDistribution};
 pub use inverse_dynamics::{clip_to_friction_cones, contact_forces, friction_weighted_contact_forces, joint_torques};
 pub use legs::{leg_chains, legs_inverse_kinematics, solve_leg, velocities_and_bias, FootKinematics, LegChain};
 pub use reference::{BodyMotion, FootMotion, LegMotion, MotionSource, WholeBodyReference};
@@ -88,6 +92,23 @@ const TANGENTIAL_FORCE_WEIGHT: f64 = 10.0;
 /// sliding off a pallet's edge while HyQ climbed it (two pallets: 19/20 -> 20/20 trials,
 /// pallet appearing: 18/20 -> 20/20).
 const FRICTION_COEFFICIENT: f64 = 0.6;
+/// Row priorities of the redistribution inside the friction cones, base frame: the vertical
+/// force and the roll and pitch moments (over a 0.3 m lever, about HyQ's half stance width)
+/// ten times the horizontal forces and the yaw moment. A tilting base drags its feet off
+/// their stones; a lagging CoG is caught by the virtual model. Stepping stones, 80 trials:
+/// 74/80 with the forces only clipped, 76/80 redistributed with these priorities; of the
+/// first 40, 37 clipped, 39 with these, 39 / 37 / 37 with roll and pitch at 30, everything
+/// equal, or yaw at 10.
+fn default_cone_distribution() -> DistributionSettings {
+    let lever_squared = 0.3 * 0.3;
+    DistributionSettings {
+        wrench_priority: Vector6::new(1.0, 1.0, 10.0, 10.0 / lever_squared, 10.0 / lever_squared, 1.0 / lever_squared),
+        regularization: 1e-4,
+        max_iterations: 300,
+        tolerance: 1e-3,
+    }
+}
+
 /// Inverse kinematics: foot tolerance (m) and Newton steps per tick (warm-started).
 const IK_TOLERANCE: f64 = 1e-8;
 const IK_MAX_ITERATIONS: usize = 5;
@@ -127,6 +148,10 @@ pub struct WholeBodyGains {
     /// Friction coefficient the distributed forces are clipped to ([`clip_to_friction_cones`]),
     /// or `None` to leave them as eq. (11) gives them (the paper).
     pub friction_coefficient: Option<f64>,
+    /// When clipping changed some force: redistribute all stance forces inside the cones
+    /// by these row priorities ([`FrictionConeDistribution`]), or `None` to keep the
+    /// clipped forces.
+    pub cone_distribution: Option<DistributionSettings>,
 }
 
 impl WholeBodyGains {
@@ -152,7 +177,7 @@ impl WholeBodyGains {
         let mut joint = PdGains::from_model(model, q_ref, control_dt);
         joint.kp *= JOINT_STIFFNESS_FRACTION;
         joint.kd *= JOINT_DAMPING_FRACTION;
-        Self { virtual_model, swing_foot: (Vector3::repeat(wf * wf), Vector3::repeat(2.0 * wf)), joint, tangential_force_weight: TANGENTIAL_FORCE_WEIGHT, friction_weighting: true, friction_coefficient: Some(FRICTION_COEFFICIENT) }
+        Self { virtual_model, swing_foot: (Vector3::repeat(wf * wf), Vector3::repeat(2.0 * wf)), joint, tangential_force_weight: TANGENTIAL_FORCE_WEIGHT, friction_weighting: true, friction_coefficient: Some(FRICTION_COEFFICIENT), cone_distribution: Some(default_cone_distribution()) }
     }
 
     fn check(&self, nv: usize) -> Result<(), WholeBodyError> {
@@ -174,6 +199,17 @@ impl WholeBodyGains {
         if let Some(mu) = self.friction_coefficient {
             if !(mu.is_finite() && mu > 0.0) {
                 return bad("friction_coefficient", format!("a finite number > 0 (or none), got {mu}"));
+            }
+        }
+        if let Some(d) = &self.cone_distribution {
+            if d.wrench_priority.iter().any(|w| !(w.is_finite() && *w > 0.0)) {
+                return bad("cone_distribution.wrench_priority", format!("six finite numbers > 0, got {:?}", d.wrench_priority.as_slice()));
+            }
+            if !(d.regularization.is_finite() && d.regularization >= 0.0) {
+                return bad("cone_distribution.regularization", format!("a finite number >= 0, got {}", d.regularization));
+            }
+            if d.max_iterations == 0 || !(d.tolerance.is_finite() && d.tolerance > 0.0) {
+                return bad("cone_distribution", format!("max_iterations > 0 and a finite tolerance > 0, got {} and {}", d.max_iterations, d.tolerance));
             }
         }
         if self.joint.kp.len() != nv || self.joint.kd.len() != nv {
@@ -220,6 +256,8 @@ pub struct WholeBodyTick {
     pub base_row_residual: f64,
     /// Stance feet whose force was clipped into its friction cone this tick.
     pub cone_clipped_feet: usize,
+    /// The redistribution inside the cones after a clip (zero iterations when none ran).
+    pub distribution: DistributionInfo,
     /// Largest foot error of the inverse kinematics (m): non-zero for an unreachable target.
     pub ik_residual: f64,
     /// Legs whose Jacobian was solved by damped least squares (near-singular).
@@ -241,6 +279,11 @@ pub struct WholeBodyStats {
     pub max_base_row_residual: f64,
     pub max_ik_residual: f64,
     pub singular_leg_solves: u64,
+    /// Ticks whose forces were redistributed inside the friction cones, those whose
+    /// redistribution hit its iteration limit, and the most iterations one took.
+    pub redistributed_ticks: u64,
+    pub unconverged_redistributions: u64,
+    pub max_redistribution_iterations: usize,
 }
 
 /// Buffers of a tick, allocated once.
@@ -253,6 +296,7 @@ struct Workspace {
     stance: Vec<bool>,
     /// Per-foot tangential weights of the friction-weighted second pass.
     tangential_weights: Vec<f64>,
+    distribution: FrictionConeDistribution,
     ik_targets: Vec<Vector3<f64>>,
     /// The inverse kinematics has a previous solution to start from.
     ik_warm: bool,
@@ -319,6 +363,7 @@ impl<S: MotionSource> WholeBodyController<S> {
                 feet: vec![FootKinematics::default(); nfeet],
                 stance: vec![true; nfeet],
                 tangential_weights: vec![0.0; nfeet],
+                distribution: FrictionConeDistribution::new(nfeet),
                 ik_targets: vec![Vector3::zeros(); nfeet],
                 ik_warm: false,
             },
@@ -339,6 +384,7 @@ impl<S: MotionSource> WholeBodyController<S> {
                 orientation_error: Vector3::zeros(),
                 base_row_residual: 0.0,
                 cone_clipped_feet: 0,
+                distribution: DistributionInfo::default(),
                 ik_residual: 0.0,
                 singular_legs: 0,
                 clipped_joints: 0,
@@ -481,6 +527,13 @@ impl<S> WholeBodyController<S> {
         };
         if let Some(mu) = self.gains.friction_coefficient {
             tick.cone_clipped_feet = clip_to_friction_cones(&mut tick.contact_forces, &ws.stance, mu);
+            tick.distribution = match (&self.gains.cone_distribution, tick.cone_clipped_feet) {
+                (Some(settings), clipped) if clipped > 0 => {
+                    let problem = DistributionProblem { base_rows: &base_rows, feet: &ws.feet, stance: &ws.stance, mu, tangential_weight: self.gains.tangential_force_weight };
+                    ws.distribution.solve(settings, &problem, &mut tick.contact_forces)
+                }
+                _ => DistributionInfo::default(),
+            };
         }
         joint_torques(&ws.data.tau, &self.legs, &ws.feet, &tick.contact_forces, &mut tick.inverse_dynamics_torque);
 
@@ -555,6 +608,11 @@ impl<S> WholeBodyController<S> {
         stats.max_base_row_residual = stats.max_base_row_residual.max(tick.base_row_residual);
         stats.max_ik_residual = stats.max_ik_residual.max(tick.ik_residual);
         stats.singular_leg_solves += tick.singular_legs as u64;
+        if tick.distribution.iterations > 0 {
+            stats.redistributed_ticks += 1;
+            stats.unconverged_redistributions += !tick.distribution.converged as u64;
+            stats.max_redistribution_iterations = stats.max_redistribution_iterations.max(tick.distribution.iterations);
+        }
         Ok(())
     }
 }
