@@ -7,7 +7,7 @@
 //! robot = "hyq"
 //! duration = 1.5            # s
 //! dt = 0.002                # s: knot spacing (the input is held over it)
-//! substeps = 1              # integration steps per knot (optional; the re-runs' physics step is dt / substeps)
+//! substeps = 1              # integration steps per knot (optional; also the SLQ policy re-run's physics step, dt / substeps)
 //! iterations = 40           # SLQ iteration limit (optional)
 //!
 //! [contact]                 # optional: the optimizer's contact model (ContactParams fields)
@@ -131,7 +131,7 @@ pub struct TaskSpec {
     pub duration: f64,
     pub dt: f64,
     /// Integration steps per knot interval (1): the dynamics, and the simulator's physics in
-    /// the closed-loop re-runs, step `dt / substeps`.
+    /// the SLQ policy re-run, step `dt / substeps`.
     #[serde(default)]
     pub substeps: Option<usize>,
     #[serde(default)]
