@@ -41,6 +41,7 @@ fn hyq_shifts_its_base_forward() {
         terrain: &ground,
         contact: config.contact,
         dt,
+        substeps: 1,
         knots: 500,
         initial: RobotState { q: start.q.clone(), v: start.v.clone(), anchors: start.anchors.clone() },
         running: StateCost { q: target.clone(), v: DVector::zeros(nv), weights: running, feet: vec![] },
@@ -124,6 +125,7 @@ fn cost_gradient_with_foot_targets_matches_finite_differences() {
         terrain: &ground,
         contact: Default::default(),
         dt: 0.002,
+        substeps: 1,
         knots: 10,
         initial: initial.clone(),
         running: cost.clone(),
@@ -205,5 +207,66 @@ fn inputs_beyond_the_effort_limit_act_as_the_limit_with_zero_sensitivity() {
             assert!(analytic.norm() > 1e-3);
             assert!((analytic - &numeric).norm() < 1e-5 * analytic.norm(), "column {i}");
         }
+    }
+}
+
+/// With `substeps` integration steps per knot (the input held), the knot's state is that of
+/// `substeps` simulator steps of `dt / substeps`, and its `A`, `B` (the chain rule over the
+/// substeps) match central differences of that whole knot step.
+#[test]
+fn substepped_knot_is_the_simulators_steps_and_its_linearization_matches_finite_differences() {
+    use legwork::slq::KnotDerivatives;
+    let spec = legwork::ocp::TaskSpec::embedded("squat_jump").unwrap();
+    let model = embedded::load("hyq").unwrap();
+    let ground = Plane::flat(0.0);
+    let initial = legwork::ocp::settled_stance(&model, &ground, Default::default(), 0.2).unwrap();
+    let mut problem = spec.problem(&model, &ground, initial.clone(), "test").unwrap();
+    problem.substeps = 4;
+    let (nv, nu) = (model.nv, model.nv - 6);
+    let mut x = initial.clone();
+    x.v = DVector::from_fn(nv, |i, _| 0.1 * (i as f64).sin());
+    let u = DVector::from_fn(nu, |i, _| 5.0 * (i as f64 - 5.0));
+    let mut ws = problem.workspace();
+    let mut d = KnotDerivatives::zeros(2 * nv, nu);
+    let mut next = x.clone();
+    problem.step_with_derivatives(&mut ws, 0, &x, &u, &mut next, &mut d);
+    // Four simulator steps of 0.5 ms with the same torques.
+    let mut sim_ws = ContactModelWorkspace::new(&model, &ground, problem.contact);
+    let (mut q, mut v, mut anchors) = (x.q.clone(), x.v.clone(), x.anchors.clone());
+    let mut tau = DVector::zeros(nv);
+    tau.rows_mut(6, nu).copy_from(&u);
+    for _ in 0..4 {
+        sim_ws.step(&mut q, &mut v, &mut anchors, &tau, 0.0005);
+    }
+    assert_eq!(next.q, q);
+    assert_eq!(next.v, v);
+    assert!(sim_ws.feet().iter().all(|f| f.contact.normal_force > 0.0), "the check should go through the contacts");
+    let mut dx = DVector::zeros(2 * nv);
+    let mut column = |perturb: &dyn Fn(f64, &mut RobotState, &mut DVector<f64>), h: f64, analytic: nalgebra::DVectorView<f64>, what: String| {
+        let (mut xp, mut xm, mut up, mut um) = (x.clone(), x.clone(), u.clone(), u.clone());
+        perturb(h, &mut xp, &mut up);
+        perturb(-h, &mut xm, &mut um);
+        let (mut np, mut nm) = (x.clone(), x.clone());
+        problem.step(&mut ws, 0, &xp, &up, &mut np);
+        problem.step(&mut ws, 0, &xm, &um, &mut nm);
+        problem.difference(&nm, &np, &mut dx);
+        let numeric = &dx / (2.0 * h);
+        assert!((analytic - &numeric).norm() < 1e-4 * analytic.norm().max(1.0), "{what}: {} vs {}", analytic.transpose(), numeric.transpose());
+    };
+    for i in 0..nu {
+        column(&|h, _, u| u[i] += h, 1e-4, d.b.column(i), format!("B column {i}"));
+    }
+    for k in 0..2 * nv {
+        let perturb = |h: f64, x: &mut RobotState, _: &mut DVector<f64>| {
+            if k < nv {
+                let mut dq = DVector::zeros(nv);
+                dq[k] = h;
+                let q0 = x.q.clone();
+                legwork::dynamics::integrate(&model, &q0, &dq, &mut x.q);
+            } else {
+                x.v[k - nv] += h;
+            }
+        };
+        column(&perturb, 1e-7, d.a.column(k), format!("A column {k}"));
     }
 }

@@ -120,8 +120,12 @@ pub struct WholeBodyProblem<'a> {
     pub model: &'a Model,
     pub terrain: &'a dyn Terrain,
     pub contact: ContactParams,
-    /// Time between knots (s): also the integration step of the dynamics.
+    /// Time between knots (s): the input is held over it (zero-order hold).
     pub dt: f64,
+    /// Integration steps per knot interval: the dynamics integrate `substeps` steps of
+    /// `dt / substeps` with the knot's input held, as the simulator does with its physics
+    /// step inside a control period.
+    pub substeps: usize,
     /// Number of transitions.
     pub knots: usize,
     pub initial: RobotState,
@@ -145,6 +149,9 @@ pub struct WholeBodyWorkspace<'a> {
     derivatives: StepDerivatives,
     deviation: StateDeviation,
     tau: DVector<f64>,
+    /// Scratch of the chain rule over substeps.
+    chain_tmp_a: DMatrix<f64>,
+    chain_tmp_b: DMatrix<f64>,
     e: DVector<f64>,
     we: DVector<f64>,
     jac: DMatrix<f64>,
@@ -267,6 +274,8 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             derivatives: StepDerivatives::new(model),
             deviation: StateDeviation::new(model),
             tau: DVector::zeros(nv),
+            chain_tmp_a: DMatrix::zeros(2 * nv, 2 * nv),
+            chain_tmp_b: DMatrix::zeros(2 * nv, nv - 6),
             e: DVector::zeros(2 * nv),
             we: DVector::zeros(2 * nv),
             jac: DMatrix::zeros(2 * nv, 2 * nv),
@@ -291,7 +300,10 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         next.q.copy_from(&x.q);
         next.v.copy_from(&x.v);
         next.anchors.clone_from(&x.anchors);
-        ws.dynamics.step(&mut next.q, &mut next.v, &mut next.anchors, &ws.tau, self.dt);
+        let h = self.dt / self.substeps as f64;
+        for _ in 0..self.substeps {
+            ws.dynamics.step(&mut next.q, &mut next.v, &mut next.anchors, &ws.tau, h);
+        }
         cost
     }
     fn step_with_derivatives(&self, ws: &mut WholeBodyWorkspace<'a>, k: usize, x: &RobotState, u: &DVector<f64>, next: &mut RobotState, d: &mut KnotDerivatives) -> f64 {
@@ -299,9 +311,19 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         next.q.copy_from(&x.q);
         next.v.copy_from(&x.v);
         next.anchors.clone_from(&x.anchors);
-        ws.derivatives.step(&mut ws.dynamics, &mut next.q, &mut next.v, &mut next.anchors, &ws.tau, self.dt);
+        let h = self.dt / self.substeps as f64;
+        ws.derivatives.step(&mut ws.dynamics, &mut next.q, &mut next.v, &mut next.anchors, &ws.tau, h);
         d.a.copy_from(&ws.derivatives.a);
         d.b.copy_from(&ws.derivatives.b);
+        // Chain rule over the substeps (input held): A <- A_i A, B <- A_i B + B_i.
+        for _ in 1..self.substeps {
+            ws.derivatives.step(&mut ws.dynamics, &mut next.q, &mut next.v, &mut next.anchors, &ws.tau, h);
+            ws.chain_tmp_a.gemm(1.0, &ws.derivatives.a, &d.a, 0.0);
+            d.a.copy_from(&ws.chain_tmp_a);
+            ws.chain_tmp_b.copy_from(&ws.derivatives.b);
+            ws.chain_tmp_b.gemm(1.0, &ws.derivatives.a, &d.b, 1.0);
+            d.b.copy_from(&ws.chain_tmp_b);
+        }
         // A clipped input does not move the state.
         for (i, (u, limit)) in u.iter().zip(self.effort_limits.iter()).enumerate() {
             if u.abs() > *limit {

@@ -51,8 +51,9 @@ pub struct TaskRun {
     /// The optimized motion, with feedback gains.
     pub plan: Trajectory,
     pub plan_metrics: MotionMetrics,
-    /// (a) The SLQ policy re-run in the simulator (2 kHz physics; the policy held over each
-    /// knot interval, the zero-order hold its gains were computed for).
+    /// (a) The SLQ policy re-run in the simulator (the optimizer's integration step as the
+    /// physics step; the policy held over each knot interval, the zero-order hold its gains
+    /// were computed for).
     pub policy_rerun: Rerun,
     /// (b) The tracking controller (Neunert 2017, sec. IV-B) at 1 kHz on the plan.
     pub tracking_rerun: Rerun,
@@ -143,12 +144,12 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     let solution = Slq::new(&problem, settings)?.solve(&PdPolicy(&pd), on_iteration)?;
     let plan = solution_trajectory(&problem, &solution, &format!("solve {}", spec.name));
 
-    // Closed loop: the simulator's own rates, the task's contact model.
-    let config = SimConfig { contact, ..SimConfig::default() };
+    // Closed loop, both from the optimizer's initial state, contact anchors (spring
+    // pre-loads) included, with the task's contact model.
     let duration = problem.knots as f64 * problem.dt;
-    let rerun = |controller: &mut dyn Controller, what: &'static str, control_dt: f64| -> Result<Rerun, SolveError> {
-        let config = SimConfig { control_dt, record_dt: control_dt.min(config.record_dt), ..config.clone() };
+    let rerun = |controller: &mut dyn Controller, what: &'static str, config: SimConfig| -> Result<Rerun, SolveError> {
         let mut sim = Simulator::new(model, terrain, config, initial.q.clone(), Some(initial.v.clone())).map_err(|source| SolveError::ClosedLoop { what, source })?;
+        sim.set_contact_anchors(&initial.anchors).map_err(|source| SolveError::ClosedLoop { what, source })?;
         Ok(match sim.run(duration, controller, |_| {}) {
             Ok(run) => {
                 let mut trajectory = run.trajectory;
@@ -160,11 +161,17 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
             Err(e) => Rerun::Failed { reason: e.to_string() },
         })
     };
-    // The SLQ gains are those of a discrete-time regulator for a zero-order hold over dt:
-    // apply them at that rate. The tracking controller runs at 1 kHz.
-    let policy_rerun = rerun(&mut SlqPolicyController::new(&problem, &solution), "SLQ policy re-run", problem.dt)?;
+    // (a) The SLQ gains are those of the discrete system the optimizer linearized: its
+    // integration step (dt / substeps) as the physics step, the policy held over each knot
+    // interval. At a finer physics step than the optimizer's, the stiff contact is a
+    // different system at touch-down, for which the time-varying LQR gains are not made.
+    let physics_dt = problem.dt / problem.substeps as f64;
+    let policy_config = SimConfig { contact, physics_dt, control_dt: problem.dt, record_dt: problem.dt, ..SimConfig::default() };
+    let policy_rerun = rerun(&mut SlqPolicyController::new(&problem, &solution), "SLQ policy re-run", policy_config)?;
+    // (b) The tracking controller at 1 kHz on the simulator's own 2 kHz physics.
+    let config = SimConfig { contact, ..SimConfig::default() };
     let mut tracking = TrackingController::with_default_gains(model, &plan, config.control_dt)?;
-    let tracking_rerun = rerun(&mut tracking, "tracking-controller re-run", config.control_dt)?;
+    let tracking_rerun = rerun(&mut tracking, "tracking-controller re-run", config)?;
     let plan_metrics = MotionMetrics::of(model, &plan);
     Ok(TaskRun { plan, plan_metrics, policy_rerun, tracking_rerun, solution })
 }

@@ -6,7 +6,8 @@
 //! summary = "jump to a 0.8 m apex and land in the default stance"
 //! robot = "hyq"
 //! duration = 1.5            # s
-//! dt = 0.002                # s: knot spacing and integration step
+//! dt = 0.002                # s: knot spacing (the input is held over it)
+//! substeps = 1              # integration steps per knot (optional; also the SLQ policy re-run's physics step, dt / substeps)
 //! iterations = 40           # SLQ iteration limit (optional)
 //!
 //! [contact]                 # optional: the optimizer's contact model (ContactParams fields)
@@ -129,6 +130,10 @@ pub struct TaskSpec {
     pub robot: String,
     pub duration: f64,
     pub dt: f64,
+    /// Integration steps per knot interval (1): the dynamics, and the simulator's physics in
+    /// the SLQ policy re-run, step `dt / substeps`.
+    #[serde(default)]
+    pub substeps: Option<usize>,
     #[serde(default)]
     pub iterations: Option<usize>,
     #[serde(default)]
@@ -204,6 +209,9 @@ impl TaskSpec {
         if !(self.dt.is_finite() && self.dt > 0.0 && self.dt <= self.duration) {
             return bad("dt".into(), format!("expected a positive time step no longer than the duration, got {}", self.dt));
         }
+        if self.substeps == Some(0) {
+            return bad("substeps".into(), "expected at least 1".into());
+        }
         if self.iterations == Some(0) {
             return bad("iterations".into(), "expected at least 1".into());
         }
@@ -258,6 +266,7 @@ impl TaskSpec {
             terrain,
             contact: self.contact.unwrap_or_default(),
             dt: self.dt,
+            substeps: self.substeps.unwrap_or(1),
             knots: self.knots(),
             initial,
             running,

@@ -292,6 +292,20 @@ impl<'a> Simulator<'a> {
         })
     }
 
+    /// Sets the hidden contact anchors (one per foot, as in [`SimState::anchors`]): a run
+    /// that continues a state of the optimizer, which carries them, starts from the same
+    /// state, tangential spring pre-loads included.
+    pub fn set_contact_anchors(&mut self, anchors: &[Option<Vector3<f64>>]) -> Result<(), SimError> {
+        if anchors.len() != self.model.feet.len() {
+            return Err(SimError::InitialState(format!("expected {} contact anchors (one per foot), got {}", self.model.feet.len(), anchors.len())));
+        }
+        if let Some(k) = anchors.iter().position(|a| a.is_some_and(|a| a.iter().any(|x| !x.is_finite()))) {
+            return Err(SimError::InitialState(format!("contact anchor of foot {k} is not finite")));
+        }
+        self.state.anchors.clone_from_slice(anchors);
+        Ok(())
+    }
+
     /// Adds a push on the base.
     pub fn add_push(&mut self, push: Push) {
         self.pushes.push(push);

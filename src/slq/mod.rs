@@ -381,11 +381,17 @@ impl<'p, P: Problem> Slq<'p, P> {
         let mut cost_history = vec![cost];
         let mut iterations = Vec::new();
         let mut termination = Termination::MaxIterations;
+        // After a rejected step the trajectory is unchanged: its linearization still holds,
+        // only the backward pass is redone with more regularization (as Crocoddyl does).
+        let mut linearized = false;
         for iteration in 1..=self.settings.max_iterations {
             let mut timing = IterationTiming::default();
-            let t = Instant::now();
-            self.linearize();
-            timing.linearization = t.elapsed().as_secs_f64();
+            if !linearized {
+                let t = Instant::now();
+                self.linearize();
+                timing.linearization = t.elapsed().as_secs_f64();
+                linearized = true;
+            }
             let t = Instant::now();
             let ok = self.backward_pass();
             timing.backward_pass = t.elapsed().as_secs_f64();
@@ -416,6 +422,7 @@ impl<'p, P: Problem> Slq<'p, P> {
                 }
                 continue;
             }
+            linearized = false;
             let change = (cost - new_cost).abs() / cost.abs().max(1e-300);
             cost = new_cost;
             cost_history.push(cost);
@@ -432,7 +439,9 @@ impl<'p, P: Problem> Slq<'p, P> {
         // Feedback gains for the returned trajectory (the last backward pass was made at the
         // trajectory before the last step).
         if matches!(termination, Termination::Converged | Termination::CostStalled | Termination::MaxIterations) {
-            self.linearize();
+            if !linearized {
+                self.linearize();
+            }
             self.backward_pass();
         }
         Ok(SlqSolution {
