@@ -49,6 +49,7 @@ fn hyq_shifts_its_base_forward() {
         input_desired: DVector::zeros(nv - 6),
         effort_limits: DVector::from_element(nv - 6, f64::INFINITY),
         waypoints: vec![],
+        anchor_states: false,
     };
     let pd = JointPd::standing(&model, dt).unwrap();
     let sol = Slq::new(&problem, SlqSettings { threads: 2, ..Default::default() }).unwrap().solve(&PdPolicy(&pd), |_| {}).unwrap();
@@ -132,6 +133,7 @@ fn cost_gradient_with_foot_targets_matches_finite_differences() {
         input_desired: DVector::zeros(nv - 6),
         effort_limits: DVector::from_element(nv - 6, f64::INFINITY),
         waypoints: vec![Waypoint { time: 0.004, rho: 1e4, cost }],
+        anchor_states: false,
     };
     let mut ws = problem.workspace();
     let mut x = initial.clone();
@@ -176,7 +178,7 @@ fn inputs_beyond_the_effort_limit_act_as_the_limit_with_zero_sensitivity() {
     u[1] = 400.0; // beyond the limit
     u[4] = -300.0;
     let mut ws = problem.workspace();
-    let mut d = KnotDerivatives::zeros(2 * model.nv, nu);
+    let mut d = KnotDerivatives::zeros(problem.nx(), nu);
     let mut next = initial.clone();
     problem.step_with_derivatives(&mut ws, 0, &initial, &u, &mut next, &mut d);
     let mut at_limit = u.clone();
@@ -186,7 +188,7 @@ fn inputs_beyond_the_effort_limit_act_as_the_limit_with_zero_sensitivity() {
     problem.step(&mut ws, 0, &initial, &at_limit, &mut next_limit);
     assert_eq!(next.q, next_limit.q);
     assert_eq!(next.v, next_limit.v);
-    let mut dx = DVector::zeros(2 * model.nv);
+    let mut dx = DVector::zeros(problem.nx());
     let h = 1e-4;
     for i in 0..nu {
         let (mut up, mut um) = (u.clone(), u.clone());

@@ -28,7 +28,7 @@ pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, Ta
 use crate::contact::ContactParams;
 use crate::control::JointPd;
 use crate::model::Model;
-use crate::sim::{ContactModelWorkspace, StepDerivatives};
+use crate::sim::{AnchorStepDerivatives, ContactModelWorkspace, StepDerivatives, ANCHOR_DIM};
 use crate::slq::{KnotDerivatives, Policy, Problem};
 use crate::terrain::Terrain;
 use nalgebra::{DMatrix, DVector, Vector3};
@@ -137,12 +137,17 @@ pub struct WholeBodyProblem<'a> {
     /// limit acts as the limit, and its column of `B` is zero.
     pub effort_limits: DVector<f64>,
     pub waypoints: Vec<Waypoint>,
+    /// Linearize with the contact anchors as states (`dx = [dq; dv; da]`, three coordinates
+    /// per foot, [`crate::sim::AnchorStepDerivatives`]) rather than as hidden states held
+    /// over each step.
+    pub anchor_states: bool,
 }
 
 /// What one thread needs: the contact dynamics, its linearization and cost scratch.
 pub struct WholeBodyWorkspace<'a> {
     dynamics: ContactModelWorkspace<'a>,
     derivatives: StepDerivatives,
+    anchor_derivatives: AnchorStepDerivatives,
     deviation: StateDeviation,
     tau: DVector<f64>,
     e: DVector<f64>,
@@ -252,7 +257,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
     type Workspace = WholeBodyWorkspace<'a>;
 
     fn nx(&self) -> usize {
-        2 * self.model.nv
+        2 * self.model.nv + if self.anchor_states { ANCHOR_DIM * self.model.feet.len() } else { 0 }
     }
     fn nu(&self) -> usize {
         self.nu_()
@@ -265,6 +270,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         WholeBodyWorkspace {
             dynamics: ContactModelWorkspace::new(model, self.terrain, self.contact),
             derivatives: StepDerivatives::new(model),
+            anchor_derivatives: AnchorStepDerivatives::new(nv),
             deviation: StateDeviation::new(model),
             tau: DVector::zeros(nv),
             e: DVector::zeros(2 * nv),
@@ -277,12 +283,22 @@ impl<'a> Problem for WholeBodyProblem<'a> {
     fn initial_state(&self) -> RobotState {
         self.initial.clone()
     }
-    /// `dx = [q_x (-) q_y; v_x - v_y]`.
+    /// `dx = [q_x (-) q_y; v_x - v_y]`, and with anchor states `a_x - a_y` per foot (zero
+    /// where either has no anchor: a foot off the ground has no anchor to deviate).
     fn difference(&self, y: &RobotState, x: &RobotState, dx: &mut DVector<f64>) {
         let nv = self.model.nv;
         crate::dynamics::difference_into(self.model, &y.q, &x.q, &mut dx.as_mut_slice()[..nv]);
         for i in 0..nv {
             dx[nv + i] = x.v[i] - y.v[i];
+        }
+        if self.anchor_states {
+            for (f, (ay, ax)) in y.anchors.iter().zip(&x.anchors).enumerate() {
+                let d = match (ay, ax) {
+                    (Some(ay), Some(ax)) => ax - ay,
+                    _ => Vector3::zeros(),
+                };
+                dx.fixed_rows_mut::<3>(2 * nv + ANCHOR_DIM * f).copy_from(&d);
+            }
         }
     }
     fn step(&self, ws: &mut WholeBodyWorkspace<'a>, k: usize, x: &RobotState, u: &DVector<f64>, next: &mut RobotState) -> f64 {
@@ -300,8 +316,14 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         next.v.copy_from(&x.v);
         next.anchors.clone_from(&x.anchors);
         ws.derivatives.step(&mut ws.dynamics, &mut next.q, &mut next.v, &mut next.anchors, &ws.tau, self.dt);
-        d.a.copy_from(&ws.derivatives.a);
-        d.b.copy_from(&ws.derivatives.b);
+        if self.anchor_states {
+            ws.anchor_derivatives.linearize(&ws.derivatives, &ws.dynamics, &x.anchors, self.dt, &mut d.a);
+            d.b.fill(0.0);
+            d.b.view_mut((0, 0), (2 * self.model.nv, self.nu_())).copy_from(&ws.derivatives.b);
+        } else {
+            d.a.copy_from(&ws.derivatives.a);
+            d.b.copy_from(&ws.derivatives.b);
+        }
         // A clipped input does not move the state.
         for (i, (u, limit)) in u.iter().zip(self.effort_limits.iter()).enumerate() {
             if u.abs() > *limit {
