@@ -50,6 +50,7 @@ fn hyq_shifts_its_base_forward() {
         input_desired: DVector::zeros(nv - 6),
         effort_limits: DVector::from_element(nv - 6, f64::INFINITY),
         waypoints: vec![],
+        anchor_states: false,
     };
     let pd = JointPd::standing(&model, dt).unwrap();
     let sol = Slq::new(&problem, SlqSettings { threads: 2, ..Default::default() }).unwrap().solve(&PdPolicy(&pd), |_| {}).unwrap();
@@ -134,6 +135,7 @@ fn cost_gradient_with_foot_targets_matches_finite_differences() {
         input_desired: DVector::zeros(nv - 6),
         effort_limits: DVector::from_element(nv - 6, f64::INFINITY),
         waypoints: vec![Waypoint { time: 0.004, rho: 1e4, cost }],
+        anchor_states: false,
     };
     let mut ws = problem.workspace();
     let mut x = initial.clone();
@@ -178,7 +180,7 @@ fn inputs_beyond_the_effort_limit_act_as_the_limit_with_zero_sensitivity() {
     u[1] = 400.0; // beyond the limit
     u[4] = -300.0;
     let mut ws = problem.workspace();
-    let mut d = KnotDerivatives::zeros(2 * model.nv, nu);
+    let mut d = KnotDerivatives::zeros(problem.nx(), nu);
     let mut next = initial.clone();
     problem.step_with_derivatives(&mut ws, 0, &initial, &u, &mut next, &mut d);
     let mut at_limit = u.clone();
@@ -188,7 +190,7 @@ fn inputs_beyond_the_effort_limit_act_as_the_limit_with_zero_sensitivity() {
     problem.step(&mut ws, 0, &initial, &at_limit, &mut next_limit);
     assert_eq!(next.q, next_limit.q);
     assert_eq!(next.v, next_limit.v);
-    let mut dx = DVector::zeros(2 * model.nv);
+    let mut dx = DVector::zeros(problem.nx());
     let h = 1e-4;
     for i in 0..nu {
         let (mut up, mut um) = (u.clone(), u.clone());
@@ -227,7 +229,7 @@ fn substepped_knot_is_the_simulators_steps_and_its_linearization_matches_finite_
     x.v = DVector::from_fn(nv, |i, _| 0.1 * (i as f64).sin());
     let u = DVector::from_fn(nu, |i, _| 5.0 * (i as f64 - 5.0));
     let mut ws = problem.workspace();
-    let mut d = KnotDerivatives::zeros(2 * nv, nu);
+    let mut d = KnotDerivatives::zeros(problem.nx(), nu);
     let mut next = x.clone();
     problem.step_with_derivatives(&mut ws, 0, &x, &u, &mut next, &mut d);
     // Four simulator steps of 0.5 ms with the same torques.
@@ -241,7 +243,7 @@ fn substepped_knot_is_the_simulators_steps_and_its_linearization_matches_finite_
     assert_eq!(next.q, q);
     assert_eq!(next.v, v);
     assert!(sim_ws.feet().iter().all(|f| f.contact.normal_force > 0.0), "the check should go through the contacts");
-    let mut dx = DVector::zeros(2 * nv);
+    let mut dx = DVector::zeros(problem.nx());
     let mut column = |perturb: &dyn Fn(f64, &mut RobotState, &mut DVector<f64>), h: f64, analytic: nalgebra::DVectorView<f64>, what: String| {
         let (mut xp, mut xm, mut up, mut um) = (x.clone(), x.clone(), u.clone(), u.clone());
         perturb(h, &mut xp, &mut up);
@@ -256,6 +258,8 @@ fn substepped_knot_is_the_simulators_steps_and_its_linearization_matches_finite_
     for i in 0..nu {
         column(&|h, _, u| u[i] += h, 1e-4, d.b.column(i), format!("B column {i}"));
     }
+    // The configuration and velocity columns (with anchor states, `tests/ocp_anchor_states.rs`
+    // checks the anchor columns).
     for k in 0..2 * nv {
         let perturb = |h: f64, x: &mut RobotState, _: &mut DVector<f64>| {
             if k < nv {

@@ -10,6 +10,10 @@
 //! surface (point and normal) and the anchor; they are checked against finite differences
 //! in the tests.
 
+mod anchor;
+
+pub use anchor::{anchor_derivatives, AnchorDerivatives};
+
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 

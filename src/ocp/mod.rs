@@ -28,7 +28,7 @@ pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, Ta
 use crate::contact::ContactParams;
 use crate::control::JointPd;
 use crate::model::Model;
-use crate::sim::{ContactModelWorkspace, StepDerivatives};
+use crate::sim::{AnchorStepDerivatives, ContactModelWorkspace, StepDerivatives, ANCHOR_DIM};
 use crate::slq::{KnotDerivatives, Policy, Problem};
 use crate::terrain::Terrain;
 use nalgebra::{DMatrix, DVector, Vector3};
@@ -141,15 +141,24 @@ pub struct WholeBodyProblem<'a> {
     /// limit acts as the limit, and its column of `B` is zero.
     pub effort_limits: DVector<f64>,
     pub waypoints: Vec<Waypoint>,
+    /// Linearize with the contact anchors as states (`dx = [dq; dv; da]`, three coordinates
+    /// per foot, [`crate::sim::AnchorStepDerivatives`]) rather than as hidden states held
+    /// over each step.
+    pub anchor_states: bool,
 }
 
 /// What one thread needs: the contact dynamics, its linearization and cost scratch.
 pub struct WholeBodyWorkspace<'a> {
     dynamics: ContactModelWorkspace<'a>,
     derivatives: StepDerivatives,
+    anchor_derivatives: AnchorStepDerivatives,
     deviation: StateDeviation,
     tau: DVector<f64>,
-    /// Scratch of the chain rule over substeps.
+    /// Scratch of the chain rule over substeps: the anchors before a substep, its `A_i`,
+    /// `B_i`, and the products.
+    anchors_before: Vec<Option<Vector3<f64>>>,
+    step_a: DMatrix<f64>,
+    step_b: DMatrix<f64>,
     chain_tmp_a: DMatrix<f64>,
     chain_tmp_b: DMatrix<f64>,
     e: DVector<f64>,
@@ -259,7 +268,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
     type Workspace = WholeBodyWorkspace<'a>;
 
     fn nx(&self) -> usize {
-        2 * self.model.nv
+        2 * self.model.nv + if self.anchor_states { ANCHOR_DIM * self.model.feet.len() } else { 0 }
     }
     fn nu(&self) -> usize {
         self.nu_()
@@ -272,10 +281,14 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         WholeBodyWorkspace {
             dynamics: ContactModelWorkspace::new(model, self.terrain, self.contact),
             derivatives: StepDerivatives::new(model),
+            anchor_derivatives: AnchorStepDerivatives::new(nv),
             deviation: StateDeviation::new(model),
             tau: DVector::zeros(nv),
-            chain_tmp_a: DMatrix::zeros(2 * nv, 2 * nv),
-            chain_tmp_b: DMatrix::zeros(2 * nv, nv - 6),
+            anchors_before: vec![None; model.feet.len()],
+            step_a: DMatrix::zeros(self.nx(), self.nx()),
+            step_b: DMatrix::zeros(self.nx(), self.nu()),
+            chain_tmp_a: DMatrix::zeros(self.nx(), self.nx()),
+            chain_tmp_b: DMatrix::zeros(self.nx(), self.nu()),
             e: DVector::zeros(2 * nv),
             we: DVector::zeros(2 * nv),
             jac: DMatrix::zeros(2 * nv, 2 * nv),
@@ -286,12 +299,22 @@ impl<'a> Problem for WholeBodyProblem<'a> {
     fn initial_state(&self) -> RobotState {
         self.initial.clone()
     }
-    /// `dx = [q_x (-) q_y; v_x - v_y]`.
+    /// `dx = [q_x (-) q_y; v_x - v_y]`, and with anchor states `a_x - a_y` per foot (zero
+    /// where either has no anchor: a foot off the ground has no anchor to deviate).
     fn difference(&self, y: &RobotState, x: &RobotState, dx: &mut DVector<f64>) {
         let nv = self.model.nv;
         crate::dynamics::difference_into(self.model, &y.q, &x.q, &mut dx.as_mut_slice()[..nv]);
         for i in 0..nv {
             dx[nv + i] = x.v[i] - y.v[i];
+        }
+        if self.anchor_states {
+            for (f, (ay, ax)) in y.anchors.iter().zip(&x.anchors).enumerate() {
+                let d = match (ay, ax) {
+                    (Some(ay), Some(ax)) => ax - ay,
+                    _ => Vector3::zeros(),
+                };
+                dx.fixed_rows_mut::<3>(2 * nv + ANCHOR_DIM * f).copy_from(&d);
+            }
         }
     }
     fn step(&self, ws: &mut WholeBodyWorkspace<'a>, k: usize, x: &RobotState, u: &DVector<f64>, next: &mut RobotState) -> f64 {
@@ -311,18 +334,28 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         next.q.copy_from(&x.q);
         next.v.copy_from(&x.v);
         next.anchors.clone_from(&x.anchors);
+        // Each substep's A_i, B_i (the anchor-extended ones with anchor states), chained
+        // with the input held: A <- A_i A, B <- A_i B + B_i.
         let h = self.dt / self.substeps as f64;
-        ws.derivatives.step(&mut ws.dynamics, &mut next.q, &mut next.v, &mut next.anchors, &ws.tau, h);
-        d.a.copy_from(&ws.derivatives.a);
-        d.b.copy_from(&ws.derivatives.b);
-        // Chain rule over the substeps (input held): A <- A_i A, B <- A_i B + B_i.
-        for _ in 1..self.substeps {
+        for substep in 0..self.substeps {
+            ws.anchors_before.clone_from(&next.anchors);
             ws.derivatives.step(&mut ws.dynamics, &mut next.q, &mut next.v, &mut next.anchors, &ws.tau, h);
-            ws.chain_tmp_a.gemm(1.0, &ws.derivatives.a, &d.a, 0.0);
-            d.a.copy_from(&ws.chain_tmp_a);
-            ws.chain_tmp_b.copy_from(&ws.derivatives.b);
-            ws.chain_tmp_b.gemm(1.0, &ws.derivatives.a, &d.b, 1.0);
-            d.b.copy_from(&ws.chain_tmp_b);
+            let (a, b) = if substep == 0 { (&mut d.a, &mut d.b) } else { (&mut ws.step_a, &mut ws.step_b) };
+            if self.anchor_states {
+                ws.anchor_derivatives.linearize(&ws.derivatives, &ws.dynamics, &ws.anchors_before, h, a);
+                b.fill(0.0);
+                b.view_mut((0, 0), (2 * self.model.nv, self.nu_())).copy_from(&ws.derivatives.b);
+            } else {
+                a.copy_from(&ws.derivatives.a);
+                b.copy_from(&ws.derivatives.b);
+            }
+            if substep > 0 {
+                ws.chain_tmp_a.gemm(1.0, &ws.step_a, &d.a, 0.0);
+                d.a.copy_from(&ws.chain_tmp_a);
+                ws.chain_tmp_b.copy_from(&ws.step_b);
+                ws.chain_tmp_b.gemm(1.0, &ws.step_a, &d.b, 1.0);
+                d.b.copy_from(&ws.chain_tmp_b);
+            }
         }
         // A clipped input does not move the state.
         for (i, (u, limit)) in u.iter().zip(self.effort_limits.iter()).enumerate() {

@@ -62,7 +62,8 @@ pub struct TaskRun {
 
 /// The optimized states and inputs as a trajectory file: contact forces and flags
 /// evaluated at each state, the feedback gains at each knot (the last knot repeats the
-/// last input and gain).
+/// last input and gain). With anchor states the file keeps the gains' `(q, v)` columns
+/// (`2 nv`, the trajectory format); the anchor columns act only in [`SlqPolicyController`].
 pub fn solution_trajectory(problem: &WholeBodyProblem<'_>, solution: &SlqSolution<RobotState>, scenario: &str) -> Trajectory {
     let model = problem.model;
     let mut traj = Trajectory::new(model, scenario, problem.dt, problem.terrain.spec());
@@ -79,7 +80,7 @@ pub fn solution_trajectory(problem: &WholeBodyProblem<'_>, solution: &SlqSolutio
             tau: solution.inputs[i].iter().copied().collect(),
             contact_force: ws.feet().iter().map(|f| f.contact.force.into()).collect(),
             in_contact: ws.feet().iter().map(|f| f.contact.normal_force > 0.0).collect(),
-            feedback_gain: Some(gain.row_iter().map(|r| r.iter().copied().collect()).collect()),
+            feedback_gain: Some(gain.row_iter().map(|r| r.iter().take(2 * model.nv).copied().collect()).collect()),
         });
     }
     traj

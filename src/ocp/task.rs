@@ -275,6 +275,9 @@ impl TaskSpec {
             input_desired: DVector::zeros(nu),
             effort_limits: DVector::from_iterator(nu, model.actuated_joints().map(|j| j.limits.effort[0])),
             waypoints,
+            // The anchors as states of the linearization: the held-anchor model mispredicts
+            // every touch-down and slip (see `crate::sim::AnchorStepDerivatives`).
+            anchor_states: true,
         })
     }
 }

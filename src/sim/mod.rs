@@ -26,9 +26,11 @@
 //! assert!(run.trajectory.knots.len() > 400);
 //! ```
 
+mod anchor_states;
 mod step_derivatives;
 mod workspace;
 
+pub use anchor_states::{AnchorStepDerivatives, ANCHOR_DIM};
 pub use step_derivatives::StepDerivatives;
 pub use workspace::{ContactModelWorkspace, FootState};
 

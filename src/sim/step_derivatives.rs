@@ -44,7 +44,7 @@ use super::workspace::ContactModelWorkspace;
 use crate::dynamics::{compute_joint_jacobians, compute_minverse, compute_rnea_derivatives, integrate_jacobians};
 use crate::model::Model;
 use crate::spatial::Motion;
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3xX, Vector3};
 
 /// Scratch and results of [`StepDerivatives::step`]; one per thread, beside a
 /// [`ContactModelWorkspace`].
@@ -58,13 +58,17 @@ pub struct StepDerivatives {
     a_q: DMatrix<f64>,
     a_v: DMatrix<f64>,
     jq: DMatrix<f64>,
-    jv: DMatrix<f64>,
+    pub(super) jv: DMatrix<f64>,
     tmp: DMatrix<f64>,
     b_lower: DMatrix<f64>,
     acc: DVector<f64>,
     chain: Vec<usize>,
     /// Partial sums `sum_{k: j supports k} S_k v_k` along a foot's chain.
     partial_velocity: Vec<Motion>,
+    /// Per foot in contact at the last step: `d p / d dq` and `d pdot / d dq` (3 x nv,
+    /// world frame; `d pdot / d dv = d p / d dq`), for the anchor linearization.
+    pub(super) foot_dp_dq: Vec<Matrix3xX<f64>>,
+    pub(super) foot_dpdot_dq: Vec<Matrix3xX<f64>>,
     nu: usize,
 }
 
@@ -87,6 +91,8 @@ impl StepDerivatives {
             acc: DVector::zeros(nv),
             chain: Vec::with_capacity(nv),
             partial_velocity: vec![Motion::zero(); nv],
+            foot_dp_dq: vec![Matrix3xX::zeros(nv); model.feet.len()],
+            foot_dpdot_dq: vec![Matrix3xX::zeros(nv); model.feet.len()],
             nu,
         }
     }
@@ -166,7 +172,11 @@ impl StepDerivatives {
         };
         for (i, foot) in model.feet.iter().enumerate() {
             let state = &ws.feet[i];
-            if state.contact.normal_force <= 0.0 {
+            self.foot_dp_dq[i].fill(0.0);
+            self.foot_dpdot_dq[i].fill(0.0);
+            // A foot touching the ground with no force (leaving fast) adds nothing to tau_c
+            // but its anchor still follows it.
+            if state.contact.penetration <= 0.0 {
                 continue;
             }
             let lambda = state.contact.force;
@@ -200,6 +210,8 @@ impl StepDerivatives {
                 let dp = s_j.v + s_j.w.cross(&p);
                 let dv_body = s_j.cross(&w_j);
                 let dpdot = dv_body.v + dv_body.w.cross(&p) + body_velocity.w.cross(&dp);
+                self.foot_dp_dq[i].set_column(j, &dp);
+                self.foot_dpdot_dq[i].set_column(j, &dpdot);
                 let dlambda = dl_dp * dp + dl_dv * dpdot;
                 let df = crate::spatial::Force::new(dlambda, dp.cross(&lambda) + p.cross(&dlambda));
                 let dlambda_v = dl_dv * dp;

@@ -1,0 +1,98 @@
+//! The whole-body problem linearized with the contact anchors as states
+//! (`WholeBodyProblem::anchor_states`): `A` and `B` against central differences of the full
+//! step, anchor update included, with feet sticking, slipping and touching down.
+
+use legwork::model::embedded;
+use legwork::ocp::{settled_stance, RobotState, TaskSpec, WholeBodyProblem};
+use legwork::sim::{ContactModelWorkspace, ANCHOR_DIM};
+use legwork::slq::{KnotDerivatives, Problem};
+use legwork::terrain::Plane;
+use nalgebra::DVector;
+
+/// `x (+) dx` for the extended state: configuration, velocity, and the anchors a foot has.
+fn perturbed(problem: &WholeBodyProblem<'_>, x: &RobotState, dx: &DVector<f64>) -> RobotState {
+    let nv = problem.model.nv;
+    let mut y = x.clone();
+    legwork::dynamics::integrate(problem.model, &x.q, &dx.rows(0, nv).into_owned(), &mut y.q);
+    for i in 0..nv {
+        y.v[i] += dx[nv + i];
+    }
+    for (f, anchor) in y.anchors.iter_mut().enumerate() {
+        if let Some(a) = anchor {
+            *a += dx.fixed_rows::<3>(2 * nv + ANCHOR_DIM * f);
+        }
+    }
+    y
+}
+
+#[test]
+fn extended_linearization_matches_central_differences_through_the_anchor_update() {
+    let model = embedded::load("hyq").unwrap();
+    let ground = Plane::flat(0.0);
+    let settled = settled_stance(&model, &ground, Default::default(), 0.3).unwrap();
+    let spec = TaskSpec::embedded("sidestep").unwrap();
+    let mut problem = spec.problem(&model, &ground, settled.clone(), "test").unwrap();
+    problem.anchor_states = true;
+    let nv = model.nv;
+    let (nx, nu) = (problem.nx(), problem.nu());
+    assert_eq!(nx, 2 * nv + ANCHOR_DIM * model.feet.len());
+
+    // The settled stance, moving: one foot touching down (no anchor yet), one whose anchor
+    // is 5 cm behind (the spring beyond the friction cone: it slips); then a state where
+    // every foot sticks, one anchor 1 mm behind.
+    let mut x = settled.clone();
+    x.v[0] = 0.3;
+    x.v[6] = 0.5;
+    x.anchors[0] = None;
+    x.anchors[1] = x.anchors[1].map(|a| a - nalgebra::Vector3::new(0.05, 0.0, 0.0));
+    let mut sticking = settled.clone();
+    sticking.anchors[3] = sticking.anchors[3].map(|a| a - nalgebra::Vector3::new(0.001, 0.0, 0.0));
+    let mut ws_contacts = ContactModelWorkspace::new(&model, &ground, problem.contact);
+    ws_contacts.evaluate_contacts(&x.q, &x.v, &x.anchors);
+    assert!(ws_contacts.feet()[1].contact.slipping, "foot 1 slips");
+    assert!(ws_contacts.feet()[0].contact.penetration > 0.0, "foot 0 touches down");
+    ws_contacts.evaluate_contacts(&sticking.q, &sticking.v, &sticking.anchors);
+    assert!(ws_contacts.feet().iter().all(|f| !f.contact.slipping), "every foot sticks");
+
+    let u = DVector::from_fn(nu, |i, _| 10.0 * (i as f64 - 5.5));
+    let mut ws = problem.workspace();
+    let mut d = KnotDerivatives::zeros(nx, nu);
+    let mut next = x.clone();
+    for state in [&x, &sticking] {
+        problem.step_with_derivatives(&mut ws, 0, state, &u, &mut next, &mut d);
+        let nominal = next.clone();
+        let h = 1e-7;
+        let mut plus = nominal.clone();
+        let mut minus = nominal.clone();
+        let (mut dplus, mut dminus) = (DVector::zeros(nx), DVector::zeros(nx));
+        for k in 0..nx + nu {
+            let (mut xp, mut xm, mut up, mut um) = (state.clone(), state.clone(), u.clone(), u.clone());
+            if k < nx {
+                let anchor_of = (k >= 2 * nv).then(|| (k - 2 * nv) / ANCHOR_DIM);
+                if anchor_of.is_some_and(|f| state.anchors[f].is_none()) {
+                    assert!(d.a.column(k).iter().all(|a| *a == 0.0), "a foot without anchor has zero columns");
+                    continue;
+                }
+                let e = DVector::from_fn(nx, |i, _| if i == k { h } else { 0.0 });
+                xp = perturbed(&problem, state, &e);
+                xm = perturbed(&problem, state, &(-e));
+            } else {
+                up[k - nx] += h;
+                um[k - nx] -= h;
+            }
+            problem.step(&mut ws, 0, &xp, &up, &mut plus);
+            problem.step(&mut ws, 0, &xm, &um, &mut minus);
+            problem.difference(&nominal, &plus, &mut dplus);
+            problem.difference(&nominal, &minus, &mut dminus);
+            let numeric = (&dplus - &dminus) / (2.0 * h);
+            let analytic = if k < nx { d.a.column(k).into_owned() } else { d.b.column(k - nx).into_owned() };
+            let err = (&analytic - &numeric).norm() / (1.0 + numeric.norm());
+            assert!(err < 1e-5, "column {k}: relative error {err:.2e}\nanalytic {}\nnumeric {}", analytic.transpose(), numeric.transpose());
+        }
+        // The foot touching down gets an anchor where it is: its row block reads the foot's motion.
+        if state.anchors[0].is_none() {
+            let rows = d.a.view((2 * nv, 0), (ANCHOR_DIM, nv));
+            assert!(rows.norm() > 0.1, "the planted anchor follows the foot: {rows}");
+        }
+    }
+}
