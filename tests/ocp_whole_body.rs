@@ -65,7 +65,7 @@ fn hyq_shifts_its_base_forward() {
         target[0]
     );
     assert!(sol.iterations.len() <= 40);
-    assert!(matches!(sol.termination, Termination::Converged | Termination::CostStalled), "{:?}", sol.termination);
+    assert!(matches!(sol.termination, Termination::Converged | Termination::CostStalled | Termination::NormalizedCostFlat), "{:?}", sol.termination);
     assert!(*sol.cost_history.last().unwrap() < 0.2 * sol.cost_history[0]);
     assert!((last.q[0] - target[0]).abs() < 0.01, "final x {} vs {}", last.q[0], target[0]);
     // Still standing on four feet at the end (the height kept, every foot down).

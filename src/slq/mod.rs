@@ -11,7 +11,9 @@
 //!    alpha_d`, until the cost decreases.
 //!
 //! It stops when the feedforward increments are small (`||l|| < l_t`), when the cost no
-//! longer changes, or after the maximum number of iterations; a line search that cannot
+//! longer changes, when the normalized cost of the paper's Fig. 12 (cost over the initial
+//! cost) has been flat to 0.1 % for five iterations, or after the maximum number of
+//! iterations; a line search that cannot
 //! decrease the cost, or a non-finite cost, ends the run with the best iterate kept and the
 //! reason reported. Every iteration records its cost, step size and time per part.
 
@@ -34,6 +36,12 @@ pub struct SlqSettings {
     pub feedforward_tolerance: f64,
     /// Stop when an iteration changes the cost by less than this fraction (1e-6).
     pub relative_cost_tolerance: f64,
+    /// Stop when, over the last [`stall_window`](Self::stall_window) iterations, the cost
+    /// fell by less than this fraction of the initial rollout's cost (1e-3): the normalized
+    /// cost of the paper's Fig. 12 (cost over initial cost) is flat to 0.1 %. 0 disables it.
+    pub normalized_cost_tolerance: f64,
+    /// Iterations (accepted or not) the normalized-cost test looks back over (5).
+    pub stall_window: usize,
     /// Step-size divisor `alpha_d` (2).
     pub alpha_divisor: f64,
     /// Line-search trials per iteration (12).
@@ -56,6 +64,8 @@ impl Default for SlqSettings {
             max_iterations: 40,
             feedforward_tolerance: 1e-4,
             relative_cost_tolerance: 1e-6,
+            normalized_cost_tolerance: 1e-3,
+            stall_window: 5,
             alpha_divisor: 2.0,
             max_line_search_steps: 12,
             initial_regularization: 1e-8,
@@ -74,11 +84,35 @@ pub enum Termination {
     Converged,
     /// The cost changed by less than the relative tolerance.
     CostStalled,
+    /// The normalized cost (over the initial cost) fell by less than its tolerance over the
+    /// stall window.
+    NormalizedCostFlat,
     MaxIterations,
     /// No step size decreased the cost (iteration number).
     LineSearchFailed { iteration: usize },
     /// `H` stayed indefinite up to the maximum regularization (iteration number).
     BackwardPassFailed { iteration: usize },
+}
+
+/// The normalized-cost stopping test: with `costs` the cost after each iteration so far
+/// (a rejected step repeats the cost before it), true when the last `window` iterations
+/// lowered the cost by less than `tolerance` times the initial cost `initial`.
+///
+/// ```
+/// use legwork::slq::normalized_cost_flat;
+/// // 100 -> 10 in three iterations, then 0.01 % of the initial cost per iteration.
+/// let costs = [40.0, 15.0, 10.0, 9.99, 9.98, 9.97, 9.96, 9.95];
+/// assert!(!normalized_cost_flat(100.0, costs[..6].iter().copied(), 5, 1e-3));
+/// assert!(normalized_cost_flat(100.0, costs.iter().copied(), 5, 1e-3));
+/// ```
+pub fn normalized_cost_flat(initial: f64, costs: impl ExactSizeIterator<Item = f64> + Clone, window: usize, tolerance: f64) -> bool {
+    let n = costs.len();
+    if tolerance <= 0.0 || window == 0 || n < window {
+        return false;
+    }
+    let before = if n == window { initial } else { costs.clone().nth(n - window - 1).unwrap_or(initial) };
+    let last = costs.last().unwrap_or(initial);
+    before - last < tolerance * initial.abs()
 }
 
 /// Seconds spent in each part of one iteration.
@@ -379,7 +413,12 @@ impl<'p, P: Problem> Slq<'p, P> {
         let mut cost = self.rollout(initial_policy)?;
         let initial_rollout_time = t.elapsed().as_secs_f64();
         let mut cost_history = vec![cost];
-        let mut iterations = Vec::new();
+        let initial_cost = cost;
+        let mut iterations: Vec<IterationLog> = Vec::new();
+        // Cost before the last `stall_window` iterations (accepted or not) fell by less than
+        // the tolerance times the initial cost.
+        let (tolerance, window) = (self.settings.normalized_cost_tolerance, self.settings.stall_window);
+        let flat = |iterations: &[IterationLog]| normalized_cost_flat(initial_cost, iterations.iter().map(|log| log.cost), window, tolerance);
         let mut termination = Termination::MaxIterations;
         // After a rejected step the trajectory is unchanged: its linearization still holds,
         // only the backward pass is redone with more regularization (as Crocoddyl does).
@@ -420,6 +459,10 @@ impl<'p, P: Problem> Slq<'p, P> {
                     termination = Termination::LineSearchFailed { iteration };
                     break;
                 }
+                if flat(&iterations) {
+                    termination = Termination::NormalizedCostFlat;
+                    break;
+                }
                 continue;
             }
             linearized = false;
@@ -435,10 +478,14 @@ impl<'p, P: Problem> Slq<'p, P> {
                 termination = Termination::CostStalled;
                 break;
             }
+            if flat(&iterations) {
+                termination = Termination::NormalizedCostFlat;
+                break;
+            }
         }
         // Feedback gains for the returned trajectory (the last backward pass was made at the
         // trajectory before the last step).
-        if matches!(termination, Termination::Converged | Termination::CostStalled | Termination::MaxIterations) {
+        if matches!(termination, Termination::Converged | Termination::CostStalled | Termination::NormalizedCostFlat | Termination::MaxIterations) {
             if !linearized {
                 self.linearize();
             }
