@@ -635,13 +635,13 @@ impl Description {
             let mut q = model.neutral();
             q[2] = st.base_height;
             for (name, s, values) in [("hip", &self.hip, &st.hip), ("thigh", &self.thigh, &st.thigh), ("shank", &self.shank, &st.shank)] {
-                for leg in 0..4 {
+                for (leg, leg_name) in LEG_ORDER.iter().enumerate() {
                     let v = values.get(leg);
                     let (lo, hi) = (s.lower.get(leg), s.upper.get(leg));
                     if !v.is_finite() || v < lo || v > hi {
                         return Err(self.err(
                             format!("standing.{name}"),
-                            format!("expected an angle within the joint limits [{lo}, {hi}] for leg {}, got {v}", LEG_ORDER[leg]),
+                            format!("expected an angle within the joint limits [{lo}, {hi}] for leg {leg_name}, got {v}"),
                         ));
                     }
                     let jn = s.joint.replace("{leg}", &self.legs.names[leg]);
