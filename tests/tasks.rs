@@ -56,6 +56,7 @@ fn bad_task_files_are_named() {
         (MINIMAL.replace("duration = 0.5", "duration = -0.5"), vec!["`duration`"]),
         (MINIMAL.replace("[0.05, \"start\", \"start\"]", "[0.05, \"begin\", \"start\"]"), vec!["desired.base_position[1]", "\"start\""]),
         (MINIMAL.replace("[input]", "[contact]\nalpha = 0.0\n[input]"), vec!["contact.alpha"]),
+        (MINIMAL.replace("dt = 0.002", "dt = 0.002\nflat_cost_tolerance = -1e-3"), vec!["shift.toml", "flat_cost_tolerance", "[0, 1)"]),
         (format!("{MINIMAL}\n[[waypoint]]\ntime = 9.0\nrho = 10.0\nweights = {{}}\n"), vec!["waypoint[0].time"]),
     ];
     let model = embedded::load("hyq").unwrap();

@@ -190,7 +190,7 @@ fn slq(as_json: bool, threads: usize, iterations: usize) -> Result<()> {
         let mut spec = base.clone();
         spec.duration = horizon;
         let problem = spec.problem(&model, &ground, initial.clone(), "bench")?;
-        let settings = SlqSettings { threads, max_iterations: iterations, feedforward_tolerance: 0.0, relative_cost_tolerance: 0.0, ..Default::default() };
+        let settings = SlqSettings { threads, max_iterations: iterations, feedforward_tolerance: 0.0, relative_cost_tolerance: 0.0, normalized_cost_tolerance: 0.0, ..Default::default() };
         let sol = Slq::new(&problem, settings)?.solve(&PdPolicy(&pd), |_| {})?;
         let n = sol.iterations.len().max(1) as f64;
         let mean = |f: &dyn Fn(&legwork::slq::IterationTiming) -> f64| sol.iterations.iter().map(|l| f(&l.timing)).sum::<f64>() / n * 1e3;

@@ -140,6 +140,7 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     let settings = SlqSettings {
         threads: options.threads,
         max_iterations: options.max_iterations.or(spec.iterations).unwrap_or(SlqSettings::default().max_iterations),
+        normalized_cost_tolerance: spec.flat_cost_tolerance.unwrap_or(SlqSettings::default().normalized_cost_tolerance),
         ..SlqSettings::default()
     };
     let solution = Slq::new(&problem, settings)?.solve(&PdPolicy(&pd), on_iteration)?;

@@ -9,6 +9,7 @@
 //! dt = 0.002                # s: knot spacing (the input is held over it)
 //! substeps = 1              # integration steps per knot (optional; also the SLQ policy re-run's physics step, dt / substeps)
 //! iterations = 40           # SLQ iteration limit (optional)
+//! flat_cost_tolerance = 1e-3 # stop when 5 iterations lower the cost by less than this fraction of the initial cost (optional; 0 = never)
 //!
 //! [contact]                 # optional: the optimizer's contact model (ContactParams fields)
 //! normal_stiffness = 90000.0
@@ -136,6 +137,11 @@ pub struct TaskSpec {
     pub substeps: Option<usize>,
     #[serde(default)]
     pub iterations: Option<usize>,
+    /// Overrides [`crate::slq::SlqSettings::normalized_cost_tolerance`] (1e-3; 0 turns the
+    /// test off): a task whose initial cost is dominated by one early, large correction
+    /// (standing up) makes its later progress look flat.
+    #[serde(default)]
+    pub flat_cost_tolerance: Option<f64>,
     #[serde(default)]
     pub contact: Option<ContactParams>,
     #[serde(default)]
@@ -215,6 +221,11 @@ impl TaskSpec {
         }
         if self.iterations == Some(0) {
             return bad("iterations".into(), "expected at least 1".into());
+        }
+        if let Some(t) = self.flat_cost_tolerance {
+            if !(t.is_finite() && (0.0..1.0).contains(&t)) {
+                return bad("flat_cost_tolerance".into(), format!("expected a fraction in [0, 1), got {t}"));
+            }
         }
         if let Some(c) = &self.contact {
             c.validate().map_err(|e| TaskError::Invalid { origin: origin.into(), field: format!("contact.{}", e.field), problem: format!("expected {}, got {}", e.expected, e.value) })?;
