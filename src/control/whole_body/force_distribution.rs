@@ -96,10 +96,7 @@ impl FrictionConeDistribution {
         let mut info = DistributionInfo::default();
         for iteration in 1..=settings.max_iterations {
             // Gradient at the extrapolated point: A_i^T S r + eps W_i lambda_i.
-            let mut residual = -base_rows;
-            for (foot, f) in feet.iter().zip(&self.extrapolated) {
-                residual += foot.base_jacobian.transpose() * f;
-            }
+            let residual = base_row_residual(base_rows, feet, &self.extrapolated);
             let weighted = s.component_mul(&residual);
             let mut largest_move = 0.0f64;
             let mut restart = 0.0;
@@ -129,13 +126,15 @@ impl FrictionConeDistribution {
                 *previous = *force;
             }
         }
-        let mut residual = -base_rows;
-        for (foot, f) in feet.iter().zip(forces.iter()) {
-            residual += foot.base_jacobian.transpose() * f;
-        }
+        let residual = base_row_residual(base_rows, feet, forces);
         info.weighted_residual = root.component_mul(&residual).norm();
         info
     }
+}
+
+/// `A lambda - b_b`: the base wrench the forces give, less the one asked.
+fn base_row_residual(base_rows: &Vector6<f64>, feet: &[FootKinematics], forces: &[Vector3<f64>]) -> Vector6<f64> {
+    feet.iter().zip(forces).fold(-base_rows, |r, (foot, f)| r + foot.base_jacobian.transpose() * f)
 }
 
 /// Euclidean projection onto the cone `|f_t| <= mu f_z` about the world vertical: a force
