@@ -27,6 +27,14 @@ pub trait TerrainCostField {
     }
 }
 
+/// The costs of the `(2 radius + 1)^2` cells centred on `(x, y)`, one cell size apart, by
+/// columns (x outer, y inner): the ground a foot may end up on around a foothold.
+pub fn costs_around(terrain: &dyn TerrainCostField, x: f64, y: f64, radius: usize) -> impl Iterator<Item = f64> + '_ {
+    let r = terrain.resolution();
+    let k = radius as i64;
+    (-k..=k).flat_map(move |i| (-k..=k).map(move |j| terrain.cost(x + i as f64 * r, y + j as f64 * r)))
+}
+
 impl<T: TerrainCostField + ?Sized> TerrainCostField for &T {
     fn cost(&self, x: f64, y: f64) -> f64 {
         (**self).cost(x, y)

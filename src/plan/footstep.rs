@@ -26,7 +26,7 @@
 //! where consecutive support triangles are disjoint.
 
 use super::body::BodyPose;
-use super::TerrainCostField;
+use super::{costs_around, TerrainCostField};
 use crate::model::description::LEG_ORDER;
 use nalgebra::{Vector2, Vector3};
 
@@ -229,16 +229,8 @@ fn best_foothold(terrain: &dyn TerrainCostField, params: &FootstepParams, feet: 
 /// `c_t`: the mean terrain cost over the `(2 radius + 1)^2` cells centred on `p` (unknown or
 /// non-finite cells count as forbidden, 1).
 fn foot_area_cost(terrain: &dyn TerrainCostField, p: Vector2<f64>, radius: usize) -> f64 {
-    let r = terrain.resolution();
-    let k = radius as i64;
-    let mut sum = 0.0;
-    for i in -k..=k {
-        for j in -k..=k {
-            let c = terrain.cost(p.x + i as f64 * r, p.y + j as f64 * r);
-            sum += if c.is_finite() { c.min(1.0) } else { 1.0 };
-        }
-    }
-    sum / ((2 * k + 1) * (2 * k + 1)) as f64
+    let sum = costs_around(terrain, p.x, p.y, radius).fold(0.0, |sum, c| sum + if c.is_finite() { c.min(1.0) } else { 1.0 });
+    sum / ((2 * radius + 1) * (2 * radius + 1)) as f64
 }
 
 /// `c_c`: the highest terrain along the straight swing path above the higher end, as a

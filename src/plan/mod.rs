@@ -8,4 +8,4 @@ mod cost_field;
 pub mod footstep;
 pub mod search;
 
-pub use cost_field::TerrainCostField;
+pub use cost_field::{costs_around, TerrainCostField};

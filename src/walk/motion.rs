@@ -91,8 +91,7 @@ impl Posture {
 
 /// Whether a cell next to the foothold `p` (or its own) is forbidden (terrain cost 1).
 fn next_to_forbidden_ground(terrain: &dyn TerrainCostField, p: Point2<f64>) -> bool {
-    let r = terrain.resolution();
-    (-1..=1).any(|i| (-1..=1).any(|j| terrain.cost(p.x + i as f64 * r, p.y + j as f64 * r) >= 1.0))
+    crate::plan::costs_around(terrain, p.x, p.y, 1).any(|c| c >= 1.0)
 }
 
 /// Orientation `Rz(yaw) Ry(pitch) Rx(roll)` and its world angular velocity for the rates.
