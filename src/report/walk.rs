@@ -177,7 +177,7 @@ impl TrialReport {
             map_updates: outcome.map_updates,
             max_map_update_ms: outcome.max_map_update_ms,
             bad_footholds: outcome.bad_footholds.len(),
-            clipped_ticks: outcome.clipped_ticks,
+            clipped_ticks: outcome.controller.clipped_ticks,
             plan_timings: plans,
         }
     }

@@ -221,8 +221,8 @@ pub struct TrialOutcome {
     /// The largest horizontal distance a foot moved while in stance, from the end of one
     /// swing to the start of its next (m).
     pub max_stance_slip: f64,
-    pub clipped_ticks: u64,
-    /// The whole-body controller's counts over the trial.
+    /// The whole-body controller's counts over the trial (clipped torque ticks, force
+    /// redistributions, ...).
     pub controller: WholeBodyStats,
     pub trajectory: Trajectory,
     /// The map at the end (for drawing).
@@ -512,7 +512,6 @@ pub fn run_trial(model: &Model, scenario: &ScenarioSpec, config: &WalkConfig, se
         bad_footholds,
         touchdowns,
         max_stance_slip,
-        clipped_ticks: controller.stats().clipped_ticks,
         controller: controller.stats().clone(),
         trajectory,
         map,
