@@ -170,6 +170,7 @@ pub enum TaskError {
 /// The embedded tasks (Neunert 2017, sec. V), as `(name, TOML text)`.
 pub const EMBEDDED_TASKS: &[(&str, &str)] = &[
     ("gallop", include_str!("../../tasks/gallop.toml")),
+    ("trot", include_str!("../../tasks/trot.toml")),
     ("squat_jump", include_str!("../../tasks/squat_jump.toml")),
     ("rearing", include_str!("../../tasks/rearing.toml")),
     ("diagonal_balance", include_str!("../../tasks/diagonal_balance.toml")),
