@@ -4,6 +4,7 @@
 use legwork::model::embedded;
 use legwork::ocp::{settled_stance, solve_task, Rerun, Snapshot, SolveOptions, TaskRun, TaskSpec, EMBEDDED_TASKS};
 use legwork::terrain::Plane;
+use legwork::slq::Termination;
 
 const MINIMAL: &str = r#"
 name = "shift"
@@ -206,6 +207,7 @@ fn turn_reaches_45_degrees_in_place() {
 #[test]
 fn sidestep_reaches_30_cm_to_the_left() {
     let (_, run) = solve("sidestep");
+    assert!(!matches!(run.solution.termination, Termination::MaxIterations), "sidestep did not converge: {:?}", run.solution.termination);
     let (plan, tracking) = (&run.plan_metrics, tracking_metrics(&run));
     eprintln!("sidestep: y {:.3} m (tracking {:.3}), lift-offs {:?}", plan.final_base_position[1], tracking.final_base_position[1], plan.liftoffs);
     assert!((plan.final_base_position[1] - 0.3).abs() <= 0.05);
