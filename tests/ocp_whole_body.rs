@@ -54,6 +54,17 @@ fn hyq_shifts_its_base_forward() {
     };
     let pd = JointPd::standing(&model, dt).unwrap();
     let sol = Slq::new(&problem, SlqSettings { threads: 2, ..Default::default() }).unwrap().solve(&PdPolicy(&pd), |_| {}).unwrap();
+    // The line search rolls out one step size per thread at a time and keeps the largest
+    // that decreases the cost: the same steps and trajectory on 1, 2 or 3 threads. Not
+    // vacuous: the contact problem rejects full steps.
+    let alphas: Vec<f64> = sol.iterations.iter().map(|log| log.alpha).collect();
+    assert!(alphas.iter().any(|&a| a < 1.0), "{alphas:?}");
+    for threads in [1, 3] {
+        let other = Slq::new(&problem, SlqSettings { threads, ..Default::default() }).unwrap().solve(&PdPolicy(&pd), |_| {}).unwrap();
+        let steps = |s: &legwork::slq::SlqSolution<RobotState>| s.iterations.iter().map(|log| (log.alpha, log.cost)).collect::<Vec<_>>();
+        assert_eq!(steps(&sol), steps(&other), "{threads} threads");
+        assert!(sol.states.iter().zip(&other.states).all(|(a, b)| a.q == b.q && a.v == b.v), "{threads} threads");
+    }
     let last = sol.states.last().unwrap();
     eprintln!(
         "{:?} after {} iterations; cost {:.3e} -> {:.3e}; final base x {:.4} (target {:.4})",

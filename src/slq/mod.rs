@@ -171,8 +171,8 @@ pub struct Slq<'p, P: Problem> {
     settings: SlqSettings,
     states: Vec<P::State>,
     inputs: Vec<DVector<f64>>,
-    trial_states: Vec<P::State>,
-    trial_inputs: Vec<DVector<f64>>,
+    /// One trial trajectory per thread: the line search rolls out that many step sizes at once.
+    trials: Vec<Trial<P::State>>,
     gains: Vec<DMatrix<f64>>,
     feedforward: Vec<DVector<f64>>,
     derivatives: Vec<KnotDerivatives>,
@@ -181,9 +181,23 @@ pub struct Slq<'p, P: Problem> {
     terminal_gradient: DVector<f64>,
     terminal_hessian: DMatrix<f64>,
     riccati: RiccatiScratch,
-    dx: DVector<f64>,
     regularization: f64,
     pool: rayon::ThreadPool,
+}
+
+/// A line-search rollout: its trajectory, scratch and outcome.
+struct Trial<S> {
+    states: Vec<S>,
+    inputs: Vec<DVector<f64>>,
+    dx: DVector<f64>,
+    /// The trial's cost, `None` if the rollout left the valid states or went non-finite.
+    cost: Option<f64>,
+}
+
+/// `alpha / alpha_d^times` by repeated division: bit for bit the step sizes of a line
+/// search that tries them one at a time.
+fn divided(alpha: f64, divisor: f64, times: usize) -> f64 {
+    (0..times).fold(alpha, |a, _| a / divisor)
 }
 
 /// Scratch of the backward pass.
@@ -224,8 +238,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             problem,
             states: vec![x0.clone(); n + 1],
             inputs: vec![DVector::zeros(nu); n],
-            trial_states: vec![x0.clone(); n + 1],
-            trial_inputs: vec![DVector::zeros(nu); n],
+            trials: (0..threads).map(|_| Trial { states: vec![x0.clone(); n + 1], inputs: vec![DVector::zeros(nu); n], dx: DVector::zeros(nx), cost: None }).collect(),
             gains: vec![DMatrix::zeros(nu, nx); n],
             feedforward: vec![DVector::zeros(nu); n],
             derivatives: vec![KnotDerivatives::zeros(nx, nu); n],
@@ -247,7 +260,6 @@ impl<'p, P: Problem> Slq<'p, P> {
                 q_u: DVector::zeros(nu),
                 chol: SmallCholesky::new(nu),
             },
-            dx: DVector::zeros(nx),
             regularization: settings.initial_regularization,
             settings,
             pool,
@@ -376,39 +388,68 @@ impl<'p, P: Problem> Slq<'p, P> {
     /// Step 4: rollouts with `u = u_n + alpha l + K (x (-) x_n)`, `alpha = 1, 1/alpha_d, ...`
     /// until the cost is below `cost`; the accepted trajectory replaces the nominal one.
     /// Returns `(alpha, new cost)`, or `None` if no trial decreased the cost.
+    ///
+    /// The trials are rolled out one per thread at a time (`alpha_j = alpha / alpha_d^j`,
+    /// j = 0 .. threads - 1) and the largest decreasing step is taken: the same step as
+    /// trying them one by one, in fewer rounds.
     fn line_search(&mut self, cost: f64) -> Option<(f64, f64)> {
         let problem = self.problem;
-        let n = problem.horizon();
+        let divisor = self.settings.alpha_divisor;
+        let (states, inputs, feedforward, gains) = (&self.states, &self.inputs, &self.feedforward, &self.gains);
         let mut alpha = 1.0;
-        for _ in 0..self.settings.max_line_search_steps {
-            let ws = &mut self.workspaces[0];
-            self.trial_states[0].clone_from(&self.states[0]);
-            let mut trial_cost = 0.0;
-            let mut valid = true;
-            for k in 0..n {
-                problem.difference(&self.states[k], &self.trial_states[k], &mut self.dx);
-                let u = &mut self.trial_inputs[k];
-                u.copy_from(&self.inputs[k]);
-                u.axpy(alpha, &self.feedforward[k], 1.0);
-                u.gemv(1.0, &self.gains[k], &self.dx, 1.0);
-                let (head, tail) = self.trial_states.split_at_mut(k + 1);
-                trial_cost += problem.step(ws, k, &head[k], u, &mut tail[0]);
-                if !problem.is_valid(&tail[0]) || !trial_cost.is_finite() {
-                    valid = false;
-                    break;
+        let mut remaining = self.settings.max_line_search_steps;
+        while remaining > 0 {
+            let round = remaining.min(self.trials.len());
+            let jobs = self.trials[..round].iter_mut().zip(self.workspaces.iter_mut()).enumerate();
+            self.pool.install(|| {
+                jobs.par_bridge().for_each(|(j, (trial, ws))| {
+                    let step = divided(alpha, divisor, j);
+                    trial.cost = Self::trial_rollout(problem, ws, states, inputs, feedforward, gains, step, trial);
+                });
+            });
+            for j in 0..round {
+                if let Some(trial_cost) = self.trials[j].cost.filter(|&c| c < cost) {
+                    std::mem::swap(&mut self.states, &mut self.trials[j].states);
+                    std::mem::swap(&mut self.inputs, &mut self.trials[j].inputs);
+                    return Some((divided(alpha, divisor, j), trial_cost));
                 }
             }
-            if valid {
-                trial_cost += problem.terminal_cost(ws, &self.trial_states[n]);
-                if trial_cost.is_finite() && trial_cost < cost {
-                    std::mem::swap(&mut self.states, &mut self.trial_states);
-                    std::mem::swap(&mut self.inputs, &mut self.trial_inputs);
-                    return Some((alpha, trial_cost));
-                }
-            }
-            alpha /= self.settings.alpha_divisor;
+            alpha = divided(alpha, divisor, round);
+            remaining -= round;
         }
         None
+    }
+
+    /// One line-search rollout from the nominal initial state with step `alpha`: the
+    /// trial's cost, or `None` if it left the valid states or its cost went non-finite.
+    #[allow(clippy::too_many_arguments)]
+    fn trial_rollout(
+        problem: &P,
+        ws: &mut P::Workspace,
+        states: &[P::State],
+        inputs: &[DVector<f64>],
+        feedforward: &[DVector<f64>],
+        gains: &[DMatrix<f64>],
+        alpha: f64,
+        trial: &mut Trial<P::State>,
+    ) -> Option<f64> {
+        let n = problem.horizon();
+        trial.states[0].clone_from(&states[0]);
+        let mut cost = 0.0;
+        for k in 0..n {
+            problem.difference(&states[k], &trial.states[k], &mut trial.dx);
+            let u = &mut trial.inputs[k];
+            u.copy_from(&inputs[k]);
+            u.axpy(alpha, &feedforward[k], 1.0);
+            u.gemv(1.0, &gains[k], &trial.dx, 1.0);
+            let (head, tail) = trial.states.split_at_mut(k + 1);
+            cost += problem.step(ws, k, &head[k], u, &mut tail[0]);
+            if !problem.is_valid(&tail[0]) || !cost.is_finite() {
+                return None;
+            }
+        }
+        cost += problem.terminal_cost(ws, &trial.states[n]);
+        cost.is_finite().then_some(cost)
     }
 
     /// RMS over knots of the feedforward increments.
