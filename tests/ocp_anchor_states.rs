@@ -30,7 +30,8 @@ fn extended_linearization_matches_central_differences_through_the_anchor_update(
     let model = embedded::load("hyq").unwrap();
     let ground = Plane::flat(0.0);
     let settled = settled_stance(&model, &ground, Default::default(), 0.3).unwrap();
-    let spec = TaskSpec::embedded("sidestep").unwrap();
+    // A task on the default contact model, the one the stance was settled on.
+    let spec = TaskSpec::embedded("turn").unwrap();
     let mut problem = spec.problem(&model, &ground, settled.clone(), "test").unwrap();
     problem.anchor_states = true;
     let nv = model.nv;
