@@ -132,6 +132,7 @@ pub fn run(args: SolveArgs) -> Result<()> {
     row("lift-offs per foot", &|m| m.liftoffs.iter().map(|l| l.to_string()).collect::<Vec<_>>().join("/"));
     row("foot slide [mm]", &|m| m.slide.iter().map(|s| format!("{:.0}", s * 1e3)).collect::<Vec<_>>().join("/"));
     row("diagonal correlation", &|m| m.diagonal_correlation.iter().map(|c| c.map_or("-".into(), |c| format!("{c:.2}"))).collect::<Vec<_>>().join("/"));
+    row("past joint limit [deg]", &|m| m.joint_limit_excess.as_ref().map_or("none".into(), |e| format!("{:.0} {}", e.excess_deg, e.joint.trim_end_matches("_joint"))));
     for w in &spec.waypoints {
         let show = |traj: Option<&legwork::io::Trajectory>| {
             traj.map_or("failed".to_string(), |traj| {

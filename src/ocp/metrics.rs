@@ -34,6 +34,35 @@ pub struct MotionMetrics {
     /// Correlation of the contact flags of the diagonal pairs (first with fourth foot, second
     /// with third: LF-RH and RF-LH in legwork's leg order), `None` when a foot never changes.
     pub diagonal_correlation: [Option<f64>; 2],
+    /// The farthest any joint went past its position limit, `None` if every joint stayed
+    /// in its range. Neither the simulator nor the optimizer has joint stops: this says
+    /// whether the motion is one the hardware could make.
+    pub joint_limit_excess: Option<LimitExcess>,
+}
+
+/// A joint past its position limit: which, by how much (deg) and when (s).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LimitExcess {
+    pub joint: String,
+    pub excess_deg: f64,
+    pub t: f64,
+}
+
+/// The largest excursion past a position limit over the knots of `traj`.
+fn joint_limit_excess(model: &Model, traj: &Trajectory) -> Option<LimitExcess> {
+    let mut worst: Option<LimitExcess> = None;
+    for knot in &traj.knots {
+        for joint in &model.joints {
+            for k in 0..joint.nq.min(joint.limits.lower.len()) {
+                let q = knot.q[joint.idx_q + k];
+                let excess = (joint.limits.lower[k] - q).max(q - joint.limits.upper[k]);
+                if excess > 0.0 && worst.as_ref().is_none_or(|w| excess.to_degrees() > w.excess_deg) {
+                    worst = Some(LimitExcess { joint: joint.name.clone(), excess_deg: excess.to_degrees(), t: knot.t });
+                }
+            }
+        }
+    }
+    worst
 }
 
 fn rpy(q: &[f64]) -> [f64; 3] {
@@ -140,6 +169,38 @@ impl MotionMetrics {
             duty_factor: in_contact.iter().map(|&c| c as f64 / knots.len() as f64).collect(),
             slide,
             diagonal_correlation,
+            joint_limit_excess: joint_limit_excess(model, traj),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::Knot;
+    use crate::terrain::TerrainSpec;
+    use crate::model::embedded;
+
+    /// Three knots of HyQ in its default stance, the second with the LF knee 0.3 rad past
+    /// its upper limit and the RH HAA 0.1 rad past its lower one.
+    #[test]
+    fn the_worst_joint_limit_excess_is_named_with_its_time() {
+        let model = embedded::load("hyq").unwrap();
+        let stance = model.reference_configuration("standing").unwrap().clone();
+        let mut traj = Trajectory::new(&model, "limits", 0.1, TerrainSpec::flat());
+        let knot = |t: f64, q: &DVector<f64>| Knot { t, q: q.iter().copied().collect(), v: vec![0.0; model.nv], tau: vec![0.0; model.nv - 6], contact_force: vec![[0.0; 3]; 4], in_contact: vec![true; 4], feedback_gain: None };
+        traj.knots.push(knot(0.0, &stance));
+        assert_eq!(MotionMetrics::of(&model, &traj).joint_limit_excess, None);
+        let mut bent = stance.clone();
+        let (kfe, haa) = (model.q_index("lf_kfe_joint").unwrap(), model.q_index("rh_haa_joint").unwrap());
+        let joint = |name: &str| model.joints.iter().find(|j| j.name == name).unwrap();
+        bent[kfe] = joint("lf_kfe_joint").limits.upper[0] + 0.3;
+        bent[haa] = joint("rh_haa_joint").limits.lower[0] - 0.1;
+        traj.knots.push(knot(0.1, &bent));
+        traj.knots.push(knot(0.2, &stance));
+        let excess = MotionMetrics::of(&model, &traj).joint_limit_excess.unwrap();
+        assert_eq!(excess.joint, "lf_kfe_joint");
+        assert!((excess.excess_deg - 0.3f64.to_degrees()).abs() < 1e-9, "{excess:?}");
+        assert_eq!(excess.t, 0.1);
     }
 }

@@ -33,7 +33,7 @@ pub enum SolveError {
 /// A closed-loop re-run: its trajectory and figures, or how it failed (a divergence is a
 /// result, reported, not an error of the whole solve).
 pub enum Rerun {
-    Completed { trajectory: Box<Trajectory>, metrics: MotionMetrics },
+    Completed { trajectory: Box<Trajectory>, metrics: Box<MotionMetrics> },
     Failed { reason: String },
 }
 
@@ -157,7 +157,7 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
                 let mut trajectory = run.trajectory;
                 trajectory.metadata.scenario = format!("{what}: {}", spec.name);
                 let metrics = MotionMetrics::of(model, &trajectory);
-                Rerun::Completed { trajectory: Box::new(trajectory), metrics }
+                Rerun::Completed { trajectory: Box::new(trajectory), metrics: Box::new(metrics) }
             }
             Err(SimError::Diverged { step, t, reason, .. }) => Rerun::Failed { reason: format!("diverged at t = {t:.3} s (step {step}): {reason}") },
             Err(e) => Rerun::Failed { reason: e.to_string() },
