@@ -97,3 +97,71 @@ fn extended_linearization_matches_central_differences_through_the_anchor_update(
         }
     }
 }
+
+#[test]
+fn extended_linearization_with_joints_past_their_stops() {
+    // The settled stance of a HyQ whose LF knee and RH hip stops sit inside it: the stops'
+    // force and its derivatives enter the extended linearization as in the plain one.
+    let hyq = embedded::load("hyq").unwrap();
+    let ground = Plane::flat(0.0);
+    let settled = settled_stance(&hyq, &ground, Default::default(), 0.3).unwrap();
+    let mut model = hyq.clone();
+    for (name, upper, penetration) in [("lf_kfe_joint", true, 0.04), ("rh_hfe_joint", false, 0.012)] {
+        let id = model.joint_id(name).unwrap();
+        let j = &mut model.joints[id];
+        let angle = settled.q[j.idx_q];
+        if upper {
+            j.limits.upper[0] = angle - penetration;
+        } else {
+            j.limits.lower[0] = angle + penetration;
+        }
+    }
+    let spec = TaskSpec::embedded("sidestep").unwrap();
+    let mut problem = spec.problem(&model, &ground, settled.clone(), "test").unwrap();
+    problem.anchor_states = true;
+    assert!(problem.joint_limits.is_some(), "tasks have their stops on");
+    let nv = model.nv;
+    let (nx, nu) = (problem.nx(), problem.nu());
+    let mut x = settled.clone();
+    x.v[6 + 2] = 0.4; // LF knee further into its stop
+    x.v[6 + 10] = -0.2; // RH HFE further into its stop
+    let u = DVector::from_fn(nu, |i, _| 10.0 * (i as f64 - 5.5));
+    let mut ws = problem.workspace();
+    let mut d = KnotDerivatives::zeros(nx, nu);
+    let mut next = x.clone();
+    problem.step_with_derivatives(&mut ws, 0, &x, &u, &mut next, &mut d);
+    let nominal = next.clone();
+    let h = 1e-7;
+    let (mut plus, mut minus) = (nominal.clone(), nominal.clone());
+    let (mut dplus, mut dminus) = (DVector::zeros(nx), DVector::zeros(nx));
+    for k in 0..nx + nu {
+        let (mut xp, mut xm, mut up, mut um) = (x.clone(), x.clone(), u.clone(), u.clone());
+        if k < nx {
+            if (k >= 2 * nv) && x.anchors[(k - 2 * nv) / ANCHOR_DIM].is_none() {
+                continue;
+            }
+            let e = DVector::from_fn(nx, |i, _| if i == k { h } else { 0.0 });
+            xp = perturbed(&problem, &x, &e);
+            xm = perturbed(&problem, &x, &(-e));
+        } else {
+            up[k - nx] += h;
+            um[k - nx] -= h;
+        }
+        problem.step(&mut ws, 0, &xp, &up, &mut plus);
+        problem.step(&mut ws, 0, &xm, &um, &mut minus);
+        problem.difference(&nominal, &plus, &mut dplus);
+        problem.difference(&nominal, &minus, &mut dminus);
+        let numeric = (&dplus - &dminus) / (2.0 * h);
+        let analytic = if k < nx { d.a.column(k).into_owned() } else { d.b.column(k - nx).into_owned() };
+        let err = (&analytic - &numeric).norm() / (1.0 + numeric.norm());
+        assert!(err < 1e-5, "column {k}: relative error {err:.2e}\nanalytic {}\nnumeric {}", analytic.transpose(), numeric.transpose());
+    }
+    // Without the stops the knee's own column differs: the stops are in the linearization.
+    let mut free = spec.problem(&model, &ground, settled.clone(), "test").unwrap();
+    free.joint_limits = None;
+    let mut ws_free = free.workspace();
+    let mut d_free = KnotDerivatives::zeros(nx, nu);
+    free.step_with_derivatives(&mut ws_free, 0, &x, &u, &mut next, &mut d_free);
+    let knee = 6 + 2;
+    assert!((d.a[(nv + knee, knee)] - d_free.a[(nv + knee, knee)]).abs() > 1.0, "dv'/dq of the LF knee: {} with stops, {} without", d.a[(nv + knee, knee)], d_free.a[(nv + knee, knee)]);
+}

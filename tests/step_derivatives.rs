@@ -124,3 +124,48 @@ fn in_flight() {
     let s = state(&model, &ground, 0.5, 0.05, 0.5);
     check(&model, &ground, &s, "HyQ in flight");
 }
+
+/// `model` with position limits moved next to the configuration `q`: for each
+/// `(joint, upper, penetration)` that joint's upper (or lower) stop is put `penetration`
+/// rad inside `q`'s angle, so that `q` is that far past it.
+fn with_stops_past(model: &Model, q: &DVector<f64>, stops: &[(&str, bool, f64)]) -> Model {
+    let mut model = model.clone();
+    for &(name, upper, penetration) in stops {
+        let id = model.joint_id(name).unwrap();
+        let j = &mut model.joints[id];
+        let angle = q[j.idx_q];
+        if upper {
+            j.limits.upper[0] = angle - penetration;
+        } else {
+            j.limits.lower[0] = angle + penetration;
+        }
+    }
+    model
+}
+
+#[test]
+fn standing_with_joints_past_their_stops() {
+    // Four feet in contact and four stops engaged: past the smoothing band (0.03, 0.05 rad),
+    // inside it (0.01 rad), and one inside it whose joint leaves the stop fast enough that
+    // the damper's push is clamped to zero (k s + d s' pdot = 12.5 - 25 N m).
+    let hyq = embedded::load("hyq").unwrap();
+    let ground = Plane::flat(0.0);
+    let mut s = state(&hyq, &ground, 0.0, 0.4, 0.05);
+    let model = with_stops_past(&hyq, &s.q, &[("lf_kfe_joint", true, 0.03), ("rh_kfe_joint", false, 0.01), ("lh_hfe_joint", false, 0.05), ("rf_haa_joint", true, 0.01)]);
+    let rf_haa = model.joints[model.joint_id("rf_haa_joint").unwrap()].idx_v;
+    s.v[rf_haa] = -10.0;
+    let ws = ContactModelWorkspace::new(&model, &ground, SimConfig::default().contact);
+    let mut tau = DVector::zeros(model.nv);
+    ws.joint_stops().add_torques(&s.q, &s.v, &mut tau);
+    assert_eq!(tau.iter().filter(|t| **t != 0.0).count(), 3, "three stops push, the fourth is clamped: {tau}");
+    check(&model, &ground, &s, "HyQ standing past its stops");
+}
+
+#[test]
+fn in_flight_with_joints_past_their_stops() {
+    let hyq = embedded::load("hyq").unwrap();
+    let ground = Plane::flat(0.0);
+    let s = state(&hyq, &ground, 0.5, 0.05, 0.5);
+    let model = with_stops_past(&hyq, &s.q, &[("lf_kfe_joint", true, 0.3), ("rf_kfe_joint", true, 0.015), ("lh_haa_joint", false, 0.1), ("rh_hfe_joint", true, 0.005)]);
+    check(&model, &ground, &s, "HyQ in flight past its stops");
+}

@@ -28,7 +28,7 @@ pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, Ta
 use crate::contact::ContactParams;
 use crate::control::JointPd;
 use crate::model::Model;
-use crate::sim::{AnchorStepDerivatives, ContactModelWorkspace, StepDerivatives, ANCHOR_DIM};
+use crate::sim::{AnchorStepDerivatives, ContactModelWorkspace, JointLimitParams, StepDerivatives, ANCHOR_DIM};
 use crate::slq::{KnotDerivatives, Policy, Problem};
 use crate::terrain::Terrain;
 use nalgebra::{DMatrix, DVector, Vector3};
@@ -120,6 +120,9 @@ pub struct WholeBodyProblem<'a> {
     pub model: &'a Model,
     pub terrain: &'a dyn Terrain,
     pub contact: ContactParams,
+    /// The joints' mechanical stops ([`crate::sim::SimConfig::joint_limits`]; `None`: off),
+    /// in the dynamics and their linearization as in the simulator.
+    pub joint_limits: Option<JointLimitParams>,
     /// Time between knots (s): the input is held over it (zero-order hold).
     pub dt: f64,
     /// Integration steps per knot interval: the dynamics integrate `substeps` steps of
@@ -279,7 +282,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
     fn workspace(&self) -> WholeBodyWorkspace<'a> {
         let (model, nv) = (self.model, self.model.nv);
         WholeBodyWorkspace {
-            dynamics: ContactModelWorkspace::new(model, self.terrain, self.contact),
+            dynamics: ContactModelWorkspace::new(model, self.terrain, self.contact).with_joint_limits(self.joint_limits),
             derivatives: StepDerivatives::new(model),
             anchor_derivatives: AnchorStepDerivatives::new(nv),
             deviation: StateDeviation::new(model),

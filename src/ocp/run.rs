@@ -67,7 +67,7 @@ pub struct TaskRun {
 pub fn solution_trajectory(problem: &WholeBodyProblem<'_>, solution: &SlqSolution<RobotState>, scenario: &str) -> Trajectory {
     let model = problem.model;
     let mut traj = Trajectory::new(model, scenario, problem.dt, problem.terrain.spec());
-    let mut ws = crate::sim::ContactModelWorkspace::new(model, problem.terrain, problem.contact);
+    let mut ws = crate::sim::ContactModelWorkspace::new(model, problem.terrain, problem.contact).with_joint_limits(problem.joint_limits);
     let n = solution.inputs.len();
     for (k, x) in solution.states.iter().enumerate() {
         ws.evaluate_contacts(&x.q, &x.v, &x.anchors);
@@ -168,10 +168,11 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     // interval. At a finer physics step than the optimizer's, the stiff contact is a
     // different system at touch-down, for which the time-varying LQR gains are not made.
     let physics_dt = problem.dt / problem.substeps as f64;
-    let policy_config = SimConfig { contact, physics_dt, control_dt: problem.dt, record_dt: problem.dt, ..SimConfig::default() };
+    let joint_limits = problem.joint_limits;
+    let policy_config = SimConfig { contact, joint_limits, physics_dt, control_dt: problem.dt, record_dt: problem.dt, ..SimConfig::default() };
     let policy_rerun = rerun(&mut SlqPolicyController::new(&problem, &solution), "SLQ policy re-run", policy_config)?;
     // (b) The tracking controller at 1 kHz on the simulator's own 2 kHz physics.
-    let config = SimConfig { contact, ..SimConfig::default() };
+    let config = SimConfig { contact, joint_limits, ..SimConfig::default() };
     let mut tracking = TrackingController::with_default_gains(model, &plan, config.control_dt)?;
     let tracking_rerun = rerun(&mut tracking, "tracking-controller re-run", config)?;
     let plan_metrics = MotionMetrics::of(model, &plan);

@@ -278,6 +278,8 @@ impl TaskSpec {
             model,
             terrain,
             contact: self.contact.unwrap_or_default(),
+            // The physical default: the robot's mechanical stops, as in the re-runs.
+            joint_limits: Some(crate::sim::JointLimitParams::default()),
             dt: self.dt,
             substeps: self.substeps.unwrap_or(1),
             knots: self.knots(),

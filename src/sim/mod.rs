@@ -8,8 +8,10 @@
 //! 2. foot positions and velocities from forward kinematics, contact forces from
 //!    [`crate::contact::contact_force`] against the [`Terrain`], and any active [`Push`] on
 //!    the base, become external forces on the bodies;
-//! 3. ABA with those external forces gives `qdd`; the integrator advances `(q, v)`;
-//! 4. the anchors are updated ([`crate::contact::update_anchor`]); a non-finite or
+//! 3. the joint stops ([`JointLimitParams`]) add their generalized force to the torques
+//!    of every joint past a position limit;
+//! 4. ABA with those torques and external forces gives `qdd`; the integrator advances `(q, v)`;
+//! 5. the anchors are updated ([`crate::contact::update_anchor`]); a non-finite or
 //!    exploding state stops the run with [`SimError::Diverged`], naming the step and state.
 //!
 //! The same [`ContactModelWorkspace::step`] is what a trajectory optimizer can call as its
@@ -27,10 +29,12 @@
 //! ```
 
 mod anchor_states;
+mod joint_limits;
 mod step_derivatives;
 mod workspace;
 
 pub use anchor_states::{AnchorStepDerivatives, ANCHOR_DIM};
+pub use joint_limits::{JointLimitParams, JointLimitParamsError, JointStops, StopForce};
 pub use step_derivatives::StepDerivatives;
 pub use workspace::{ContactModelWorkspace, FootState};
 
@@ -55,7 +59,8 @@ pub enum Integrator {
 }
 
 /// Simulation settings. Defaults: 2 kHz physics, 1 kHz control, semi-implicit Euler,
-/// the default contact parameters, knots recorded at the control rate.
+/// the default contact parameters, the default joint stops, knots recorded at the control
+/// rate.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SimConfig {
     /// Physics time step (s).
@@ -64,6 +69,9 @@ pub struct SimConfig {
     pub control_dt: f64,
     pub integrator: Integrator,
     pub contact: ContactParams,
+    /// The joints' mechanical stops at their position limits (on by default: a plan that
+    /// passes through them is not physical); `None` switches them off.
+    pub joint_limits: Option<JointLimitParams>,
     /// Time between recorded knots (s): a whole multiple of `physics_dt`.
     pub record_dt: f64,
     /// Clip joint torques to the model's effort limits (on by default).
@@ -79,6 +87,7 @@ impl Default for SimConfig {
             control_dt: 0.001,
             integrator: Integrator::SemiImplicitEuler,
             contact: ContactParams::default(),
+            joint_limits: Some(JointLimitParams::default()),
             record_dt: 0.001,
             enforce_effort_limits: true,
             max_speed: 200.0,
@@ -109,6 +118,9 @@ impl SimConfig {
             return Err(SimError::Config { field: "max_speed", problem: format!("expected a positive speed, got {}", self.max_speed) });
         }
         self.contact.validate()?;
+        if let Some(stops) = &self.joint_limits {
+            stops.validate()?;
+        }
         Ok((ratio("control_dt", self.control_dt)?, ratio("record_dt", self.record_dt)?))
     }
 }
@@ -182,6 +194,8 @@ pub enum SimError {
     Config { field: &'static str, problem: String },
     #[error(transparent)]
     Contact(#[from] ContactParamsError),
+    #[error(transparent)]
+    JointLimits(#[from] JointLimitParamsError),
     #[error("initial state: {0}")]
     InitialState(String),
     #[error("simulation diverged at step {step} (t = {t:.4} s): {reason}\n  q = {q:?}\n  v = {v:?}")]
@@ -278,7 +292,7 @@ impl<'a> Simulator<'a> {
         model.check_configuration(&q0).map_err(|e| SimError::InitialState(e.to_string()))?;
         let v0 = v0.unwrap_or_else(|| DVector::zeros(model.nv));
         model.check_tangent("initial velocity", &v0).map_err(|e| SimError::InitialState(e.to_string()))?;
-        let workspace = ContactModelWorkspace::new(model, terrain, config.contact);
+        let workspace = ContactModelWorkspace::new(model, terrain, config.contact).with_joint_limits(config.joint_limits);
         Ok(Self {
             model,
             state: SimState { t: 0.0, q: q0, v: v0, anchors: vec![None; model.feet.len()] },

@@ -4,7 +4,9 @@
 //!
 //! Forward dynamics with contact: `M(q) a + nle(q, v) = tau + tau_c(q, v)`, with the contact
 //! generalized force of the feet `tau_c = sum_i J_i(q)^T lambda_i(p_i(q), pdot_i(q, v))`
-//! (Neunert 2017, eq. 6). Differentiating the identity `RNEA(q, v, a) = tau + tau_c`:
+//! (Neunert 2017, eq. 6) plus the joint stops' diagonal generalized force `tau_l(q, v)`
+//! ([`super::JointLimitParams`]), which enters below as part of `tau_c`. Differentiating the
+//! identity `RNEA(q, v, a) = tau + tau_c`:
 //!
 //! ```text
 //! da/dq   = M^-1 (dtau_c/dq - dRNEA/dq)
@@ -12,7 +14,8 @@
 //! da/dtau = M^-1 S^T
 //! ```
 //!
-//! with RNEA's analytic derivatives (Carpentier & Mansard 2018) and `dtau_c` from the
+//! with RNEA's analytic derivatives (Carpentier & Mansard 2018), the stops' `dtau_l/dq`,
+//! `dtau_l/dv` (diagonal, [`super::JointStops::add_derivatives`]), and `dtau_c` from the
 //! contact model's derivatives ([`crate::contact::ContactForce`]) and the world-frame joint
 //! axes `S_k` (Jacobian columns): for a foot at `p` with force `lambda`, the spatial force at
 //! the world origin is `F = (lambda, p x lambda)` and `tau_c[k] = S_k . F` for every degree
@@ -118,6 +121,7 @@ impl StepDerivatives {
         // dRNEA/dq, dRNEA/dv at the actual acceleration, and M^-1.
         compute_rnea_derivatives(model, &mut ws.data, q, v, &self.acc);
         self.contact_force_derivatives(ws, q, v);
+        ws.stops.add_derivatives(q, v, &mut self.dtau_c_dq, &mut self.dtau_c_dv);
         self.dtau_c_dq -= &ws.data.dtau_dq;
         self.dtau_c_dv -= &ws.data.dtau_dv;
         compute_minverse(model, &mut ws.data, q);

@@ -1,6 +1,8 @@
 //! The discrete dynamics through contact, allocation-free: contact forces at the feet,
-//! ABA with external forces, one integration step. One workspace per thread.
+//! the joint stops' generalized force, ABA with external forces, one integration step.
+//! One workspace per thread.
 
+use super::joint_limits::{JointLimitParams, JointStops};
 use crate::contact::{contact_force, update_anchor, ContactForce, ContactParams, Surface};
 use crate::dynamics::{aba_with_external_forces, forward_kinematics_velocity, integrate, Data};
 use crate::model::Model;
@@ -21,7 +23,7 @@ pub struct FootState {
 }
 
 /// Everything one physics step needs, allocated once: a dynamics [`Data`], the external
-/// forces per body, the feet, and integrator scratch.
+/// forces per body, the feet, the joint stops, and integrator scratch.
 pub struct ContactModelWorkspace<'a> {
     pub(super) model: &'a Model,
     pub(super) terrain: &'a dyn Terrain,
@@ -30,6 +32,9 @@ pub struct ContactModelWorkspace<'a> {
     pub(super) f_ext: Vec<Force>,
     pub(super) feet: Vec<FootState>,
     feet_at_start: Vec<FootState>,
+    pub(super) stops: JointStops,
+    /// The torques plus the stops' generalized force, ABA's input.
+    tau_total: DVector<f64>,
     // RK4 scratch.
     q_stage: DVector<f64>,
     v_stage: DVector<f64>,
@@ -40,6 +45,8 @@ pub struct ContactModelWorkspace<'a> {
 }
 
 impl<'a> ContactModelWorkspace<'a> {
+    /// A workspace with the joint stops of [`JointLimitParams::default`] on (the physical
+    /// default, as [`super::SimConfig`]'s); [`Self::with_joint_limits`] changes them.
     pub fn new(model: &'a Model, terrain: &'a dyn Terrain, params: ContactParams) -> Self {
         let nv = model.nv;
         let z = || DVector::zeros(nv);
@@ -57,6 +64,8 @@ impl<'a> ContactModelWorkspace<'a> {
             f_ext: vec![Force::zero(); model.njoints()],
             feet: vec![no_contact; model.feet.len()],
             feet_at_start: vec![no_contact; model.feet.len()],
+            stops: JointStops::new(model, Some(JointLimitParams::default())),
+            tau_total: z(),
             q_stage: DVector::zeros(model.nq),
             v_stage: z(),
             dv: [z(), z(), z(), z()],
@@ -64,6 +73,17 @@ impl<'a> ContactModelWorkspace<'a> {
             step_v: z(),
             q_next: DVector::zeros(model.nq),
         }
+    }
+
+    /// The same workspace with the joint stops `joint_limits` (`None`: no stops).
+    pub fn with_joint_limits(mut self, joint_limits: Option<JointLimitParams>) -> Self {
+        self.stops = JointStops::new(self.model, joint_limits);
+        self
+    }
+
+    /// The joint stops acting in [`Self::step`].
+    pub fn joint_stops(&self) -> &JointStops {
+        &self.stops
     }
 
     pub fn terrain(&self) -> &'a dyn Terrain {
@@ -126,11 +146,14 @@ impl<'a> ContactModelWorkspace<'a> {
         }
     }
 
-    /// `qdd = ABA(q, v, tau, f_ext)` with the contact forces of the last evaluation plus the
+    /// `qdd = ABA(q, v, tau + tau_l(q, v), f_ext)` with the joint stops' generalized force
+    /// `tau_l` ([`super::JointLimitParams`]), the contact forces of the last evaluation plus the
     /// push; into `out`.
     pub(super) fn acceleration(&mut self, q: &DVector<f64>, v: &DVector<f64>, tau: &DVector<f64>, push: &Vector3<f64>, out_index: usize) {
         self.add_base_push(q, push);
-        let ddq = aba_with_external_forces(self.model, &mut self.data, q, v, tau, &self.f_ext);
+        self.tau_total.copy_from(tau);
+        self.stops.add_torques(q, v, &mut self.tau_total);
+        let ddq = aba_with_external_forces(self.model, &mut self.data, q, v, &self.tau_total, &self.f_ext);
         self.dv[out_index].copy_from(ddq);
     }
 
