@@ -42,7 +42,7 @@ fn lf_knee_after(config: SimConfig, seconds: f64) -> (f64, f64) {
 #[test]
 fn a_stop_holds_a_joint_at_full_effort_where_its_spring_balances_it() {
     let params = JointLimitParams::default();
-    let (angle, upper) = lf_knee_after(SimConfig::default(), 0.3);
+    let (angle, upper) = lf_knee_after(SimConfig { joint_limits: Some(params), ..SimConfig::default() }, 0.3);
     // 150 N m = k (p - w / 2): p = 150 / 5000 + 0.01 = 0.04 rad (2.3 deg).
     let expected = 150.0 / params.stiffness + params.smoothing / 2.0;
     assert!((angle - upper - expected).abs() < 1e-3, "knee {:.4} rad past its limit, expected {expected:.4}", angle - upper);

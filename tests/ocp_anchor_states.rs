@@ -116,10 +116,10 @@ fn extended_linearization_with_joints_past_their_stops() {
             j.limits.lower[0] = angle + penetration;
         }
     }
-    let spec = TaskSpec::embedded("sidestep").unwrap();
+    let spec = TaskSpec::embedded("turn").unwrap();
     let mut problem = spec.problem(&model, &ground, settled.clone(), "test").unwrap();
     problem.anchor_states = true;
-    assert!(problem.joint_limits.is_some(), "tasks have their stops on");
+    problem.joint_limits = Some(Default::default());
     let nv = model.nv;
     let (nx, nu) = (problem.nx(), problem.nu());
     let mut x = settled.clone();

@@ -42,7 +42,7 @@ fn step(ws: &mut ContactModelWorkspace<'_>, s: &State, q: &DVector<f64>, v: &DVe
 fn check(model: &Model, terrain: &dyn Terrain, s: &State, what: &str) {
     let dt = 0.0005;
     let nv = model.nv;
-    let mut ws = ContactModelWorkspace::new(model, terrain, SimConfig::default().contact);
+    let mut ws = ContactModelWorkspace::new(model, terrain, SimConfig::default().contact).with_joint_limits(Some(Default::default()));
     let mut deriv = StepDerivatives::new(model);
     let (mut q1, mut v1, mut anchors) = (s.q.clone(), s.v.clone(), s.anchors.clone());
     deriv.step(&mut ws, &mut q1, &mut v1, &mut anchors, &s.tau, dt);
@@ -154,7 +154,7 @@ fn standing_with_joints_past_their_stops() {
     let model = with_stops_past(&hyq, &s.q, &[("lf_kfe_joint", true, 0.03), ("rh_kfe_joint", false, 0.01), ("lh_hfe_joint", false, 0.05), ("rf_haa_joint", true, 0.01)]);
     let rf_haa = model.joints[model.joint_id("rf_haa_joint").unwrap()].idx_v;
     s.v[rf_haa] = -10.0;
-    let ws = ContactModelWorkspace::new(&model, &ground, SimConfig::default().contact);
+    let ws = ContactModelWorkspace::new(&model, &ground, SimConfig::default().contact).with_joint_limits(Some(Default::default()));
     let mut tau = DVector::zeros(model.nv);
     ws.joint_stops().add_torques(&s.q, &s.v, &mut tau);
     assert_eq!(tau.iter().filter(|t| **t != 0.0).count(), 3, "three stops push, the fourth is clamped: {tau}");

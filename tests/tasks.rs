@@ -46,6 +46,10 @@ fn a_task_file_becomes_a_problem() {
     assert_eq!(w("rh_hfe_joint"), 2.0);
     assert_eq!(w("rh_haa_joint"), 0.0);
     assert_eq!(&p.terminal.weights.as_slice()[..3], &[1000.0; 3]);
+    // No joint stops unless the task asks for them; an empty table gives the defaults.
+    assert_eq!(p.joint_limits, None);
+    let stops = TaskSpec::from_toml(&MINIMAL.replace("[input]", "[joint_limits]\n[input]"), "shift.toml").unwrap();
+    assert_eq!(stops.problem(&model, &ground, initial, "shift.toml").unwrap().joint_limits, Some(Default::default()));
 }
 
 #[test]
@@ -57,6 +61,8 @@ fn bad_task_files_are_named() {
         (MINIMAL.replace("duration = 0.5", "duration = -0.5"), vec!["`duration`"]),
         (MINIMAL.replace("[0.05, \"start\", \"start\"]", "[0.05, \"begin\", \"start\"]"), vec!["desired.base_position[1]", "\"start\""]),
         (MINIMAL.replace("[input]", "[contact]\nalpha = 0.0\n[input]"), vec!["contact.alpha"]),
+        (MINIMAL.replace("[input]", "[joint_limits]\ndamping = -5.0\n[input]"), vec!["shift.toml", "joint_limits.damping", ">= 0"]),
+        (MINIMAL.replace("[input]", "[joint_limits]\nstifness = 5000.0\n[input]"), vec!["shift.toml", "stifness"]),
         (MINIMAL.replace("dt = 0.002", "dt = 0.002\nflat_cost_tolerance = -1e-3"), vec!["shift.toml", "flat_cost_tolerance", "[0, 1)"]),
         (format!("{MINIMAL}\n[[waypoint]]\ntime = 9.0\nrho = 10.0\nweights = {{}}\n"), vec!["waypoint[0].time"]),
     ];
@@ -110,6 +116,10 @@ fn squat_jump_reaches_its_apex_with_a_flight_phase() {
     assert!(plan.flight_time > 0.1, "flight {} s", plan.flight_time);
     // Back down in the default stance.
     assert!(plan.final_base_position[0].abs() < 0.02 && plan.final_base_position[1].abs() < 0.02);
+    // The task has the joint stops on: the knees press into them (6-7 deg) rather than pass
+    // through (11 deg without stops).
+    let into_stops = plan.joint_limit_excess.as_ref().map_or(0.0, |e| e.excess_deg);
+    assert!(into_stops < 9.0, "{:?}", plan.joint_limit_excess);
     // The tracking controller reproduces it within twice the tolerance.
     match &run.tracking_rerun {
         Rerun::Completed { metrics, .. } => {

@@ -82,6 +82,9 @@ pub fn run(args: WalkArgs) -> Result<()> {
     // The trajectory's own summary is short (the replay shows it in its header); every
     // number is in summary.json.
     let round = |x: f64, decimals: i32| (x * 10f64.powi(decimals)).round() / 10f64.powi(decimals);
+    // Neither the simulator (by default) nor the controller has joint stops: how far a joint
+    // went past its position limit says whether the hardware could walk it.
+    let past_limits = legwork::ocp::joint_limit_excess(&model, &traj);
     let summary = json!({
         "scenario": spec.name,
         "success": report.success,
@@ -93,6 +96,7 @@ pub fn run(args: WalkArgs) -> Result<()> {
         "mean_plan_ms": p.mean_plan_ms.map(|m| round(m, 1)),
         "worst_zmp_margin_m": p.worst_zmp_margin_m.map(|m| round(m, 4)),
         "clipped_ticks": report.clipped_ticks,
+        "joint_limit_excess": past_limits,
     });
     if let serde_json::Value::Object(map) = summary {
         traj.summary = map;
@@ -127,6 +131,10 @@ pub fn run(args: WalkArgs) -> Result<()> {
     say!("  ZMP QP                mean {} ms, max {} ms; worst ZMP margin {} cm", opt(p.mean_zmp_ms, 2), opt(p.max_zmp_ms, 2), opt(p.worst_zmp_margin_m.map(|m| m * 100.0), 2));
     say!("  map updates           {}, worst {:.1} ms", report.map_updates, report.max_map_update_ms);
     say!("  clipped torque ticks  {}", report.clipped_ticks);
+    match &past_limits {
+        None => say!("  past joint limits     none"),
+        Some(e) => say!("  past joint limits     {:.1} deg ({} at t = {:.2} s)", e.excess_deg, e.joint, e.t),
+    }
     if report.bad_footholds > 0 {
         say!("  bad footholds         {}", report.bad_footholds);
     }

@@ -48,8 +48,9 @@ pub struct LimitExcess {
     pub t: f64,
 }
 
-/// The largest excursion past a position limit over the knots of `traj`.
-fn joint_limit_excess(model: &Model, traj: &Trajectory) -> Option<LimitExcess> {
+/// The largest excursion of a joint past its position limit over the knots of `traj` (a
+/// motion of `model`), `None` if every joint stayed in its range.
+pub fn joint_limit_excess(model: &Model, traj: &Trajectory) -> Option<LimitExcess> {
     let mut worst: Option<LimitExcess> = None;
     for knot in &traj.knots {
         for joint in &model.joints {

@@ -21,7 +21,7 @@ mod run;
 mod task;
 
 pub use deviation::StateDeviation;
-pub use metrics::{LimitExcess, MotionMetrics, Snapshot};
+pub use metrics::{joint_limit_excess, LimitExcess, MotionMetrics, Snapshot};
 pub use run::{solution_trajectory, solve_task, Rerun, SlqPolicyController, SolveError, SolveOptions, TaskRun};
 pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, TaskError, TaskSpec, WaypointSpec, WeightSpec, EMBEDDED_TASKS};
 

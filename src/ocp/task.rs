@@ -14,6 +14,9 @@
 //! [contact]                 # optional: the optimizer's contact model (ContactParams fields)
 //! normal_stiffness = 90000.0
 //!
+//! [joint_limits]            # optional: stops at the joints' position limits (JointLimitParams fields; empty = defaults)
+//! stiffness = 5000.0
+//!
 //! [desired]                 # the desired state of the running and final costs
 //! base_position = [0.0, 0.0, "start"]   # m, world; "start" = the initial state's value
 //! base_rpy = [0.0, 0.0, 0.0]            # rad
@@ -144,6 +147,10 @@ pub struct TaskSpec {
     pub flat_cost_tolerance: Option<f64>,
     #[serde(default)]
     pub contact: Option<ContactParams>,
+    /// The joints' mechanical stops at their position limits, in the dynamics and both
+    /// re-runs (absent: none, as [`crate::sim::SimConfig`]'s default).
+    #[serde(default)]
+    pub joint_limits: Option<crate::sim::JointLimitParams>,
     #[serde(default)]
     pub desired: DesiredSpec,
     pub running: WeightSpec,
@@ -231,6 +238,9 @@ impl TaskSpec {
         if let Some(c) = &self.contact {
             c.validate().map_err(|e| TaskError::Invalid { origin: origin.into(), field: format!("contact.{}", e.field), problem: format!("expected {}, got {}", e.expected, e.value) })?;
         }
+        if let Some(j) = &self.joint_limits {
+            j.validate().map_err(|e| TaskError::Invalid { origin: origin.into(), field: format!("joint_limits.{}", e.field), problem: format!("expected {}, got {}", e.expected, e.value) })?;
+        }
         if !(self.input.weight.is_finite() && self.input.weight >= 0.0) {
             return bad("input.weight".into(), format!("expected a finite number >= 0, got {}", self.input.weight));
         }
@@ -278,8 +288,7 @@ impl TaskSpec {
             model,
             terrain,
             contact: self.contact.unwrap_or_default(),
-            // The physical default: the robot's mechanical stops, as in the re-runs.
-            joint_limits: Some(crate::sim::JointLimitParams::default()),
+            joint_limits: self.joint_limits,
             dt: self.dt,
             substeps: self.substeps.unwrap_or(1),
             knots: self.knots(),

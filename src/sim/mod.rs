@@ -59,8 +59,7 @@ pub enum Integrator {
 }
 
 /// Simulation settings. Defaults: 2 kHz physics, 1 kHz control, semi-implicit Euler,
-/// the default contact parameters, the default joint stops, knots recorded at the control
-/// rate.
+/// the default contact parameters, no joint stops, knots recorded at the control rate.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SimConfig {
     /// Physics time step (s).
@@ -69,8 +68,11 @@ pub struct SimConfig {
     pub control_dt: f64,
     pub integrator: Integrator,
     pub contact: ContactParams,
-    /// The joints' mechanical stops at their position limits (on by default: a plan that
-    /// passes through them is not physical); `None` switches them off.
+    /// The joints' mechanical stops at their position limits; `None` (the default) leaves
+    /// the joints free. Off by default for now: the terrain walks (Winkler 2015) and several
+    /// optimized tasks pass HyQ's published hip and knee limits by up to 41 and 135 deg and
+    /// fail with the stops on (see BENCHMARKS.md); `legwork solve` and `legwork walk` report
+    /// how far a motion went past them.
     pub joint_limits: Option<JointLimitParams>,
     /// Time between recorded knots (s): a whole multiple of `physics_dt`.
     pub record_dt: f64,
@@ -87,7 +89,7 @@ impl Default for SimConfig {
             control_dt: 0.001,
             integrator: Integrator::SemiImplicitEuler,
             contact: ContactParams::default(),
-            joint_limits: Some(JointLimitParams::default()),
+            joint_limits: None,
             record_dt: 0.001,
             enforce_effort_limits: true,
             max_speed: 200.0,

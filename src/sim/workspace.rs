@@ -45,8 +45,8 @@ pub struct ContactModelWorkspace<'a> {
 }
 
 impl<'a> ContactModelWorkspace<'a> {
-    /// A workspace with the joint stops of [`JointLimitParams::default`] on (the physical
-    /// default, as [`super::SimConfig`]'s); [`Self::with_joint_limits`] changes them.
+    /// A workspace without joint stops (as [`super::SimConfig`]'s default);
+    /// [`Self::with_joint_limits`] adds them.
     pub fn new(model: &'a Model, terrain: &'a dyn Terrain, params: ContactParams) -> Self {
         let nv = model.nv;
         let z = || DVector::zeros(nv);
@@ -64,7 +64,7 @@ impl<'a> ContactModelWorkspace<'a> {
             f_ext: vec![Force::zero(); model.njoints()],
             feet: vec![no_contact; model.feet.len()],
             feet_at_start: vec![no_contact; model.feet.len()],
-            stops: JointStops::new(model, Some(JointLimitParams::default())),
+            stops: JointStops::new(model, None),
             tau_total: z(),
             q_stage: DVector::zeros(model.nq),
             v_stage: z(),
