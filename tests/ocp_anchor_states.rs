@@ -25,6 +25,46 @@ fn perturbed(problem: &WholeBodyProblem<'_>, x: &RobotState, dx: &DVector<f64>) 
     y
 }
 
+/// The step's linearization at `(state, u)`, after checking every column of `A` and `B`
+/// against central differences of the full step (anchor update included); the columns of a
+/// foot without an anchor must be zero.
+fn linearization_matching_central_differences(problem: &WholeBodyProblem<'_>, state: &RobotState, u: &DVector<f64>) -> KnotDerivatives {
+    let nv = problem.model.nv;
+    let (nx, nu) = (problem.nx(), problem.nu());
+    let mut ws = problem.workspace();
+    let mut d = KnotDerivatives::zeros(nx, nu);
+    let mut nominal = state.clone();
+    problem.step_with_derivatives(&mut ws, 0, state, u, &mut nominal, &mut d);
+    let h = 1e-7;
+    let (mut plus, mut minus) = (nominal.clone(), nominal.clone());
+    let (mut dplus, mut dminus) = (DVector::zeros(nx), DVector::zeros(nx));
+    for k in 0..nx + nu {
+        let (mut xp, mut xm, mut up, mut um) = (state.clone(), state.clone(), u.clone(), u.clone());
+        if k < nx {
+            let anchor_of = (k >= 2 * nv).then(|| (k - 2 * nv) / ANCHOR_DIM);
+            if anchor_of.is_some_and(|f| state.anchors[f].is_none()) {
+                assert!(d.a.column(k).iter().all(|a| *a == 0.0), "a foot without anchor has zero columns");
+                continue;
+            }
+            let e = DVector::from_fn(nx, |i, _| if i == k { h } else { 0.0 });
+            xp = perturbed(problem, state, &e);
+            xm = perturbed(problem, state, &(-e));
+        } else {
+            up[k - nx] += h;
+            um[k - nx] -= h;
+        }
+        problem.step(&mut ws, 0, &xp, &up, &mut plus);
+        problem.step(&mut ws, 0, &xm, &um, &mut minus);
+        problem.difference(&nominal, &plus, &mut dplus);
+        problem.difference(&nominal, &minus, &mut dminus);
+        let numeric = (&dplus - &dminus) / (2.0 * h);
+        let analytic = if k < nx { d.a.column(k).into_owned() } else { d.b.column(k - nx).into_owned() };
+        let err = (&analytic - &numeric).norm() / (1.0 + numeric.norm());
+        assert!(err < 1e-5, "column {k}: relative error {err:.2e}\nanalytic {}\nnumeric {}", analytic.transpose(), numeric.transpose());
+    }
+    d
+}
+
 #[test]
 fn extended_linearization_matches_central_differences_through_the_anchor_update() {
     let model = embedded::load("hyq").unwrap();
@@ -56,40 +96,8 @@ fn extended_linearization_matches_central_differences_through_the_anchor_update(
     assert!(ws_contacts.feet().iter().all(|f| !f.contact.slipping), "every foot sticks");
 
     let u = DVector::from_fn(nu, |i, _| 10.0 * (i as f64 - 5.5));
-    let mut ws = problem.workspace();
-    let mut d = KnotDerivatives::zeros(nx, nu);
-    let mut next = x.clone();
     for state in [&x, &sticking] {
-        problem.step_with_derivatives(&mut ws, 0, state, &u, &mut next, &mut d);
-        let nominal = next.clone();
-        let h = 1e-7;
-        let mut plus = nominal.clone();
-        let mut minus = nominal.clone();
-        let (mut dplus, mut dminus) = (DVector::zeros(nx), DVector::zeros(nx));
-        for k in 0..nx + nu {
-            let (mut xp, mut xm, mut up, mut um) = (state.clone(), state.clone(), u.clone(), u.clone());
-            if k < nx {
-                let anchor_of = (k >= 2 * nv).then(|| (k - 2 * nv) / ANCHOR_DIM);
-                if anchor_of.is_some_and(|f| state.anchors[f].is_none()) {
-                    assert!(d.a.column(k).iter().all(|a| *a == 0.0), "a foot without anchor has zero columns");
-                    continue;
-                }
-                let e = DVector::from_fn(nx, |i, _| if i == k { h } else { 0.0 });
-                xp = perturbed(&problem, state, &e);
-                xm = perturbed(&problem, state, &(-e));
-            } else {
-                up[k - nx] += h;
-                um[k - nx] -= h;
-            }
-            problem.step(&mut ws, 0, &xp, &up, &mut plus);
-            problem.step(&mut ws, 0, &xm, &um, &mut minus);
-            problem.difference(&nominal, &plus, &mut dplus);
-            problem.difference(&nominal, &minus, &mut dminus);
-            let numeric = (&dplus - &dminus) / (2.0 * h);
-            let analytic = if k < nx { d.a.column(k).into_owned() } else { d.b.column(k - nx).into_owned() };
-            let err = (&analytic - &numeric).norm() / (1.0 + numeric.norm());
-            assert!(err < 1e-5, "column {k}: relative error {err:.2e}\nanalytic {}\nnumeric {}", analytic.transpose(), numeric.transpose());
-        }
+        let d = linearization_matching_central_differences(&problem, state, &u);
         // The foot touching down gets an anchor where it is: its row block reads the foot's motion.
         if state.anchors[0].is_none() {
             let rows = d.a.view((2 * nv, 0), (ANCHOR_DIM, nv));
@@ -126,42 +134,13 @@ fn extended_linearization_with_joints_past_their_stops() {
     x.v[6 + 2] = 0.4; // LF knee further into its stop
     x.v[6 + 10] = -0.2; // RH HFE further into its stop
     let u = DVector::from_fn(nu, |i, _| 10.0 * (i as f64 - 5.5));
-    let mut ws = problem.workspace();
-    let mut d = KnotDerivatives::zeros(nx, nu);
-    let mut next = x.clone();
-    problem.step_with_derivatives(&mut ws, 0, &x, &u, &mut next, &mut d);
-    let nominal = next.clone();
-    let h = 1e-7;
-    let (mut plus, mut minus) = (nominal.clone(), nominal.clone());
-    let (mut dplus, mut dminus) = (DVector::zeros(nx), DVector::zeros(nx));
-    for k in 0..nx + nu {
-        let (mut xp, mut xm, mut up, mut um) = (x.clone(), x.clone(), u.clone(), u.clone());
-        if k < nx {
-            if (k >= 2 * nv) && x.anchors[(k - 2 * nv) / ANCHOR_DIM].is_none() {
-                continue;
-            }
-            let e = DVector::from_fn(nx, |i, _| if i == k { h } else { 0.0 });
-            xp = perturbed(&problem, &x, &e);
-            xm = perturbed(&problem, &x, &(-e));
-        } else {
-            up[k - nx] += h;
-            um[k - nx] -= h;
-        }
-        problem.step(&mut ws, 0, &xp, &up, &mut plus);
-        problem.step(&mut ws, 0, &xm, &um, &mut minus);
-        problem.difference(&nominal, &plus, &mut dplus);
-        problem.difference(&nominal, &minus, &mut dminus);
-        let numeric = (&dplus - &dminus) / (2.0 * h);
-        let analytic = if k < nx { d.a.column(k).into_owned() } else { d.b.column(k - nx).into_owned() };
-        let err = (&analytic - &numeric).norm() / (1.0 + numeric.norm());
-        assert!(err < 1e-5, "column {k}: relative error {err:.2e}\nanalytic {}\nnumeric {}", analytic.transpose(), numeric.transpose());
-    }
+    let d = linearization_matching_central_differences(&problem, &x, &u);
     // Without the stops the knee's own column differs: the stops are in the linearization.
     let mut free = spec.problem(&model, &ground, settled.clone(), "test").unwrap();
     free.joint_limits = None;
     let mut ws_free = free.workspace();
     let mut d_free = KnotDerivatives::zeros(nx, nu);
-    free.step_with_derivatives(&mut ws_free, 0, &x, &u, &mut next, &mut d_free);
+    free.step_with_derivatives(&mut ws_free, 0, &x, &u, &mut x.clone(), &mut d_free);
     let knee = 6 + 2;
     assert!((d.a[(nv + knee, knee)] - d_free.a[(nv + knee, knee)]).abs() > 1.0, "dv'/dq of the LF knee: {} with stops, {} without", d.a[(nv + knee, knee)], d_free.a[(nv + knee, knee)]);
 }
