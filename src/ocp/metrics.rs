@@ -35,8 +35,8 @@ pub struct MotionMetrics {
     /// with third: LF-RH and RF-LH in legwork's leg order), `None` when a foot never changes.
     pub diagonal_correlation: [Option<f64>; 2],
     /// The farthest any joint went past its position limit, `None` if every joint stayed
-    /// in its range. Neither the simulator nor the optimizer has joint stops: this says
-    /// whether the motion is one the hardware could make.
+    /// in its range. The joint stops are optional ([`crate::sim::SimConfig::joint_limits`],
+    /// off by default): this says whether the motion is one the hardware could make.
     pub joint_limit_excess: Option<LimitExcess>,
 }
 
