@@ -4,6 +4,7 @@
 use crate::dynamics::{base_orientation, forward_kinematics, frame_position, Data};
 use crate::io::Trajectory;
 use crate::model::Model;
+use crate::sim::JointStops;
 use nalgebra::DVector;
 use serde::Serialize;
 
@@ -51,19 +52,20 @@ pub struct LimitExcess {
 /// The largest excursion of a joint past its position limit over the knots of `traj` (a
 /// motion of `model`), `None` if every joint stayed in its range.
 pub fn joint_limit_excess(model: &Model, traj: &Trajectory) -> Option<LimitExcess> {
-    let mut worst: Option<LimitExcess> = None;
+    // The stops' own test of which coordinate is past a limit, with the stops off.
+    let limits = JointStops::new(model, None);
+    let mut worst: Option<(usize, f64, f64)> = None;
     for knot in &traj.knots {
-        for joint in &model.joints {
-            for k in 0..joint.nq.min(joint.limits.lower.len()) {
-                let q = knot.q[joint.idx_q + k];
-                let excess = (joint.limits.lower[k] - q).max(q - joint.limits.upper[k]);
-                if excess > 0.0 && worst.as_ref().is_none_or(|w| excess.to_degrees() > w.excess_deg) {
-                    worst = Some(LimitExcess { joint: joint.name.clone(), excess_deg: excess.to_degrees(), t: knot.t });
-                }
+        if let Some((idx_v, excess)) = limits.worst_excess(&knot.q) {
+            if worst.is_none_or(|(_, w, _)| excess > w) {
+                worst = Some((idx_v, excess, knot.t));
             }
         }
     }
-    worst
+    worst.map(|(idx_v, excess, t)| {
+        let joint = model.joints.iter().find(|j| j.nv > 0 && (j.idx_v..j.idx_v + j.nv).contains(&idx_v)).map_or_else(|| format!("v[{idx_v}]"), |j| j.name.clone());
+        LimitExcess { joint, excess_deg: excess.to_degrees(), t }
+    })
 }
 
 fn rpy(q: &[f64]) -> [f64; 3] {

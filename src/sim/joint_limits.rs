@@ -196,7 +196,7 @@ impl JointStops {
 
     /// The largest distance (rad or m) by which a coordinate of `q` is past one of its
     /// limits, with its velocity index (`None` when every coordinate is within its limits).
-    pub fn worst_excess(&self, q: &DVector<f64>) -> Option<(usize, f64)> {
+    pub fn worst_excess(&self, q: &[f64]) -> Option<(usize, f64)> {
         self.coordinates
             .iter()
             .map(|c| (c.idx_v, (q[c.idx_q] - c.upper).max(c.lower - q[c.idx_q])))
@@ -266,7 +266,7 @@ mod tests {
         let mut tau = DVector::zeros(model.nv);
         stops.add_torques(&q, &v, &mut tau);
         assert_eq!(tau.norm(), 0.0, "standing is inside every limit");
-        assert_eq!(stops.worst_excess(&q), None);
+        assert_eq!(stops.worst_excess(q.as_slice()), None);
         // LF knee 0.1 rad past its upper limit (-20 deg), LH knee 0.1 rad below its lower (20 deg).
         let (lf_kfe, lh_kfe) = (&model.joints[model.joint_id("lf_kfe_joint").unwrap()], &model.joints[model.joint_id("lh_kfe_joint").unwrap()]);
         q[lf_kfe.idx_q] = lf_kfe.limits.upper[0] + 0.1;
@@ -275,7 +275,7 @@ mod tests {
         let expected = 5000.0 * (0.1 - 0.01);
         assert!((tau[lf_kfe.idx_v] + expected).abs() < 1e-9 && (tau[lh_kfe.idx_v] - expected).abs() < 1e-9, "{tau}");
         assert_eq!(tau.iter().filter(|t| **t != 0.0).count(), 2);
-        let (i, e) = stops.worst_excess(&q).unwrap();
+        let (i, e) = stops.worst_excess(q.as_slice()).unwrap();
         assert!((e - 0.1).abs() < 1e-12 && (i == lf_kfe.idx_v || i == lh_kfe.idx_v));
         // Switched off: nothing.
         let mut tau_off = DVector::zeros(model.nv);
