@@ -157,10 +157,6 @@ impl JointStops {
         Self { params, coordinates }
     }
 
-    pub fn params(&self) -> Option<&JointLimitParams> {
-        self.params.as_ref()
-    }
-
     /// Calls `f(idx_v, tau_l, dtau_l/dq, dtau_l/dv)` for every stop engaged at `(q, v)`.
     #[inline]
     fn for_each_engaged(&self, q: &DVector<f64>, v: &DVector<f64>, mut f: impl FnMut(usize, f64, f64, f64)) {
