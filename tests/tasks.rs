@@ -49,7 +49,12 @@ fn a_task_file_becomes_a_problem() {
     // No joint stops unless the task asks for them; an empty table gives the defaults.
     assert_eq!(p.joint_limits, None);
     let stops = TaskSpec::from_toml(&MINIMAL.replace("[input]", "[joint_limits]\n[input]"), "shift.toml").unwrap();
-    assert_eq!(stops.problem(&model, &ground, initial, "shift.toml").unwrap().joint_limits, Some(Default::default()));
+    assert_eq!(stops.problem(&model, &ground, initial.clone(), "shift.toml").unwrap().joint_limits, Some(Default::default()));
+    // No joint-limit cost unless asked for.
+    assert!(p.joint_limit_cost.is_none());
+    let limit_cost = TaskSpec::from_toml(&MINIMAL.replace("[input]", "[joint_limit_cost]\nweight = 1e4\n[input]"), "shift.toml").unwrap();
+    assert_eq!(limit_cost.joint_limit_cost.map(|c| (c.weight, c.margin)), Some((1e4, 0.0)));
+    assert!(limit_cost.problem(&model, &ground, initial, "shift.toml").unwrap().joint_limit_cost.is_some());
 }
 
 #[test]
@@ -63,6 +68,8 @@ fn bad_task_files_are_named() {
         (MINIMAL.replace("[input]", "[contact]\nalpha = 0.0\n[input]"), vec!["contact.alpha"]),
         (MINIMAL.replace("[input]", "[joint_limits]\ndamping = -5.0\n[input]"), vec!["shift.toml", "joint_limits.damping", ">= 0"]),
         (MINIMAL.replace("[input]", "[joint_limits]\nstifness = 5000.0\n[input]"), vec!["shift.toml", "stifness"]),
+        (MINIMAL.replace("[input]", "[joint_limit_cost]\nweight = 1e4\nmargin = -0.1\n[input]"), vec!["shift.toml", "joint_limit_cost.margin", ">= 0"]),
+        (MINIMAL.replace("[input]", "[joint_limit_cost]\nmargin = 0.1\n[input]"), vec!["shift.toml", "weight"]),
         (MINIMAL.replace("dt = 0.002", "dt = 0.002\nflat_cost_tolerance = -1e-3"), vec!["shift.toml", "flat_cost_tolerance", "[0, 1)"]),
         (format!("{MINIMAL}\n[[waypoint]]\ntime = 9.0\nrho = 10.0\nweights = {{}}\n"), vec!["waypoint[0].time"]),
     ];

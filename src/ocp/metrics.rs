@@ -28,6 +28,10 @@ pub struct MotionMetrics {
     pub liftoffs: Vec<usize>,
     /// Per foot: fraction of the time in contact.
     pub duty_factor: Vec<f64>,
+    /// Per foot: fraction of the final 2 s (the whole motion if shorter) spent off the
+    /// ground. The humanoid walk's target is both front feet at 1.0 (Neunert 2017, V-A6:
+    /// on the hind legs until the end).
+    pub off_ground_final_2s: Vec<f64>,
     /// Per foot: how far it slid on the ground while loaded (load above 10 % of its share of
     /// the weight): the net horizontal displacement from touch-down to lift-off, summed over
     /// its loaded phases (m). Zero for feet that never slip.
@@ -67,6 +71,9 @@ pub fn joint_limit_excess(model: &Model, traj: &Trajectory) -> Option<LimitExces
         LimitExcess { joint, excess_deg: excess.to_degrees(), t }
     })
 }
+
+/// The final window of [`MotionMetrics::off_ground_final_2s`] (s).
+const FINAL_WINDOW: f64 = 2.0;
 
 fn rpy(q: &[f64]) -> [f64; 3] {
     let (r, p, y) = base_orientation(q).euler_angles();
@@ -158,6 +165,8 @@ impl MotionMetrics {
                 }
             }
         }
+        let final_window: Vec<_> = knots.iter().filter(|k| k.t >= last.t - FINAL_WINDOW).collect();
+        let off_ground_final_2s = (0..nfeet).map(|f| final_window.iter().filter(|k| !k.in_contact[f]).count() as f64 / final_window.len() as f64).collect();
         let flags = |f: usize| -> Vec<f64> { knots.iter().map(|k| k.in_contact[f] as u8 as f64).collect() };
         let diagonal_correlation = if nfeet == 4 { [correlation(&flags(0), &flags(3)), correlation(&flags(1), &flags(2))] } else { [None, None] };
         Self {
@@ -169,6 +178,7 @@ impl MotionMetrics {
             apex_in_contact: apex.in_contact.clone(),
             flight_time,
             liftoffs,
+            off_ground_final_2s,
             duty_factor: in_contact.iter().map(|&c| c as f64 / knots.len() as f64).collect(),
             slide,
             diagonal_correlation,
@@ -205,5 +215,24 @@ mod tests {
         assert_eq!(excess.joint, "lf_kfe_joint");
         assert!((excess.excess_deg - 0.3f64.to_degrees()).abs() < 1e-9, "{excess:?}");
         assert_eq!(excess.t, 0.1);
+    }
+
+    /// 3 s at 0.5 s per knot: the front feet leave the ground at t = 1.5 s and stay off; the
+    /// hind feet are off at one knot of the final 2 s.
+    #[test]
+    fn off_ground_fraction_counts_the_final_two_seconds() {
+        let model = embedded::load("hyq").unwrap();
+        let stance = model.reference_configuration("standing").unwrap().clone();
+        let mut traj = Trajectory::new(&model, "rear", 0.5, TerrainSpec::flat());
+        for k in 0..=6 {
+            let t = 0.5 * k as f64;
+            let front = t < 1.5;
+            let hind = k != 4;
+            let in_contact = vec![front, front, hind, hind];
+            traj.knots.push(Knot { t, q: stance.iter().copied().collect(), v: vec![0.0; model.nv], tau: vec![0.0; model.nv - 6], contact_force: vec![[0.0; 3]; 4], in_contact, feedback_gain: None });
+        }
+        // The final 2 s: knots at 1.0 .. 3.0 s (five); the front feet are down at 1.0 only.
+        let off = MotionMetrics::of(&model, &traj).off_ground_final_2s;
+        assert_eq!(off, vec![0.8, 0.8, 0.2, 0.2]);
     }
 }

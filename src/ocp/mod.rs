@@ -16,11 +16,13 @@
 //! dynamics. Derivatives are Gauss-Newton (`l_xx = 2 dt E^T Q E`, `E = d xb / d dx`, exact).
 
 mod deviation;
+mod limit_cost;
 mod metrics;
 mod run;
 mod task;
 
 pub use deviation::StateDeviation;
+pub use limit_cost::{JointLimitCost, JointLimitCostSpec};
 pub use metrics::{joint_limit_excess, LimitExcess, MotionMetrics, Snapshot};
 pub use run::{solution_trajectory, solve_task, Rerun, SlqPolicyController, SolveError, SolveOptions, TaskRun};
 pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, TaskError, TaskSpec, WaypointSpec, WeightSpec, EMBEDDED_TASKS};
@@ -144,6 +146,8 @@ pub struct WholeBodyProblem<'a> {
     /// limit acts as the limit, and its column of `B` is zero.
     pub effort_limits: DVector<f64>,
     pub waypoints: Vec<Waypoint>,
+    /// A running cost on joint positions outside their limits (`None`: none).
+    pub joint_limit_cost: Option<JointLimitCost>,
     /// Linearize with the contact anchors as states (`dx = [dq; dv; da]`, three coordinates
     /// per foot, [`crate::sim::AnchorStepDerivatives`]) rather than as hidden states held
     /// over each step.
@@ -253,6 +257,9 @@ impl<'a> WholeBodyProblem<'a> {
         let mut cost = self.state_cost(ws, &self.running, self.dt, x);
         for w in &self.waypoints {
             cost += self.state_cost(ws, &w.cost, self.dt * w.window(t), x);
+        }
+        if let Some(limits) = &self.joint_limit_cost {
+            cost += limits.cost(self.dt, &x.q);
         }
         cost + self.dt * u.iter().zip(&self.input_desired).zip(&self.input_weights).map(|((u, d), r)| r * (u - d) * (u - d)).sum::<f64>()
     }
@@ -376,6 +383,9 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             if scale > 1e-12 * self.dt {
                 cost += self.add_state_cost_derivatives(ws, &w.cost, scale, x, &mut d.l_x, &mut d.l_xx);
             }
+        }
+        if let Some(limits) = &self.joint_limit_cost {
+            cost += limits.add_derivatives(self.dt, &x.q, &mut d.l_x, &mut d.l_xx);
         }
         d.l_uu.fill(0.0);
         for i in 0..self.nu_() {

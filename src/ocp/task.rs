@@ -17,6 +17,10 @@
 //! [joint_limits]            # optional: stops at the joints' position limits (JointLimitParams fields; empty = defaults)
 //! stiffness = 5000.0
 //!
+//! [joint_limit_cost]        # optional: a running cost w sum r^2 on joint positions r rad outside [lower + margin, upper - margin]
+//! weight = 1e4
+//! margin = 0.05             # rad (0 if absent)
+//!
 //! [desired]                 # the desired state of the running and final costs
 //! base_position = [0.0, 0.0, "start"]   # m, world; "start" = the initial state's value
 //! base_rpy = [0.0, 0.0, 0.0]            # rad
@@ -151,6 +155,9 @@ pub struct TaskSpec {
     /// re-runs (absent: none, as [`crate::sim::SimConfig`]'s default).
     #[serde(default)]
     pub joint_limits: Option<crate::sim::JointLimitParams>,
+    /// A running cost on joint positions outside their limits (absent: none).
+    #[serde(default)]
+    pub joint_limit_cost: Option<super::JointLimitCostSpec>,
     #[serde(default)]
     pub desired: DesiredSpec,
     pub running: WeightSpec,
@@ -241,6 +248,14 @@ impl TaskSpec {
         if let Some(j) = &self.joint_limits {
             j.validate().map_err(|e| TaskError::Invalid { origin: origin.into(), field: format!("joint_limits.{}", e.field), problem: format!("expected {}, got {}", e.expected, e.value) })?;
         }
+        if let Some(c) = &self.joint_limit_cost {
+            if !(c.weight.is_finite() && c.weight >= 0.0) {
+                return bad("joint_limit_cost.weight".into(), format!("expected a finite number >= 0, got {}", c.weight));
+            }
+            if !(c.margin.is_finite() && c.margin >= 0.0) {
+                return bad("joint_limit_cost.margin".into(), format!("expected a finite angle >= 0 (rad), got {}", c.margin));
+            }
+        }
         if !(self.input.weight.is_finite() && self.input.weight >= 0.0) {
             return bad("input.weight".into(), format!("expected a finite number >= 0, got {}", self.input.weight));
         }
@@ -299,6 +314,7 @@ impl TaskSpec {
             input_desired: DVector::zeros(nu),
             effort_limits: DVector::from_iterator(nu, model.actuated_joints().map(|j| j.limits.effort[0])),
             waypoints,
+            joint_limit_cost: self.joint_limit_cost.map(|spec| super::JointLimitCost::new(model, spec)),
             // The anchors as states of the linearization: the held-anchor model mispredicts
             // every touch-down and slip (see `crate::sim::AnchorStepDerivatives`).
             anchor_states: true,
