@@ -191,6 +191,7 @@ pub const EMBEDDED_TASKS: &[(&str, &str)] = &[
     ("pallet_push", include_str!("../../tasks/pallet_push.toml")),
     ("sidestep", include_str!("../../tasks/sidestep.toml")),
     ("turn", include_str!("../../tasks/turn.toml")),
+    ("humanoid_walk", include_str!("../../tasks/humanoid_walk.toml")),
 ];
 
 impl TaskSpec {

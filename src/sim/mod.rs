@@ -69,10 +69,10 @@ pub struct SimConfig {
     pub integrator: Integrator,
     pub contact: ContactParams,
     /// The joints' mechanical stops at their position limits; `None` (the default) leaves
-    /// the joints free. Off by default for now: the terrain walks (Winkler 2015) and several
-    /// optimized tasks pass HyQ's published hip and knee limits by up to 41 and 135 deg and
-    /// fail with the stops on (see BENCHMARKS.md); `legwork solve` and `legwork walk` report
-    /// how far a motion went past them.
+    /// the joints free. Off by default for now: the terrain walks (Winkler 2015) pass HyQ's
+    /// published hip limits by up to 41 deg and fail with the stops on, and so do several
+    /// optimized tasks (see BENCHMARKS.md); `legwork solve` and `legwork walk` report how far
+    /// a motion went past them.
     pub joint_limits: Option<JointLimitParams>,
     /// Time between recorded knots (s): a whole multiple of `physics_dt`.
     pub record_dt: f64,
