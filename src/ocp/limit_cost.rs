@@ -63,11 +63,9 @@ impl JointLimitCost {
             .filter(|j| j.limits.lower[0].is_finite() || j.limits.upper[0].is_finite())
             .map(|j| {
                 let (l, u) = (j.limits.lower[0], j.limits.upper[0]);
-                let middle = if l.is_finite() && u.is_finite() { 0.5 * (l + u) } else { f64::NAN };
-                let (mut lower, mut upper) = (l + spec.margin, u - spec.margin);
-                if lower > upper {
-                    (lower, upper) = (middle, middle);
-                }
+                let (lower, upper) = (l + spec.margin, u - spec.margin);
+                // Only a finite range can be narrower than twice the margin.
+                let (lower, upper) = if lower > upper { (0.5 * (l + u), 0.5 * (l + u)) } else { (lower, upper) };
                 Bounds { idx_q: j.idx_q, idx_v: j.idx_v, lower, upper }
             })
             .collect();
