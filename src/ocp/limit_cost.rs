@@ -16,7 +16,8 @@
 //! all (the gallop bends a knee 135 deg the wrong way). The cost makes leaving the range
 //! something the optimizer pays for, with or without stops.
 
-use crate::model::{JointKind, Model};
+use crate::model::Model;
+use crate::sim::joint_limits::{limited_coordinates, LimitedCoordinate};
 use nalgebra::{DMatrix, DVector};
 use serde::Deserialize;
 
@@ -36,37 +37,26 @@ pub struct JointLimitCostSpec {
     pub margin: f64,
 }
 
-/// One limited joint coordinate: where it sits in `q` and in the tangent space, and its
-/// limits pulled in by the margin (an infinite side never costs).
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Bounds {
-    idx_q: usize,
-    idx_v: usize,
-    lower: f64,
-    upper: f64,
-}
-
 /// The cost of [`JointLimitCostSpec`] on a model's revolute and prismatic joints.
 #[derive(Clone, Debug, PartialEq)]
 pub struct JointLimitCost {
     weight: f64,
-    bounds: Vec<Bounds>,
+    /// Each limited coordinate with its limits pulled in by the margin (an infinite side
+    /// never costs).
+    bounds: Vec<LimitedCoordinate>,
 }
 
 impl JointLimitCost {
     /// The cost on every revolute or prismatic coordinate with a finite limit. A margin
     /// wider than half a joint's range puts both bounds at the middle of the range.
     pub fn new(model: &Model, spec: JointLimitCostSpec) -> Self {
-        let bounds = model.joints[1..]
-            .iter()
-            .filter(|j| matches!(j.kind, JointKind::Revolute { .. } | JointKind::Prismatic { .. }))
-            .filter(|j| j.limits.lower[0].is_finite() || j.limits.upper[0].is_finite())
-            .map(|j| {
-                let (l, u) = (j.limits.lower[0], j.limits.upper[0]);
-                let (lower, upper) = (l + spec.margin, u - spec.margin);
+        let bounds = limited_coordinates(model)
+            .map(|c| {
+                let (lower, upper) = (c.lower + spec.margin, c.upper - spec.margin);
                 // Only a finite range can be narrower than twice the margin.
-                let (lower, upper) = if lower > upper { (0.5 * (l + u), 0.5 * (l + u)) } else { (lower, upper) };
-                Bounds { idx_q: j.idx_q, idx_v: j.idx_v, lower, upper }
+                let middle = 0.5 * (c.lower + c.upper);
+                let (lower, upper) = if lower > upper { (middle, middle) } else { (lower, upper) };
+                LimitedCoordinate { lower, upper, ..c }
             })
             .collect();
         Self { weight: spec.weight, bounds }
@@ -74,7 +64,7 @@ impl JointLimitCost {
 
     /// `r(q)` of one coordinate (see the module documentation).
     #[inline]
-    fn residual(b: &Bounds, q: f64) -> f64 {
+    fn residual(b: &LimitedCoordinate, q: f64) -> f64 {
         (q - b.upper).max(0.0) + (q - b.lower).min(0.0)
     }
 

@@ -131,11 +131,20 @@ impl JointLimitParams {
 /// One limited coordinate: its configuration and velocity index and its limits (an
 /// infinite side has no stop).
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct LimitedCoordinate {
-    idx_q: usize,
-    idx_v: usize,
-    lower: f64,
-    upper: f64,
+pub(crate) struct LimitedCoordinate {
+    pub idx_q: usize,
+    pub idx_v: usize,
+    pub lower: f64,
+    pub upper: f64,
+}
+
+/// The revolute and prismatic coordinates of `model` with a finite limit on either side.
+pub(crate) fn limited_coordinates(model: &Model) -> impl Iterator<Item = LimitedCoordinate> + '_ {
+    model.joints[1..]
+        .iter()
+        .filter(|j| matches!(j.kind, JointKind::Revolute { .. } | JointKind::Prismatic { .. }))
+        .map(|j| LimitedCoordinate { idx_q: j.idx_q, idx_v: j.idx_v, lower: j.limits.lower[0], upper: j.limits.upper[0] })
+        .filter(|c| c.lower.is_finite() || c.upper.is_finite())
 }
 
 /// The stops of a model's revolute and prismatic joints with finite limits, evaluated
@@ -148,13 +157,7 @@ pub struct JointStops {
 
 impl JointStops {
     pub fn new(model: &Model, params: Option<JointLimitParams>) -> Self {
-        let coordinates = model.joints[1..]
-            .iter()
-            .filter(|j| matches!(j.kind, JointKind::Revolute { .. } | JointKind::Prismatic { .. }))
-            .map(|j| LimitedCoordinate { idx_q: j.idx_q, idx_v: j.idx_v, lower: j.limits.lower[0], upper: j.limits.upper[0] })
-            .filter(|c| c.lower.is_finite() || c.upper.is_finite())
-            .collect();
-        Self { params, coordinates }
+        Self { params, coordinates: limited_coordinates(model).collect() }
     }
 
     /// Calls `f(idx_v, tau_l, dtau_l/dq, dtau_l/dv)` for every stop engaged at `(q, v)`.

@@ -29,7 +29,7 @@
 //! ```
 
 mod anchor_states;
-mod joint_limits;
+pub(crate) mod joint_limits;
 mod step_derivatives;
 mod workspace;
 
