@@ -2,7 +2,7 @@
 //! is one linear solve away, and SLQ must reach it in one full step) and a nonlinear
 //! pendulum swing (cost decreasing, convergence, target reached).
 
-use legwork::slq::{KnotDerivatives, Policy, Problem, Slq, SlqSettings, Termination};
+use legwork::slq::{KnotDerivatives, Policy, Problem, Slq, SlqSettings, SolutionPolicy, Termination};
 use nalgebra::{DMatrix, DVector};
 
 /// `x_{k+1} = A x + B u`, `l = x^T Q x + u^T R u`, `h = x^T H x`, in R^nx.
@@ -234,4 +234,32 @@ fn a_diverging_initial_policy_is_reported() {
     assert!(err.to_string().contains("initial rollout"), "{err}");
     let bad = SlqSettings { alpha_divisor: 1.0, ..Default::default() };
     assert!(Slq::new(&p, bad).err().unwrap().to_string().contains("alpha_divisor"));
+}
+
+/// A warm start from a solution reproduces that solution on its own problem (the first
+/// rollout costs what the solution's last iterate did); on a longer horizon its knots get
+/// the solution's `u_k + K_k (x - x_k)` and the knots after them the fallback policy.
+#[test]
+fn a_solution_warm_starts_the_same_and_a_longer_horizon() {
+    let short = Pendulum { n: 150, dt: 0.01, target: 2.5 };
+    let settings = SlqSettings { threads: 2, max_iterations: 30, ..Default::default() };
+    let sol = Slq::new(&short, settings.clone()).unwrap().solve(&HoldDown, |_| {}).unwrap();
+    let again = Slq::new(&short, SlqSettings { max_iterations: 1, ..settings }).unwrap().solve(&SolutionPolicy::new(&short, &sol, &HoldDown), |_| {}).unwrap();
+    let best = *sol.cost_history.last().unwrap();
+    assert!((again.cost_history[0] - best).abs() <= 1e-12 * best, "{} against {best}", again.cost_history[0]);
+
+    let long = Pendulum { n: 300, dt: 0.01, target: 2.5 };
+    let policy = SolutionPolicy::new(&long, &sol, &HoldDown);
+    let mut u = DVector::zeros(1);
+    // On the solution's knots: its input on its state, plus its gain times the deviation.
+    let k = 100;
+    policy.control(&long, k, &sol.states[k], &mut u);
+    assert_eq!(u[0], sol.inputs[k][0]);
+    let off = &sol.states[k] + DVector::from_row_slice(&[0.1, -0.2]);
+    policy.control(&long, k, &off, &mut u);
+    let expected = sol.inputs[k][0] + (&sol.gains[k] * DVector::from_row_slice(&[0.1, -0.2]))[0];
+    assert!((u[0] - expected).abs() < 1e-12);
+    // After them, the hold-down PD: -5 theta - theta'.
+    policy.control(&long, 200, &DVector::from_row_slice(&[2.5, 0.0]), &mut u);
+    assert_eq!(u[0], -12.5);
 }

@@ -214,14 +214,15 @@ fn slq(as_json: bool, threads: usize, iterations: usize) -> Result<()> {
     for (name, _) in EMBEDDED_TASKS {
         let spec = TaskSpec::embedded(name)?;
         let task_model = embedded::load(&spec.robot)?;
-        let run = solve_task(&spec, &task_model, &ground, name, &SolveOptions { threads, max_iterations: None }, |_| {})?;
+        let run = solve_task(&spec, &task_model, &ground, name, &SolveOptions { threads, max_iterations: None }, |_| ())?;
         let sol = &run.solution;
         tasks.push(json!({
             "task": name,
             "knots": spec.knots(),
-            "iterations": sol.iterations.len(),
+            "iterations": run.iterations(),
+            "continuation_stages": run.stages.len(),
             "termination": format!("{:?}", sol.termination),
-            "solve_time_s": sol.total_time,
+            "solve_time_s": run.solve_time(),
             "initial_cost": sol.cost_history[0],
             "final_cost": sol.cost_history.last(),
             "ms_per_iteration": sol.iterations.iter().map(|l| l.timing.linearization + l.timing.backward_pass + l.timing.line_search).sum::<f64>() / sol.iterations.len().max(1) as f64 * 1e3,

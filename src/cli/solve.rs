@@ -71,8 +71,14 @@ pub fn run(args: SolveArgs) -> Result<()> {
     say!("Solving {} ({}) for {}: {} s, {} knots of {} s", spec.name, spec.summary, model.name, spec.duration, spec.knots(), spec.dt);
     let started = Instant::now();
     let options = SolveOptions { threads: args.threads, max_iterations: args.iterations };
-    let run = solve_task(&spec, &model, &terrain, &origin, &options, |log| {
+    let run = solve_task(&spec, &model, &terrain, &origin, &options, |progress| {
+        let log = progress.log;
         let t = &log.timing;
+        if let (Some((index, horizon)), 1) = (progress.stage, log.iteration) {
+            say!("  continuation stage {} on {horizon} s:", index + 1);
+        } else if let (None, 1, Some(_)) = (progress.stage, log.iteration, &spec.continuation) {
+            say!("  full horizon, {} s:", spec.duration);
+        }
         say!(
             "  iteration {:2}  cost {:11.5e}  step {:<9}  |l| {:9.3e}  {:6.1} ms (linearize {:5.1}, backward {:5.1}, line search {:5.1})",
             log.iteration,
@@ -86,7 +92,7 @@ pub fn run(args: SolveArgs) -> Result<()> {
         );
     })?;
     let sol = &run.solution;
-    let solve_time = sol.total_time;
+    let solve_time = run.solve_time();
     let plan = &run.plan_metrics;
     let mut traj = run.plan.clone();
     let summary = json!({
@@ -94,8 +100,9 @@ pub fn run(args: SolveArgs) -> Result<()> {
         "robot": model.name,
         "knots": spec.knots(),
         "dt_s": spec.dt,
-        "iterations": sol.iterations.len(),
+        "iterations": run.iterations(),
         "termination": format!("{:?}", sol.termination),
+        "continuation_stages": run.stages.iter().map(|s| json!({ "horizon_s": s.horizon, "iterations": s.iterations, "termination": format!("{:?}", s.termination), "initial_cost": s.initial_cost, "final_cost": s.final_cost, "solve_time_s": s.time })).collect::<Vec<_>>(),
         "initial_cost": sol.cost_history[0],
         "final_cost": sol.cost_history.last(),
         "solve_time_s": solve_time,
@@ -118,7 +125,11 @@ pub fn run(args: SolveArgs) -> Result<()> {
     let plots = legwork::viz::write_plots(&traj, out.join("plots"))?;
     legwork::viz::write_cost_plot(&sol.cost_history, &format!("{}: normalized cost per SLQ iteration", spec.name), out.join("plots").join("cost.svg"))?;
 
-    say!("{:?} after {} iterations in {:.2} s (cost {:.4e} -> {:.4e})", sol.termination, sol.iterations.len(), solve_time, sol.cost_history[0], sol.cost_history.last().unwrap_or(&f64::NAN));
+    for (i, stage) in run.stages.iter().enumerate() {
+        say!("continuation stage {} on {} s: {:?} after {} iterations in {:.2} s (cost {:.4e} -> {:.4e})", i + 1, stage.horizon, stage.termination, stage.iterations, stage.time, stage.initial_cost, stage.final_cost);
+    }
+    let stages_note = if run.stages.is_empty() { String::new() } else { format!(" ({} on the full horizon)", sol.iterations.len()) };
+    say!("{:?} after {} iterations{stages_note} in {:.2} s (cost {:.4e} -> {:.4e})", sol.termination, run.iterations(), solve_time, sol.cost_history[0], sol.cost_history.last().unwrap_or(&f64::NAN));
     say!("                         plan      SLQ policy   tracking ctrl");
     let cell = |r: &Rerun, f: &dyn Fn(&MotionMetrics) -> String| r.metrics().map_or("failed".to_string(), f);
     let row = |name: &str, f: &dyn Fn(&MotionMetrics) -> String| say!("  {name:<22} {:<10} {:<12} {}", f(plan), cell(&run.policy_rerun, f), cell(&run.tracking_rerun, f));

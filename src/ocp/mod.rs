@@ -15,12 +15,14 @@
 //! velocities. No contact, gait or timing appears anywhere: contacts emerge from the
 //! dynamics. Derivatives are Gauss-Newton (`l_xx = 2 dt E^T Q E`, `E = d xb / d dx`, exact).
 
+mod continuation;
 mod deviation;
 mod limit_cost;
 mod metrics;
 mod run;
 mod task;
 
+pub use continuation::ContinuationSpec;
 pub use deviation::StateDeviation;
 pub use limit_cost::{JointLimitCost, JointLimitCostSpec};
 pub use metrics::{joint_limit_excess, LimitExcess, MotionMetrics, Snapshot};

@@ -7,7 +7,7 @@ use crate::control::{JointPd, TrackingController};
 use crate::io::{Knot, Trajectory};
 use crate::model::Model;
 use crate::sim::{ControlError, Controller, SimConfig, SimError, SimState, Simulator};
-use crate::slq::{IterationLog, Problem, Slq, SlqError, SlqSettings, SlqSolution};
+use crate::slq::{IterationLog, Problem, Slq, SlqError, SlqSettings, SlqSolution, SolutionPolicy, Termination};
 use crate::terrain::Terrain;
 use nalgebra::{DMatrix, DVector};
 
@@ -28,6 +28,8 @@ pub enum SolveError {
     },
     #[error(transparent)]
     Control(#[from] ControlError),
+    #[error("an iteration limit of {limit} leaves none for the full horizon after the continuation's {stages} stage iterations")]
+    IterationBudget { limit: usize, stages: usize },
 }
 
 /// A closed-loop re-run: its trajectory and figures, or how it failed (a divergence is a
@@ -57,7 +59,42 @@ pub struct TaskRun {
     pub policy_rerun: Rerun,
     /// (b) The tracking controller (Neunert 2017, sec. IV-B) at 1 kHz on the plan.
     pub tracking_rerun: Rerun,
+    /// SLQ on the full horizon (after the continuation's stages, if any).
     pub solution: SlqSolution<RobotState>,
+    /// The continuation's stages ([`super::ContinuationSpec`]), in order; empty without.
+    pub stages: Vec<StageReport>,
+}
+
+impl TaskRun {
+    /// SLQ iterations in all: the stages' and the full horizon's.
+    pub fn iterations(&self) -> usize {
+        self.stages.iter().map(|s| s.iterations).sum::<usize>() + self.solution.iterations.len()
+    }
+
+    /// Seconds of optimization in all: the stages' and the full horizon's.
+    pub fn solve_time(&self) -> f64 {
+        self.stages.iter().map(|s| s.time).sum::<f64>() + self.solution.total_time
+    }
+}
+
+/// One stage of a horizon continuation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StageReport {
+    /// Its horizon (s).
+    pub horizon: f64,
+    pub iterations: usize,
+    pub termination: Termination,
+    pub initial_cost: f64,
+    pub final_cost: f64,
+    /// Seconds of optimization.
+    pub time: f64,
+}
+
+/// An SLQ iteration as [`solve_task`] reports it: of a continuation stage (its index and
+/// horizon, s) or of the full horizon (`None`).
+pub struct SolveProgress<'l> {
+    pub stage: Option<(usize, f64)>,
+    pub log: &'l IterationLog,
 }
 
 /// The optimized states and inputs as a trajectory file: contact forces and flags
@@ -132,18 +169,52 @@ pub struct SolveOptions {
 
 /// Solves `spec` for `model` on `terrain` and re-runs it in closed loop; `on_iteration`
 /// sees each SLQ iteration.
-pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin: &str, options: &SolveOptions, on_iteration: impl FnMut(&IterationLog)) -> Result<TaskRun, SolveError> {
+pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin: &str, options: &SolveOptions, mut on_iteration: impl FnMut(SolveProgress)) -> Result<TaskRun, SolveError> {
     let contact = spec.contact.unwrap_or_default();
     let initial = settled_stance(model, terrain, contact, 1.0).map_err(SolveError::Settle)?;
-    let problem = spec.problem(model, terrain, initial.clone(), origin)?;
     let pd = JointPd::standing(model, spec.dt)?;
-    let settings = SlqSettings {
-        threads: options.threads,
-        max_iterations: options.max_iterations.or(spec.iterations).unwrap_or(SlqSettings::default().max_iterations),
-        normalized_cost_tolerance: spec.flat_cost_tolerance.unwrap_or(SlqSettings::default().normalized_cost_tolerance),
-        ..SlqSettings::default()
+    let standing = PdPolicy(&pd);
+    let limit = options.max_iterations.or(spec.iterations).unwrap_or(SlqSettings::default().max_iterations);
+    let settings = |max_iterations: usize, normalized_cost_tolerance: f64| SlqSettings { threads: options.threads, max_iterations, normalized_cost_tolerance, ..SlqSettings::default() };
+
+    // The continuation's stages, each from the last one's policy (the first from standing).
+    let mut stages = Vec::new();
+    let mut warm: Option<SlqSolution<RobotState>> = None;
+    let mut limit_left = limit;
+    if let Some(c) = &spec.continuation {
+        if c.stage_iterations() >= limit {
+            return Err(SolveError::IterationBudget { limit, stages: c.stage_iterations() });
+        }
+        limit_left -= c.stage_iterations();
+        let start = [initial.q[0], initial.q[1], initial.q[2]];
+        for (index, &horizon) in c.horizons.iter().enumerate() {
+            let stage_spec = spec.continuation_stage(horizon, c.progress_exponent, start);
+            let problem = stage_spec.problem(model, terrain, initial.clone(), origin)?;
+            let solver = Slq::new(&problem, settings(c.iterations, 0.0))?;
+            let report = |log: &IterationLog| on_iteration(SolveProgress { stage: Some((index, horizon)), log });
+            let solution = match &warm {
+                None => solver.solve(&standing, report)?,
+                Some(previous) => solver.solve(&SolutionPolicy::new(&problem, previous, &standing), report)?,
+            };
+            stages.push(StageReport {
+                horizon,
+                iterations: solution.iterations.len(),
+                termination: solution.termination.clone(),
+                initial_cost: solution.cost_history[0],
+                final_cost: *solution.cost_history.last().unwrap_or(&f64::NAN),
+                time: solution.total_time,
+            });
+            warm = Some(solution);
+        }
+    }
+
+    let problem = spec.problem(model, terrain, initial.clone(), origin)?;
+    let solver = Slq::new(&problem, settings(limit_left, spec.flat_cost_tolerance.unwrap_or(SlqSettings::default().normalized_cost_tolerance)))?;
+    let report = |log: &IterationLog| on_iteration(SolveProgress { stage: None, log });
+    let solution = match &warm {
+        None => solver.solve(&standing, report)?,
+        Some(previous) => solver.solve(&SolutionPolicy::new(&problem, previous, &standing), report)?,
     };
-    let solution = Slq::new(&problem, settings)?.solve(&PdPolicy(&pd), on_iteration)?;
     let plan = solution_trajectory(&problem, &solution, &format!("solve {}", spec.name));
 
     // Closed loop, both from the optimizer's initial state, contact anchors (spring
@@ -176,5 +247,5 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     let mut tracking = TrackingController::with_default_gains(model, &plan, config.control_dt)?;
     let tracking_rerun = rerun(&mut tracking, "tracking-controller re-run", config)?;
     let plan_metrics = MotionMetrics::of(model, &plan);
-    Ok(TaskRun { plan, plan_metrics, policy_rerun, tracking_rerun, solution })
+    Ok(TaskRun { plan, plan_metrics, policy_rerun, tracking_rerun, solution, stages })
 }

@@ -21,6 +21,11 @@
 //! weight = 1e4
 //! margin = 0.05             # rad (0 if absent)
 //!
+//! [continuation]            # optional: solve shorter horizons first (see legwork::ocp::ContinuationSpec)
+//! horizons = [0.5, 1.0]     # s
+//! iterations = 4            # per stage, counted in the task's limit
+//! progress_exponent = 1.6   # a stage's base goal: start + (goal - start) (T_s / T)^e
+//!
 //! [desired]                 # the desired state of the running and final costs
 //! base_position = [0.0, 0.0, "start"]   # m, world; "start" = the initial state's value
 //! base_rpy = [0.0, 0.0, 0.0]            # rad
@@ -158,6 +163,9 @@ pub struct TaskSpec {
     /// A running cost on joint positions outside their limits (absent: none).
     #[serde(default)]
     pub joint_limit_cost: Option<super::JointLimitCostSpec>,
+    /// Solve shorter horizons first (absent: the full horizon from the standing PD only).
+    #[serde(default)]
+    pub continuation: Option<super::ContinuationSpec>,
     #[serde(default)]
     pub desired: DesiredSpec,
     pub running: WeightSpec,
@@ -255,6 +263,13 @@ impl TaskSpec {
             }
             if !(c.margin.is_finite() && c.margin >= 0.0) {
                 return bad("joint_limit_cost.margin".into(), format!("expected a finite angle >= 0 (rad), got {}", c.margin));
+            }
+        }
+        if let Some(c) = &self.continuation {
+            c.check(self.duration, self.dt).map_err(|(field, problem)| TaskError::Invalid { origin: origin.into(), field: format!("continuation.{field}"), problem })?;
+            let limit = self.iterations.unwrap_or(crate::slq::SlqSettings::default().max_iterations);
+            if c.stage_iterations() >= limit {
+                return bad("continuation.iterations".into(), format!("expected fewer than the task's {limit} iterations over the {} stages, got {} each", c.horizons.len(), c.iterations));
             }
         }
         if !(self.input.weight.is_finite() && self.input.weight >= 0.0) {

@@ -19,8 +19,10 @@
 
 mod cholesky;
 mod problem;
+mod warm_start;
 
 pub use problem::{KnotDerivatives, Policy, Problem};
+pub use warm_start::SolutionPolicy;
 
 use cholesky::SmallCholesky;
 use nalgebra::{DMatrix, DVector};
