@@ -220,6 +220,7 @@ fn slq(as_json: bool, threads: usize, iterations: usize) -> Result<()> {
             "task": name,
             "knots": spec.knots(),
             "iterations": run.iterations(),
+            // The costs are the full horizon's: after the stages, its first rollout is warm-started.
             "continuation_stages": run.stages.len(),
             "termination": format!("{:?}", sol.termination),
             "solve_time_s": run.solve_time(),
@@ -258,12 +259,14 @@ fn slq(as_json: bool, threads: usize, iterations: usize) -> Result<()> {
     say!("  linear fit: {intercept:.2} ms + {:.1} us x knots, R^2 = {r2:.4}", slope * 1e3);
     say!("Embedded tasks solved in full:");
     for t in &tasks {
+        let stages = t["continuation_stages"].as_u64().unwrap_or(0);
         say!(
-            "  {:<14} {:>5} knots  {:>3} iterations ({})  {:>6.2} s  cost {:.4e} -> {:.4e}",
+            "  {:<14} {:>5} knots  {:>3} iterations ({}){}  {:>6.2} s  cost {:.4e} -> {:.4e}",
             t["task"].as_str().unwrap_or(""),
             t["knots"],
             t["iterations"],
             t["termination"].as_str().unwrap_or(""),
+            if stages > 0 { format!(", {stages} continuation stages first") } else { String::new() },
             t["solve_time_s"].as_f64().unwrap_or(0.0),
             t["initial_cost"].as_f64().unwrap_or(0.0),
             t["final_cost"].as_f64().unwrap_or(0.0)
