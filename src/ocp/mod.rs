@@ -14,6 +14,10 @@
 //! angles, base linear and angular velocity in the base frame (as the paper's eq. 7), joint
 //! velocities. No contact, gait or timing appears anywhere: contacts emerge from the
 //! dynamics. Derivatives are Gauss-Newton (`l_xx = 2 dt E^T Q E`, `E = d xb / d dx`, exact).
+//!
+//! Beyond the paper, a task may add a running cost on joint positions past their limits
+//! ([`JointLimitCost`]) and be solved by horizon continuation ([`ContinuationSpec`]: shorter
+//! versions of the task first, each warm-starting the next).
 
 mod continuation;
 mod deviation;
