@@ -22,7 +22,7 @@ pub struct BaseGains {
 
 impl BaseGains {
     /// Critically damped base "virtual springs" (Neunert 2017 cite Pratt's virtual model
-    /// control [14]) at natural frequency `omega` (rad/s), from the robot's mass and its
+    /// control \[14\]) at natural frequency `omega` (rad/s), from the robot's mass and its
     /// rotational inertia about the base in `q_ref`: `P = m w^2`, `D = 2 m w`
     /// (likewise with the inertia's diagonal for orientation).
     pub fn from_model(model: &Model, q_ref: &DVector<f64>, omega: f64) -> Self {

@@ -2,12 +2,12 @@
 //!
 //! One loop that reads like the algorithm ([`Slq::solve`]), calling named parts:
 //!
-//! 1. [`rollout`](Slq::rollout): simulate the system with the current control law;
-//! 2. [`linearize`](Slq::linearize): `A_k`, `B_k` and the cost's quadratic model along the
+//! 1. `rollout`: simulate the system with the current control law;
+//! 2. `linearize`: `A_k`, `B_k` and the cost's quadratic model along the
 //!    trajectory, knots in parallel (rayon), one problem workspace per thread;
-//! 3. [`backward_pass`](Slq::backward_pass): the Riccati-like difference equations, with
+//! 3. `backward_pass`: the Riccati-like difference equations, with
 //!    Levenberg-Marquardt regularization of `H` when it is not positive definite;
-//! 4. [`line_search`](Slq::line_search): `u = u_n + alpha l + K (x - x_n)`, `alpha <- alpha /
+//! 4. `line_search`: `u = u_n + alpha l + K (x - x_n)`, `alpha <- alpha /
 //!    alpha_d`, until the cost decreases.
 //!
 //! It stops when the feedforward increments are small (`||l|| < l_t`), when the cost no

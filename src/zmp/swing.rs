@@ -1,7 +1,7 @@
 //! Swing-foot trajectory from lift-off to touch-down that clears the terrain in between.
 //!
 //! Winkler 2015 chooses the swing-leg trajectories "based mostly on the foothold heights"
-//! (sec. IV-C, details in their [1]); this is legwork's version, built from the rest-to-rest
+//! (sec. IV-C, details in their \[1\]); this is legwork's version, built from the rest-to-rest
 //! quintic `sigma(u) = 10 u^3 - 15 u^4 + 6 u^5` (zero velocity and acceleration at both ends),
 //! so that the foot path is twice continuously differentiable and starts and ends at rest:
 //!
