@@ -167,8 +167,18 @@ pub struct SolveOptions {
     pub max_iterations: Option<usize>,
 }
 
-/// Solves `spec` for `model` on `terrain` and re-runs it in closed loop; `on_iteration`
-/// sees each SLQ iteration.
+/// SLQ on `problem` from `warm`'s policy (the standing PD after its knots), or from the
+/// standing PD alone (Neunert 2017, Alg. 1's initial stable control law).
+fn solve_from<'a>(problem: &WholeBodyProblem<'a>, settings: SlqSettings, warm: Option<&SlqSolution<RobotState>>, standing: &PdPolicy, report: impl FnMut(&IterationLog)) -> Result<SlqSolution<RobotState>, SlqError> {
+    let solver = Slq::new(problem, settings)?;
+    match warm {
+        None => solver.solve(standing, report),
+        Some(previous) => solver.solve(&SolutionPolicy::new(problem, previous, standing), report),
+    }
+}
+
+/// Solves `spec` for `model` on `terrain` (by horizon continuation if the task asks for
+/// it) and re-runs it in closed loop; `on_iteration` sees each SLQ iteration.
 pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin: &str, options: &SolveOptions, mut on_iteration: impl FnMut(SolveProgress)) -> Result<TaskRun, SolveError> {
     let contact = spec.contact.unwrap_or_default();
     let initial = settled_stance(model, terrain, contact, 1.0).map_err(SolveError::Settle)?;
@@ -190,12 +200,8 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
         for (index, &horizon) in c.horizons.iter().enumerate() {
             let stage_spec = spec.continuation_stage(horizon, c.progress_exponent, start);
             let problem = stage_spec.problem(model, terrain, initial.clone(), origin)?;
-            let solver = Slq::new(&problem, settings(c.iterations, 0.0))?;
             let report = |log: &IterationLog| on_iteration(SolveProgress { stage: Some((index, horizon)), log });
-            let solution = match &warm {
-                None => solver.solve(&standing, report)?,
-                Some(previous) => solver.solve(&SolutionPolicy::new(&problem, previous, &standing), report)?,
-            };
+            let solution = solve_from(&problem, settings(c.iterations, 0.0), warm.as_ref(), &standing, report)?;
             stages.push(StageReport {
                 horizon,
                 iterations: solution.iterations.len(),
@@ -209,12 +215,9 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     }
 
     let problem = spec.problem(model, terrain, initial.clone(), origin)?;
-    let solver = Slq::new(&problem, settings(limit_left, spec.flat_cost_tolerance.unwrap_or(SlqSettings::default().normalized_cost_tolerance)))?;
+    let flat_cost_tolerance = spec.flat_cost_tolerance.unwrap_or(SlqSettings::default().normalized_cost_tolerance);
     let report = |log: &IterationLog| on_iteration(SolveProgress { stage: None, log });
-    let solution = match &warm {
-        None => solver.solve(&standing, report)?,
-        Some(previous) => solver.solve(&SolutionPolicy::new(&problem, previous, &standing), report)?,
-    };
+    let solution = solve_from(&problem, settings(limit_left, flat_cost_tolerance), warm.as_ref(), &standing, report)?;
     let plan = solution_trajectory(&problem, &solution, &format!("solve {}", spec.name));
 
     // Closed loop, both from the optimizer's initial state, contact anchors (spring
