@@ -58,6 +58,30 @@ impl PdGains {
     }
 }
 
+impl PdGains {
+    /// These gains with each damper capped for the inertia its joint meets when the robot
+    /// is free (in a flight phase; near it, for a swinging leg): `kd_j <= I_j / dt_c`, with
+    /// `I_j = 1 / (M^-1)_jj` at `q_ref`, the inertia a torque on joint `j` alone drives when
+    /// no other coordinate is held. [`PdGains::from_model`]'s cap uses `M_jj`, the inertia
+    /// with every other coordinate held, which is larger, so in flight its dampers act past
+    /// half of their discrete stability bound (`kd dt_c / I_j = 2`): past the deadbeat
+    /// point, so a free joint's velocity changes sign every control period. For HyQ at
+    /// 1 kHz the knees' dampers go from 26.2 to 22.0 N m s/rad; the hips' stay at 30 (bound
+    /// by `kp tau_d`).
+    pub fn capped_for_free_joints(mut self, model: &Model, q_ref: &DVector<f64>, control_dt: f64) -> Self {
+        let mut data = Data::new(model);
+        let m = crba(model, &mut data, q_ref).clone();
+        // M is symmetric positive definite: (M^-1)_jj from its Cholesky factor.
+        let Some(chol) = m.cholesky() else { return self };
+        let m_inv = chol.inverse();
+        for j in model.actuated_joints() {
+            let i = j.idx_v;
+            self.kd[i] = self.kd[i].min(1.0 / (m_inv[(i, i)] * control_dt));
+        }
+        self
+    }
+}
+
 /// `tau_j = kp_j (q*_j - q_j) - kd_j v_j` on every actuated joint, no feedforward.
 ///
 /// ```
@@ -131,5 +155,39 @@ impl Controller for JointPd {
     fn compute(&mut self, model: &Model, state: &SimState, tau: &mut DVector<f64>) -> Result<(), ControlError> {
         self.torques(model, &state.q, &state.v, tau);
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::embedded;
+
+    /// HyQ at 1 kHz: the free-robot cap lowers the knee dampers (a leg's inertia with the
+    /// body free is smaller than with it held), keeps every damper within the standing
+    /// gains, and puts each at most at half its discrete stability bound, `kd dt / I_j <= 1`
+    /// with `I_j = 1 / (M^-1)_jj`.
+    #[test]
+    fn free_joint_cap_halves_the_flight_stability_bound() {
+        let model = embedded::load("hyq").unwrap();
+        let q = model.reference_configuration("standing").unwrap().clone();
+        let dt = 0.001;
+        let standing = PdGains::from_model(&model, &q, dt);
+        let free = standing.clone().capped_for_free_joints(&model, &q, dt);
+        let m_inv = crba(&model, &mut Data::new(&model), &q).clone().cholesky().unwrap().inverse();
+        for j in model.actuated_joints() {
+            let i = j.idx_v;
+            assert!(free.kd[i] <= standing.kd[i]);
+            assert!(free.kd[i] * dt * m_inv[(i, i)] <= 1.0 + 1e-12);
+            assert_eq!(free.kp[i], standing.kp[i]);
+        }
+        let kd = |name: &str| free.kd[model.v_index(name).unwrap()];
+        let before = |name: &str| standing.kd[model.v_index(name).unwrap()];
+        for knee in ["lf_kfe_joint", "rf_kfe_joint", "lh_kfe_joint", "rh_kfe_joint"] {
+            assert!(kd(knee) < 0.9 * before(knee), "{knee}: {} against {}", kd(knee), before(knee));
+        }
+        // The standing gains of the knees were past the deadbeat point in flight.
+        let knee = model.v_index("lf_kfe_joint").unwrap();
+        assert!(before("lf_kfe_joint") * dt * m_inv[(knee, knee)] > 1.1);
     }
 }

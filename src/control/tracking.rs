@@ -122,7 +122,9 @@ impl TrackingController {
         if q0.len() != model.nq {
             return Err(ControlError { controller: "tracking".into(), problem: format!("reference q has {} entries, robot nq = {}", q0.len(), model.nq) });
         }
-        let joint = PdGains::from_model(model, &q0, control_dt);
+        // The plans fly (jumps, bounding hops): the joint dampers are capped for the robot
+        // in flight, where the standing controller's cap lets a free leg chatter.
+        let joint = PdGains::from_model(model, &q0, control_dt).capped_for_free_joints(model, &q0, control_dt);
         let base = BaseGains::from_model(model, &q0, 2.0 * std::f64::consts::PI * 2.0);
         Self::new(model, reference, joint, base)
     }
