@@ -111,7 +111,8 @@ impl TrackingController {
         })
     }
 
-    /// Default gains: joint PD from [`PdGains::from_model`] and base springs at 2 Hz, both
+    /// Default gains: joint PD from [`PdGains::from_model`] with its dampers capped for the
+    /// robot in flight ([`PdGains::capped_for_free_joints`]) and base springs at 2 Hz, all
     /// at the reference's first configuration, for the control period `control_dt` (s).
     pub fn with_default_gains(model: &Model, reference: &Trajectory, control_dt: f64) -> Result<Self, ControlError> {
         let q0 = reference
