@@ -56,9 +56,7 @@ impl PdGains {
         }
         Self { kp, kd }
     }
-}
 
-impl PdGains {
     /// These gains with each damper capped for the inertia its joint meets when the robot
     /// is free (in a flight phase; near it, for a swinging leg): `kd_j <= I_j / dt_c`, with
     /// `I_j = 1 / (M^-1)_jj` at `q_ref`, the inertia a torque on joint `j` alone drives when
@@ -71,7 +69,8 @@ impl PdGains {
     pub fn capped_for_free_joints(mut self, model: &Model, q_ref: &DVector<f64>, control_dt: f64) -> Self {
         let mut data = Data::new(model);
         let m = crba(model, &mut data, q_ref).clone();
-        // M is symmetric positive definite: (M^-1)_jj from its Cholesky factor.
+        // (M^-1)_jj from the Cholesky factor of M (positive definite for any valid model;
+        // were it not, the gains would stay as they are).
         let Some(chol) = m.cholesky() else { return self };
         let m_inv = chol.inverse();
         for j in model.actuated_joints() {
