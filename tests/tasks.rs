@@ -314,7 +314,8 @@ fn trot_reaches_one_metre_lifting_every_foot() {
 /// (both front feet off the ground for the whole final 2 s, x = 0.3 m, see
 /// tasks/humanoid_walk.toml): checks what it does reach, that HyQ pitches up onto its hind
 /// feet and keeps both front feet off the ground for most of the final 2 s, moving forward,
-/// and that the SLQ policy re-run reproduces it. The tracking re-run falls; not checked.
+/// that the SLQ policy re-run reproduces it and that the tracking re-run stays up with the
+/// front feet off for most of the final 2 s too.
 #[test]
 fn humanoid_walk_lifts_the_front_feet_for_most_of_the_final_two_seconds() {
     let (_, run) = solve("humanoid_walk");
@@ -334,4 +335,8 @@ fn humanoid_walk_lifts_the_front_feet_for_most_of_the_final_two_seconds() {
     assert!(plan.final_base_rpy_deg[1] < -15.0, "pitch {}", plan.final_base_rpy_deg[1]);
     assert!(plan.final_base_position[0] > 0.15, "x {}", plan.final_base_position[0]);
     assert!((policy.final_base_position[0] - plan.final_base_position[0]).abs() < 1e-3);
+    let tracking = tracking_metrics(&run);
+    let off = &tracking.off_ground_final_2s;
+    assert!(off[0] > 0.5 && off[1] > 0.5, "tracking: front feet off {off:?}");
+    assert!(tracking.final_base_position[2] > 0.4 && tracking.final_base_rpy_deg[0].abs() < 45.0, "tracking fell: z {}, roll {}", tracking.final_base_position[2], tracking.final_base_rpy_deg[0]);
 }
