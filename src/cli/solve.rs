@@ -141,6 +141,8 @@ pub fn run(args: SolveArgs) -> Result<()> {
     row("feet down at apex", &|m| m.apex_in_contact.iter().map(|&c| if c { "1" } else { "0" }).collect::<String>());
     row("flight time [s]", &|m| format!("{:.3}", m.flight_time));
     row("lift-offs per foot", &|m| m.liftoffs.iter().map(|l| l.to_string()).collect::<Vec<_>>().join("/"));
+    row("all feet down [%]", &|m| format!("{:.0}", 100.0 * m.all_feet_down));
+    row("first lift-off [s]", &|m| m.first_liftoff_time.map_or("none".into(), |t| format!("{t:.2}")));
     row("off ground last 2 s [%]", &|m| m.off_ground_final_2s.iter().map(|f| format!("{:.0}", 100.0 * f)).collect::<Vec<_>>().join("/"));
     row("foot slide [mm]", &|m| m.slide.iter().map(|s| format!("{:.0}", s * 1e3)).collect::<Vec<_>>().join("/"));
     row("diagonal correlation", &|m| m.diagonal_correlation.iter().map(|c| c.map_or("-".into(), |c| format!("{c:.2}"))).collect::<Vec<_>>().join("/"));

@@ -28,6 +28,12 @@ pub struct MotionMetrics {
     pub liftoffs: Vec<usize>,
     /// Per foot: fraction of the time in contact.
     pub duty_factor: Vec<f64>,
+    /// Fraction of the knots with every foot on the ground: near 1 for a motion that
+    /// stands, or slides its feet, for most of its horizon.
+    pub all_feet_down: f64,
+    /// When the first foot left the ground (s), `None` if none did. With `all_feet_down`
+    /// it tells a gait spread over the horizon from contacts that appear only near the end.
+    pub first_liftoff_time: Option<f64>,
     /// Per foot: fraction of the final 2 s (the whole motion if shorter) spent off the
     /// ground. The humanoid walk's target is both front feet at 1.0 (Neunert 2017, V-A6:
     /// on the hind legs until the end).
@@ -135,13 +141,17 @@ impl MotionMetrics {
         let mut liftoffs = vec![0; nfeet];
         let mut in_contact = vec![0usize; nfeet];
         let mut flight_time = 0.0;
+        let mut all_down_knots = 0usize;
+        let mut first_liftoff_time = None;
         for (k, knot) in knots.iter().enumerate() {
             for f in 0..nfeet {
                 in_contact[f] += knot.in_contact[f] as usize;
                 if k > 0 && knots[k - 1].in_contact[f] && !knot.in_contact[f] {
                     liftoffs[f] += 1;
+                    first_liftoff_time.get_or_insert(knot.t);
                 }
             }
+            all_down_knots += knot.in_contact.iter().all(|&c| c) as usize;
             if k + 1 < knots.len() && knot.in_contact.iter().all(|c| !c) {
                 flight_time += knots[k + 1].t - knot.t;
             }
@@ -180,6 +190,8 @@ impl MotionMetrics {
             liftoffs,
             off_ground_final_2s,
             duty_factor: in_contact.iter().map(|&c| c as f64 / knots.len() as f64).collect(),
+            all_feet_down: all_down_knots as f64 / knots.len() as f64,
+            first_liftoff_time,
             slide,
             diagonal_correlation,
             joint_limit_excess: joint_limit_excess(model, traj),
@@ -220,7 +232,7 @@ mod tests {
     /// 3 s at 0.5 s per knot: the front feet leave the ground at t = 1.5 s and stay off; the
     /// hind feet are off at one knot of the final 2 s.
     #[test]
-    fn off_ground_fraction_counts_the_final_two_seconds() {
+    fn off_ground_shares_and_the_first_liftoff() {
         let model = embedded::load("hyq").unwrap();
         let stance = model.reference_configuration("standing").unwrap().clone();
         let mut traj = Trajectory::new(&model, "rear", 0.5, TerrainSpec::flat());
@@ -232,7 +244,10 @@ mod tests {
             traj.knots.push(Knot { t, q: stance.iter().copied().collect(), v: vec![0.0; model.nv], tau: vec![0.0; model.nv - 6], contact_force: vec![[0.0; 3]; 4], in_contact, feedback_gain: None });
         }
         // The final 2 s: knots at 1.0 .. 3.0 s (five); the front feet are down at 1.0 only.
-        let off = MotionMetrics::of(&model, &traj).off_ground_final_2s;
-        assert_eq!(off, vec![0.8, 0.8, 0.2, 0.2]);
+        let metrics = MotionMetrics::of(&model, &traj);
+        assert_eq!(metrics.off_ground_final_2s, vec![0.8, 0.8, 0.2, 0.2]);
+        // Every foot is down at 0.0, 0.5 and 1.0 s only; the front feet leave first, at 1.5 s.
+        assert_eq!(metrics.all_feet_down, 3.0 / 7.0);
+        assert_eq!(metrics.first_liftoff_time, Some(1.5));
     }
 }
