@@ -45,6 +45,9 @@ pub struct MotionMetrics {
     /// Correlation of the contact flags of the diagonal pairs (first with fourth foot, second
     /// with third: LF-RH and RF-LH in legwork's leg order), `None` when a foot never changes.
     pub diagonal_correlation: [Option<f64>; 2],
+    /// The same for the lateral pairs (LF-RF, LH-RH): near -1 in a trot, near +1 in a
+    /// pronk or bound, which a diagonal correlation alone does not tell apart from a trot.
+    pub lateral_correlation: [Option<f64>; 2],
     /// The farthest any joint went past its position limit, `None` if every joint stayed
     /// in its range. The joint stops are optional ([`crate::sim::SimConfig::joint_limits`],
     /// off by default): this says whether the motion is one the hardware could make.
@@ -179,6 +182,7 @@ impl MotionMetrics {
         let off_ground_final_2s = (0..nfeet).map(|f| final_window.iter().filter(|k| !k.in_contact[f]).count() as f64 / final_window.len() as f64).collect();
         let flags = |f: usize| -> Vec<f64> { knots.iter().map(|k| k.in_contact[f] as u8 as f64).collect() };
         let diagonal_correlation = if nfeet == 4 { [correlation(&flags(0), &flags(3)), correlation(&flags(1), &flags(2))] } else { [None, None] };
+        let lateral_correlation = if nfeet == 4 { [correlation(&flags(0), &flags(1)), correlation(&flags(2), &flags(3))] } else { [None, None] };
         Self {
             final_base_position: [last.q[0], last.q[1], last.q[2]],
             final_base_rpy_deg: rpy(&last.q),
@@ -194,6 +198,7 @@ impl MotionMetrics {
             first_liftoff_time,
             slide,
             diagonal_correlation,
+            lateral_correlation,
             joint_limit_excess: joint_limit_excess(model, traj),
         }
     }
@@ -249,5 +254,30 @@ mod tests {
         // Every foot is down at 0.0, 0.5 and 1.0 s only; the front feet leave first, at 1.5 s.
         assert_eq!(metrics.all_feet_down, 3.0 / 7.0);
         assert_eq!(metrics.first_liftoff_time, Some(1.5));
+    }
+
+    /// Knots of HyQ's stance every 0.1 s with the given contact flags per knot.
+    fn with_contacts(flags: &[[bool; 4]]) -> MotionMetrics {
+        let model = embedded::load("hyq").unwrap();
+        let stance = model.reference_configuration("standing").unwrap().clone();
+        let mut traj = Trajectory::new(&model, "gait", 0.1, TerrainSpec::flat());
+        for (k, c) in flags.iter().enumerate() {
+            traj.knots.push(Knot { t: 0.1 * k as f64, q: stance.iter().copied().collect(), v: vec![0.0; model.nv], tau: vec![0.0; model.nv - 6], contact_force: vec![[0.0; 3]; 4], in_contact: c.to_vec(), feedback_gain: None });
+        }
+        MotionMetrics::of(&model, &traj)
+    }
+
+    /// A trot (diagonal pairs in turn, LF-RF-LH-RH order) and a pronk (all four together)
+    /// both have diagonal correlation 1; the lateral pairs tell them apart.
+    #[test]
+    fn lateral_correlation_tells_a_trot_from_a_pronk() {
+        let (down, first, second, up) = ([true; 4], [false, true, true, false], [true, false, false, true], [false; 4]);
+        let trot = with_contacts(&[down, first, down, second, down, first, down, second]);
+        assert_eq!(trot.diagonal_correlation.map(|c| (c.unwrap() * 1e9).round() / 1e9), [1.0, 1.0]);
+        let lateral = trot.lateral_correlation.map(|c| c.unwrap());
+        assert!(lateral.iter().all(|&c| c < -0.3), "{lateral:?}");
+        let pronk = with_contacts(&[down, up, down, up, down, up, down, up]);
+        assert_eq!(pronk.diagonal_correlation.map(|c| (c.unwrap() * 1e9).round() / 1e9), [1.0, 1.0]);
+        assert_eq!(pronk.lateral_correlation.map(|c| (c.unwrap() * 1e9).round() / 1e9), [1.0, 1.0]);
     }
 }
