@@ -145,8 +145,9 @@ pub fn run(args: SolveArgs) -> Result<()> {
     row("first lift-off [s]", &|m| m.first_liftoff_time.map_or("none".into(), |t| format!("{t:.2}")));
     row("off ground last 2 s [%]", &|m| m.off_ground_final_2s.iter().map(|f| format!("{:.0}", 100.0 * f)).collect::<Vec<_>>().join("/"));
     row("foot slide [mm]", &|m| m.slide.iter().map(|s| format!("{:.0}", s * 1e3)).collect::<Vec<_>>().join("/"));
-    row("diagonal correlation", &|m| m.diagonal_correlation.iter().map(|c| c.map_or("-".into(), |c| format!("{c:.2}"))).collect::<Vec<_>>().join("/"));
-    row("lateral correlation", &|m| m.lateral_correlation.iter().map(|c| c.map_or("-".into(), |c| format!("{c:.2}"))).collect::<Vec<_>>().join("/"));
+    let pairs = |c: &[Option<f64>; 2]| c.iter().map(|c| c.map_or("-".into(), |c| format!("{c:.2}"))).collect::<Vec<String>>().join("/");
+    row("diagonal correlation", &|m| pairs(&m.diagonal_correlation));
+    row("lateral correlation", &|m| pairs(&m.lateral_correlation));
     row("past joint limit [deg]", &|m| m.joint_limit_excess.as_ref().map_or("none".into(), |e| format!("{:.0} {}", e.excess_deg, e.joint.trim_end_matches("_joint"))));
     for w in &spec.waypoints {
         let show = |traj: Option<&legwork::io::Trajectory>| {
