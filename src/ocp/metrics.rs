@@ -238,31 +238,25 @@ mod tests {
     /// hind feet are off at one knot of the final 2 s.
     #[test]
     fn off_ground_shares_and_the_first_liftoff() {
-        let model = embedded::load("hyq").unwrap();
-        let stance = model.reference_configuration("standing").unwrap().clone();
-        let mut traj = Trajectory::new(&model, "rear", 0.5, TerrainSpec::flat());
-        for k in 0..=6 {
-            let t = 0.5 * k as f64;
-            let front = t < 1.5;
-            let hind = k != 4;
-            let in_contact = vec![front, front, hind, hind];
-            traj.knots.push(Knot { t, q: stance.iter().copied().collect(), v: vec![0.0; model.nv], tau: vec![0.0; model.nv - 6], contact_force: vec![[0.0; 3]; 4], in_contact, feedback_gain: None });
-        }
+        let flags: Vec<[bool; 4]> = (0..=6).map(|k| {
+            let (front, hind) = ((0.5 * k as f64) < 1.5, k != 4);
+            [front, front, hind, hind]
+        }).collect();
         // The final 2 s: knots at 1.0 .. 3.0 s (five); the front feet are down at 1.0 only.
-        let metrics = MotionMetrics::of(&model, &traj);
+        let metrics = with_contacts(0.5, &flags);
         assert_eq!(metrics.off_ground_final_2s, vec![0.8, 0.8, 0.2, 0.2]);
         // Every foot is down at 0.0, 0.5 and 1.0 s only; the front feet leave first, at 1.5 s.
         assert_eq!(metrics.all_feet_down, 3.0 / 7.0);
         assert_eq!(metrics.first_liftoff_time, Some(1.5));
     }
 
-    /// Knots of HyQ's stance every 0.1 s with the given contact flags per knot.
-    fn with_contacts(flags: &[[bool; 4]]) -> MotionMetrics {
+    /// The metrics of knots of HyQ's stance every `dt` seconds with the given contact flags.
+    fn with_contacts(dt: f64, flags: &[[bool; 4]]) -> MotionMetrics {
         let model = embedded::load("hyq").unwrap();
         let stance = model.reference_configuration("standing").unwrap().clone();
-        let mut traj = Trajectory::new(&model, "gait", 0.1, TerrainSpec::flat());
+        let mut traj = Trajectory::new(&model, "gait", dt, TerrainSpec::flat());
         for (k, c) in flags.iter().enumerate() {
-            traj.knots.push(Knot { t: 0.1 * k as f64, q: stance.iter().copied().collect(), v: vec![0.0; model.nv], tau: vec![0.0; model.nv - 6], contact_force: vec![[0.0; 3]; 4], in_contact: c.to_vec(), feedback_gain: None });
+            traj.knots.push(Knot { t: dt * k as f64, q: stance.iter().copied().collect(), v: vec![0.0; model.nv], tau: vec![0.0; model.nv - 6], contact_force: vec![[0.0; 3]; 4], in_contact: c.to_vec(), feedback_gain: None });
         }
         MotionMetrics::of(&model, &traj)
     }
@@ -272,11 +266,11 @@ mod tests {
     #[test]
     fn lateral_correlation_tells_a_trot_from_a_pronk() {
         let (down, first, second, up) = ([true; 4], [false, true, true, false], [true, false, false, true], [false; 4]);
-        let trot = with_contacts(&[down, first, down, second, down, first, down, second]);
+        let trot = with_contacts(0.1, &[down, first, down, second, down, first, down, second]);
         assert_eq!(trot.diagonal_correlation.map(|c| (c.unwrap() * 1e9).round() / 1e9), [1.0, 1.0]);
         let lateral = trot.lateral_correlation.map(|c| c.unwrap());
         assert!(lateral.iter().all(|&c| c < -0.3), "{lateral:?}");
-        let pronk = with_contacts(&[down, up, down, up, down, up, down, up]);
+        let pronk = with_contacts(0.1, &[down, up, down, up, down, up, down, up]);
         assert_eq!(pronk.diagonal_correlation.map(|c| (c.unwrap() * 1e9).round() / 1e9), [1.0, 1.0]);
         assert_eq!(pronk.lateral_correlation.map(|c| (c.unwrap() * 1e9).round() / 1e9), [1.0, 1.0]);
     }

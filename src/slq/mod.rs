@@ -373,7 +373,8 @@ impl<'p, P: Problem> Slq<'p, P> {
                 // K^T H K = -K^T G and K^T H l = -K^T g, so P = Q_xx + G^T K, p = Q_x + G^T l.
                 r.p_mat.copy_from(&r.q_xx);
                 // G^T K as a plain product of G^T (one small transpose): `gemm_tr` forms it
-                // from 48 x 48 scalar dot products, three times slower.
+                // from 48 x 48 scalar dot products, a quarter of this pass's time in `perf`
+                // (the pass: 36.7 -> 28 ms per 1500 knots, BENCHMARKS.md).
                 r.q_ux.transpose_to(&mut r.q_ux_t);
                 r.p_mat.gemm(1.0, &r.q_ux_t, gain, 1.0);
                 r.p_vec.copy_from(&r.q_x);
