@@ -70,7 +70,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
 fn report(what: &str, model: &Model, problem: &WholeBodyProblem, solution: &SlqSolution<RobotState>) {
     let trajectory = solution_trajectory(problem, solution, what);
-    let m = MotionMetrics::of(model, &trajectory);
+    let m = MotionMetrics::of(model, &trajectory, problem.contact.friction);
     let pairs = |c: &[Option<f64>; 2]| c.iter().map(|c| c.map_or("-".into(), |c| format!("{c:.2}"))).collect::<Vec<String>>().join("/");
     println!("{what}:");
     println!("  {:?} after {} iterations, cost {:.4e} -> {:.4e}", solution.termination, solution.iterations.len(), solution.cost_history[0], solution.cost_history.last().unwrap_or(&f64::NAN));

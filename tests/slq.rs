@@ -1,6 +1,7 @@
 //! The SLQ solver on problems with known answers: a linear-quadratic problem (the optimum
 //! is one linear solve away, and SLQ must reach it in one full step) and a nonlinear
-//! pendulum swing (cost decreasing, convergence, target reached).
+//! pendulum swing (cost decreasing, convergence, target reached); the same linear-quadratic
+//! problem with input bounds against its condensed QP solved by Clarabel.
 
 use legwork::slq::{KnotDerivatives, Policy, Problem, Slq, SlqSettings, SolutionPolicy, Termination};
 use nalgebra::{DMatrix, DVector};
@@ -14,6 +15,8 @@ struct Linear {
     h: DMatrix<f64>,
     x0: DVector<f64>,
     n: usize,
+    /// `|u_i| <= u_max` (infinite: unbounded).
+    u_max: f64,
 }
 
 impl Problem for Linear {
@@ -57,6 +60,10 @@ impl Problem for Linear {
         h_xx.copy_from(&(&self.h * 2.0));
         self.terminal_cost(ws, x)
     }
+    fn input_bounds(&self, _: usize, lower: &mut DVector<f64>, upper: &mut DVector<f64>) {
+        lower.fill(-self.u_max);
+        upper.fill(self.u_max);
+    }
     fn is_valid(&self, x: &DVector<f64>) -> bool {
         x.iter().all(|v| v.is_finite())
     }
@@ -72,6 +79,13 @@ impl<P: Problem> Policy<P> for Zero {
 /// The optimum of the linear problem by condensing: `X = Sx x0 + Su U`, minimise a
 /// quadratic in U (normal equations).
 fn condensed_optimum(p: &Linear) -> DVector<f64> {
+    let (lhs, rhs) = condensed(p);
+    lhs.lu().solve(&rhs).unwrap()
+}
+
+/// The cost as a quadratic in the stacked inputs `U`: `J = U^T L U - 2 r^T U + const`,
+/// returned as `(L, r)`.
+fn condensed(p: &Linear) -> (DMatrix<f64>, DVector<f64>) {
     let (nx, nu, n) = (p.nx(), p.nu(), p.n);
     // X = [x_0 .. x_N] stacked.
     let mut sx = DMatrix::zeros(nx * (n + 1), nx);
@@ -100,7 +114,73 @@ fn condensed_optimum(p: &Linear) -> DVector<f64> {
     }
     let lhs = su.transpose() * &qbar * &su + rbar;
     let rhs = -(su.transpose() * &qbar * &sx * &p.x0);
-    lhs.lu().solve(&rhs).unwrap()
+    (lhs, rhs)
+}
+
+/// The condensed problem with `|u| <= u_max` by Clarabel: `min 1/2 U^T (2 L) U - 2 r^T U`
+/// s.t. `[I; -I] U <= [u_max; u_max]`.
+fn clarabel_box_optimum(p: &Linear) -> DVector<f64> {
+    use clarabel::algebra::CscMatrix;
+    use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
+    let (lhs, rhs) = condensed(p);
+    let m = lhs.nrows();
+    let (mut colptr, mut rowval, mut nzval) = (vec![0], Vec::new(), Vec::new());
+    for j in 0..m {
+        for i in 0..=j {
+            rowval.push(i);
+            nzval.push(2.0 * lhs[(i, j)]);
+        }
+        colptr.push(rowval.len());
+    }
+    let hessian = CscMatrix::new(m, m, colptr, rowval, nzval);
+    let constraints = CscMatrix::new(2 * m, m, (0..=m).map(|j| 2 * j).collect(), (0..m).flat_map(|j| [j, m + j]).collect(), (0..m).flat_map(|_| [1.0, -1.0]).collect());
+    let q: Vec<f64> = rhs.iter().map(|r| -2.0 * r).collect();
+    let b = vec![p.u_max; 2 * m];
+    let settings = DefaultSettingsBuilder::default().verbose(false).tol_gap_abs(1e-12).tol_gap_rel(1e-12).tol_feas(1e-12).build().unwrap();
+    let mut solver = DefaultSolver::new(&hessian, &q, &constraints, &b, &[SupportedConeT::NonnegativeConeT(2 * m)], settings).unwrap();
+    solver.solve();
+    assert_eq!(solver.solution.status, SolverStatus::Solved);
+    DVector::from_vec(solver.solution.x.clone())
+}
+
+/// The double integrator of the test below with the second input's axis.
+fn double_integrator(n: usize, u_max: f64) -> Linear {
+    let dt = 0.05;
+    let a = DMatrix::from_row_slice(4, 4, &[1.0, dt, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, dt, 0.0, 0.0, 0.0, 1.0]);
+    let b = DMatrix::from_row_slice(4, 2, &[0.0, 0.0, dt, 0.0, 0.0, 0.0, 0.0, dt]);
+    let q = DMatrix::from_row_slice(4, 4, &[1.0, 0.0, 0.3, 0.0, 0.0, 0.1, 0.0, 0.0, 0.3, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.1]);
+    Linear { a, b, q: q.clone(), r: DMatrix::identity(2, 2) * 0.01, h: q * 50.0, x0: DVector::from_row_slice(&[1.0, 0.0, -0.5, 0.3]), n, u_max }
+}
+
+/// Control limits (Tassa 2014): with `|u| <= 1.5`, which cuts the unconstrained optimum's
+/// first 0.4 s (it starts at |u| = 9.6), the box-constrained SLQ reaches the optimum of the
+/// constrained QP (Clarabel on the condensed problem) to 1e-6, every input inside the box,
+/// and the gain rows of inputs clamped at their bound are zero.
+#[test]
+fn linear_quadratic_with_input_bounds_reaches_the_constrained_optimum() {
+    let p = double_integrator(40, 1.5);
+    let unconstrained = condensed_optimum(&p);
+    assert!(unconstrained.amax() > 5.0, "the bound must cut the unconstrained optimum: {}", unconstrained.amax());
+    let settings = SlqSettings { threads: 2, max_iterations: 50, feedforward_tolerance: 1e-9, relative_cost_tolerance: 0.0, normalized_cost_tolerance: 0.0, ..Default::default() };
+    let sol = Slq::new(&p, settings).unwrap().solve(&Zero, |_| {}).unwrap();
+    let exact = clarabel_box_optimum(&p);
+    let ours = DVector::from_iterator(80, sol.inputs.iter().flat_map(|u| u.iter().copied()));
+    assert!(ours.iter().all(|u| u.abs() <= 1.5), "an input left the box");
+    assert!((&ours - &exact).amax() < 1e-6, "SLQ {ours} vs Clarabel {exact} (max difference {})", (&ours - &exact).amax());
+    let at_bound: Vec<(usize, usize)> = (0..40).flat_map(|k| (0..2).map(move |i| (k, i))).filter(|&(k, i)| sol.inputs[k][i].abs() == 1.5).collect();
+    assert!(at_bound.len() >= 8, "{} inputs at the bound", at_bound.len());
+    for (k, i) in at_bound {
+        assert!(sol.gains[k].row(i).iter().all(|g| *g == 0.0), "knot {k} input {i} at its bound has gains {}", sol.gains[k].row(i));
+    }
+    assert!(matches!(sol.termination, Termination::Converged | Termination::CostStalled), "{:?}", sol.termination);
+}
+
+/// Bounds the solver cannot use are refused with the knot and the input.
+#[test]
+fn crossed_input_bounds_are_named() {
+    let p = double_integrator(5, -1.0);
+    let err = Slq::new(&p, SlqSettings::default()).err().unwrap();
+    assert!(err.to_string().contains("knot 0, input 0"), "{err}");
 }
 
 #[test]
@@ -110,7 +190,7 @@ fn linear_quadratic_optimum_in_one_full_step() {
     let a = DMatrix::from_row_slice(4, 4, &[1.0, dt, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, dt, 0.0, 0.0, 0.0, 1.0]);
     let b = DMatrix::from_row_slice(4, 2, &[0.0, 0.0, dt, 0.0, 0.0, 0.0, 0.0, dt]);
     let q = DMatrix::from_row_slice(4, 4, &[1.0, 0.0, 0.3, 0.0, 0.0, 0.1, 0.0, 0.0, 0.3, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.1]);
-    let p = Linear { a, b, q: q.clone(), r: DMatrix::identity(2, 2) * 0.01, h: q * 50.0, x0: DVector::from_row_slice(&[1.0, 0.0, -0.5, 0.3]), n: 40 };
+    let p = Linear { a, b, q: q.clone(), r: DMatrix::identity(2, 2) * 0.01, h: q * 50.0, x0: DVector::from_row_slice(&[1.0, 0.0, -0.5, 0.3]), n: 40, u_max: f64::INFINITY };
     let settings = SlqSettings { threads: 2, ..Default::default() };
     let sol = Slq::new(&p, settings).unwrap().solve(&Zero, |_| {}).unwrap();
     assert_eq!(sol.iterations[0].alpha, 1.0, "a linear-quadratic problem takes the full step");

@@ -52,6 +52,113 @@ pub struct MotionMetrics {
     /// in its range. The joint stops are optional ([`crate::sim::SimConfig::joint_limits`],
     /// off by default): this says whether the motion is one the hardware could make.
     pub joint_limit_excess: Option<LimitExcess>,
+    /// Torques, friction, sliding and penetration: whether the motion is physically feasible
+    /// (issue 16).
+    pub feasibility: Feasibility,
+}
+
+/// The friction margin the feasibility figures are stated against: a loaded foot's
+/// tangential force within `FRICTION_MARGIN mu F_n` (issue 16's target, 0.75).
+pub const FRICTION_MARGIN: f64 = 0.75;
+
+/// A loaded foot slides when its horizontal speed exceeds this (m/s; issue 16's 0.1 m/s).
+pub const SLIDE_SPEED: f64 = 0.1;
+
+/// How physically feasible a motion is: torques against the effort limits, contact forces
+/// against the friction cone, loaded feet that move, feet in the ground. "Loaded" is the
+/// load of [`MotionMetrics::slide`]: a normal force above 10 % of the foot's share of the
+/// weight.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Feasibility {
+    /// The largest `|tau_i| / effort_i` over knots and joints (1 = at a limit).
+    pub max_torque_ratio: f64,
+    /// The largest `|tau_i| - effort_i` (N m), 0 when every torque is within its limit.
+    pub max_torque_excess: f64,
+    /// Fraction of the knots with some torque at (within 0.1 % of) or past its limit.
+    pub knots_at_torque_limit: f64,
+    /// The largest `|v_i| / velocity_i` of the joints (1 = at a velocity limit).
+    pub max_joint_velocity_ratio: f64,
+    /// The largest `|F_t| / F_n` over loaded feet and knots (`mu` at the cone's edge).
+    pub max_friction_ratio: f64,
+    /// Fraction of the loaded foot-knots with `|F_t| > FRICTION_MARGIN mu F_n`.
+    pub friction_margin_excess: f64,
+    /// Per foot: fraction of its loaded knots at which it moves faster than [`SLIDE_SPEED`]
+    /// horizontally (knot-to-knot differences).
+    pub sliding_share: Vec<f64>,
+    /// The deepest penetration of a foot sphere into the terrain (m).
+    pub max_penetration: f64,
+}
+
+impl Feasibility {
+    /// The figures of `traj`, a motion of `model` on its recorded terrain, for friction
+    /// coefficient `mu`. `feet` are the foot positions at every knot, `loaded_force` the load
+    /// threshold (N).
+    fn of(model: &Model, traj: &Trajectory, mu: f64, feet: &[Vec<[f64; 3]>], loaded_force: f64) -> Self {
+        let knots = &traj.knots;
+        let effort: Vec<f64> = model.actuated_joints().map(|j| j.limits.effort[0]).collect();
+        let velocity_limit: Vec<f64> = model.actuated_joints().map(|j| j.limits.velocity[0]).collect();
+        let (mut max_torque_ratio, mut max_torque_excess, mut at_limit) = (0.0f64, 0.0f64, 0usize);
+        let mut max_joint_velocity_ratio = 0.0f64;
+        for knot in knots {
+            let mut any = false;
+            for (tau, limit) in knot.tau.iter().zip(&effort) {
+                max_torque_ratio = max_torque_ratio.max(tau.abs() / limit);
+                max_torque_excess = max_torque_excess.max(tau.abs() - limit);
+                any |= tau.abs() >= 0.999 * limit;
+            }
+            at_limit += any as usize;
+            for (v, limit) in knot.v[6..].iter().zip(&velocity_limit) {
+                max_joint_velocity_ratio = max_joint_velocity_ratio.max(v.abs() / limit);
+            }
+        }
+        // Friction and penetration against the recorded terrain (a spec that does not build
+        // gives NaN: no terrain, no figure).
+        let terrain = traj.metadata.terrain.build("the trajectory's terrain").ok();
+        let nfeet = traj.metadata.foot_names.len();
+        let (mut max_friction_ratio, mut over_margin, mut loaded_samples) = (0.0f64, 0usize, 0usize);
+        let (mut sliding, mut loaded_knots) = (vec![0usize; nfeet], vec![0usize; nfeet]);
+        let mut max_penetration = if terrain.is_some() { f64::NEG_INFINITY } else { f64::NAN };
+        for (k, knot) in knots.iter().enumerate() {
+            for f in 0..nfeet {
+                let p = feet[k][f];
+                let normal = match &terrain {
+                    Some(t) => {
+                        let (h, n) = t.surface(p[0], p[1]);
+                        let radius = model.feet.get(f).map_or(0.0, |foot| foot.radius);
+                        // Depth of the sphere below the tangent plane through (x, y, h).
+                        max_penetration = max_penetration.max(radius - n.z * (p[2] - h));
+                        n
+                    }
+                    None => nalgebra::Vector3::z(),
+                };
+                let force = nalgebra::Vector3::from(knot.contact_force[f]);
+                let normal_force = force.dot(&normal);
+                if normal_force <= loaded_force {
+                    continue;
+                }
+                let ratio = (force - normal * normal_force).norm() / normal_force;
+                max_friction_ratio = max_friction_ratio.max(ratio);
+                over_margin += (ratio > FRICTION_MARGIN * mu) as usize;
+                loaded_samples += 1;
+                if k + 1 < knots.len() {
+                    let (a, b) = (p, feet[k + 1][f]);
+                    let speed = (b[0] - a[0]).hypot(b[1] - a[1]) / (knots[k + 1].t - knot.t);
+                    loaded_knots[f] += 1;
+                    sliding[f] += (speed > SLIDE_SPEED) as usize;
+                }
+            }
+        }
+        Self {
+            max_torque_ratio,
+            max_torque_excess: max_torque_excess.max(0.0),
+            knots_at_torque_limit: at_limit as f64 / knots.len() as f64,
+            max_joint_velocity_ratio,
+            max_friction_ratio,
+            friction_margin_excess: if loaded_samples == 0 { 0.0 } else { over_margin as f64 / loaded_samples as f64 },
+            sliding_share: sliding.iter().zip(&loaded_knots).map(|(&s, &n)| if n == 0 { 0.0 } else { s as f64 / n as f64 }).collect(),
+            max_penetration: max_penetration.max(0.0),
+        }
+    }
 }
 
 /// A joint past its position limit: which, by how much (deg) and when (s).
@@ -135,8 +242,9 @@ fn foot_positions(model: &Model, traj: &Trajectory) -> Vec<Vec<[f64; 3]>> {
 }
 
 impl MotionMetrics {
-    /// The figures of `traj`, a motion of `model` (at least one knot).
-    pub fn of(model: &Model, traj: &Trajectory) -> Self {
+    /// The figures of `traj`, a motion of `model` (at least one knot), its contact forces
+    /// judged against the friction coefficient `mu`.
+    pub fn of(model: &Model, traj: &Trajectory, mu: f64) -> Self {
         let knots = &traj.knots;
         let last = knots.last().expect("a trajectory has knots (validated)");
         let apex = knots.iter().max_by(|a, b| a.q[2].total_cmp(&b.q[2])).unwrap_or(last);
@@ -200,6 +308,7 @@ impl MotionMetrics {
             diagonal_correlation,
             lateral_correlation,
             joint_limit_excess: joint_limit_excess(model, traj),
+            feasibility: Feasibility::of(model, traj, mu, &feet, loaded_force),
         }
     }
 }
@@ -220,7 +329,7 @@ mod tests {
         let mut traj = Trajectory::new(&model, "limits", 0.1, TerrainSpec::flat());
         let knot = |t: f64, q: &DVector<f64>| Knot { t, q: q.iter().copied().collect(), v: vec![0.0; model.nv], tau: vec![0.0; model.nv - 6], contact_force: vec![[0.0; 3]; 4], in_contact: vec![true; 4], feedback_gain: None };
         traj.knots.push(knot(0.0, &stance));
-        assert_eq!(MotionMetrics::of(&model, &traj).joint_limit_excess, None);
+        assert_eq!(MotionMetrics::of(&model, &traj, 0.8).joint_limit_excess, None);
         let mut bent = stance.clone();
         let (kfe, haa) = (model.q_index("lf_kfe_joint").unwrap(), model.q_index("rh_haa_joint").unwrap());
         let joint = |name: &str| model.joints.iter().find(|j| j.name == name).unwrap();
@@ -228,7 +337,7 @@ mod tests {
         bent[haa] = joint("rh_haa_joint").limits.lower[0] - 0.1;
         traj.knots.push(knot(0.1, &bent));
         traj.knots.push(knot(0.2, &stance));
-        let excess = MotionMetrics::of(&model, &traj).joint_limit_excess.unwrap();
+        let excess = MotionMetrics::of(&model, &traj, 0.8).joint_limit_excess.unwrap();
         assert_eq!(excess.joint, "lf_kfe_joint");
         assert!((excess.excess_deg - 0.3f64.to_degrees()).abs() < 1e-9, "{excess:?}");
         assert_eq!(excess.t, 0.1);
@@ -258,7 +367,7 @@ mod tests {
         for (k, c) in flags.iter().enumerate() {
             traj.knots.push(Knot { t: dt * k as f64, q: stance.iter().copied().collect(), v: vec![0.0; model.nv], tau: vec![0.0; model.nv - 6], contact_force: vec![[0.0; 3]; 4], in_contact: c.to_vec(), feedback_gain: None });
         }
-        MotionMetrics::of(&model, &traj)
+        MotionMetrics::of(&model, &traj, 0.8)
     }
 
     /// A trot (diagonal pairs in turn, LF-RF-LH-RH order) and a pronk (all four together)

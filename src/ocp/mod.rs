@@ -29,7 +29,7 @@ mod task;
 pub use continuation::ContinuationSpec;
 pub use deviation::StateDeviation;
 pub use limit_cost::{JointLimitCost, JointLimitCostSpec};
-pub use metrics::{joint_limit_excess, LimitExcess, MotionMetrics, Snapshot};
+pub use metrics::{joint_limit_excess, Feasibility, LimitExcess, MotionMetrics, Snapshot, FRICTION_MARGIN, SLIDE_SPEED};
 pub use run::{solution_trajectory, solve_task, Rerun, SlqPolicyController, SolveError, SolveOptions, TaskRun};
 pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, TaskError, TaskSpec, WaypointSpec, WeightSpec, EMBEDDED_TASKS};
 
@@ -147,9 +147,12 @@ pub struct WholeBodyProblem<'a> {
     /// `R` (diagonal, `nv - 6`) and the desired torques.
     pub input_weights: DVector<f64>,
     pub input_desired: DVector<f64>,
-    /// Joint effort limits (N m, `nv - 6`; infinite = none). The simulator clips torques to
-    /// them, so the optimizer's dynamics do too (one source of truth): an input beyond its
-    /// limit acts as the limit, and its column of `B` is zero.
+    /// Joint effort limits (N m, `nv - 6`; infinite = none): the box of the inputs
+    /// ([`Problem::input_bounds`]), so that SLQ's backward pass and rollouts keep every
+    /// knot's torques within them (Tassa 2014's control limits). The simulator clips torques
+    /// to them, and so do the optimizer's dynamics (one source of truth), which only matters
+    /// for an input handed in from outside the box: it acts as the limit, its column of `B`
+    /// zero.
     pub effort_limits: DVector<f64>,
     pub waypoints: Vec<Waypoint>,
     /// A running cost on joint positions outside their limits (`None`: none).
@@ -410,6 +413,13 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         h_x.fill(0.0);
         h_xx.fill(0.0);
         self.add_state_cost_derivatives(ws, &self.terminal, 1.0, x, h_x, h_xx)
+    }
+    /// `-effort <= u <= effort`, the joints' effort limits.
+    fn input_bounds(&self, _k: usize, lower: &mut DVector<f64>, upper: &mut DVector<f64>) {
+        for (i, limit) in self.effort_limits.iter().enumerate() {
+            lower[i] = -limit;
+            upper[i] = *limit;
+        }
     }
     fn is_valid(&self, x: &RobotState) -> bool {
         x.q.iter().all(|v| v.is_finite()) && x.v.iter().all(|v| v.is_finite() && v.abs() < 200.0)

@@ -230,7 +230,7 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
             Ok(run) => {
                 let mut trajectory = run.trajectory;
                 trajectory.metadata.scenario = format!("{what}: {}", spec.name);
-                let metrics = MotionMetrics::of(model, &trajectory);
+                let metrics = MotionMetrics::of(model, &trajectory, contact.friction);
                 Rerun::Completed { trajectory: Box::new(trajectory), metrics: Box::new(metrics) }
             }
             Err(SimError::Diverged { step, t, reason, .. }) => Rerun::Failed { reason: format!("diverged at t = {t:.3} s (step {step}): {reason}") },
@@ -249,6 +249,6 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     let config = SimConfig { contact, joint_limits, ..SimConfig::default() };
     let mut tracking = TrackingController::with_default_gains(model, &plan, config.control_dt)?;
     let tracking_rerun = rerun(&mut tracking, "tracking-controller re-run", config)?;
-    let plan_metrics = MotionMetrics::of(model, &plan);
+    let plan_metrics = MotionMetrics::of(model, &plan, contact.friction);
     Ok(TaskRun { plan, plan_metrics, policy_rerun, tracking_rerun, solution, stages })
 }

@@ -6,9 +6,12 @@
 //! 2. `linearize`: `A_k`, `B_k` and the cost's quadratic model along the
 //!    trajectory, knots in parallel (rayon), one problem workspace per thread;
 //! 3. `backward_pass`: the Riccati-like difference equations, with
-//!    Levenberg-Marquardt regularization of `H` when it is not positive definite;
-//! 4. `line_search`: `u = u_n + alpha l + K (x - x_n)`, `alpha <- alpha /
-//!    alpha_d`, until the cost decreases.
+//!    Levenberg-Marquardt regularization of `H` when it is not positive definite; where the
+//!    problem bounds the inputs ([`Problem::input_bounds`]), the step `l` is the solution of
+//!    the box-constrained QP of Tassa, Mansard, Todorov 2014 ([`BoxQp`]) and the gain rows of
+//!    the clamped inputs are zero;
+//! 4. `line_search`: `u = u_n + alpha l + K (x - x_n)`, projected onto the input box,
+//!    `alpha <- alpha / alpha_d`, until the cost decreases.
 //!
 //! It stops when the feedforward increments are small (`||l|| < l_t`), when the cost no
 //! longer changes, when the normalized cost of the paper's Fig. 12 (cost over the initial
@@ -17,10 +20,12 @@
 //! decrease the cost, or a non-finite cost, ends the run with the best iterate kept and the
 //! reason reported. Every iteration records its cost, step size and time per part.
 
+mod box_qp;
 mod cholesky;
 mod problem;
 mod warm_start;
 
+pub use box_qp::{BoxQp, BoxQpSettings, BoxQpStatus};
 pub use problem::{KnotDerivatives, Policy, Problem};
 pub use warm_start::SolutionPolicy;
 
@@ -58,6 +63,9 @@ pub struct SlqSettings {
     pub convergence_regularization: f64,
     /// Threads for the linearization (0 = rayon's default: one per core).
     pub threads: usize,
+    /// The projected-Newton QP of knots whose unconstrained step leaves the input box
+    /// ([`BoxQpSettings`]'s defaults).
+    pub box_qp: BoxQpSettings,
 }
 
 impl Default for SlqSettings {
@@ -75,6 +83,7 @@ impl Default for SlqSettings {
             max_regularization: 1e10,
             convergence_regularization: 1e-6,
             threads: 0,
+            box_qp: BoxQpSettings::default(),
         }
     }
 }
@@ -165,6 +174,16 @@ pub enum SlqError {
     InitialRolloutDiverged { step: usize },
     #[error("solver setting `{field}`: {problem}")]
     Settings { field: &'static str, problem: String },
+    #[error("input bounds of knot {knot}, input {input}: expected lower <= upper (not NaN), got [{lower}, {upper}]")]
+    InputBounds { knot: usize, input: usize, lower: f64, upper: f64 },
+}
+
+/// `u <- clamp(u, lower, upper)` componentwise.
+#[inline]
+fn project(u: &mut DVector<f64>, lower: &DVector<f64>, upper: &DVector<f64>) {
+    for ((u, lo), hi) in u.iter_mut().zip(lower.iter()).zip(upper.iter()) {
+        *u = u.clamp(*lo, *hi);
+    }
 }
 
 /// SLQ on one problem: the trajectory, gains and scratch, allocated once.
@@ -185,6 +204,11 @@ pub struct Slq<'p, P: Problem> {
     riccati: RiccatiScratch,
     regularization: f64,
     pool: rayon::ThreadPool,
+    /// The input box of every knot ([`Problem::input_bounds`]), and whether it has a finite side.
+    lower: Vec<DVector<f64>>,
+    upper: Vec<DVector<f64>>,
+    bounded: Vec<bool>,
+    qp: BoxQp,
 }
 
 /// A line-search rollout: its trajectory, scratch and outcome.
@@ -219,6 +243,12 @@ struct RiccatiScratch {
     q_x: DVector<f64>,
     q_u: DVector<f64>,
     chol: SmallCholesky,
+    /// The box of the step, `lower - u_k <= du <= upper - u_k`, the QP's warm start (the last
+    /// step at the knot) and `H l + g`.
+    du_lower: DVector<f64>,
+    du_upper: DVector<f64>,
+    warm: DVector<f64>,
+    qp_residual: DVector<f64>,
 }
 
 impl<'p, P: Problem> Slq<'p, P> {
@@ -237,6 +267,17 @@ impl<'p, P: Problem> Slq<'p, P> {
             .build()
             .map_err(|e| SlqError::Settings { field: "threads", problem: e.to_string() })?;
         let x0 = problem.initial_state();
+        let (mut lower, mut upper) = (vec![DVector::zeros(nu); n], vec![DVector::zeros(nu); n]);
+        for k in 0..n {
+            problem.input_bounds(k, &mut lower[k], &mut upper[k]);
+            for i in 0..nu {
+                let (lo, hi) = (lower[k][i], upper[k][i]);
+                if lo.is_nan() || hi.is_nan() || lo > hi {
+                    return Err(SlqError::InputBounds { knot: k, input: i, lower: lo, upper: hi });
+                }
+            }
+        }
+        let bounded = (0..n).map(|k| lower[k].iter().chain(upper[k].iter()).any(|b| b.is_finite())).collect();
         Ok(Self {
             problem,
             states: vec![x0.clone(); n + 1],
@@ -263,7 +304,15 @@ impl<'p, P: Problem> Slq<'p, P> {
                 q_x: DVector::zeros(nx),
                 q_u: DVector::zeros(nu),
                 chol: SmallCholesky::new(nu),
+                du_lower: DVector::zeros(nu),
+                du_upper: DVector::zeros(nu),
+                warm: DVector::zeros(nu),
+                qp_residual: DVector::zeros(nu),
             },
+            lower,
+            upper,
+            bounded,
+            qp: BoxQp::new(nu, settings.box_qp),
             regularization: settings.initial_regularization,
             settings,
             pool,
@@ -277,6 +326,7 @@ impl<'p, P: Problem> Slq<'p, P> {
         let mut cost = 0.0;
         for k in 0..problem.horizon() {
             policy.control(problem, k, &self.states[k], &mut self.inputs[k]);
+            project(&mut self.inputs[k], &self.lower[k], &self.upper[k]);
             let (head, tail) = self.states.split_at_mut(k + 1);
             cost += problem.step(ws, k, &head[k], &self.inputs[k], &mut tail[0]);
             if !problem.is_valid(&tail[0]) || !cost.is_finite() {
@@ -361,16 +411,45 @@ impl<'p, P: Problem> Slq<'p, P> {
                 }
                 // K = -H^-1 G, l = -H^-1 g
                 let gain = &mut self.gains[k];
-                gain.copy_from(&r.q_ux);
-                r.chol.solve_in_place(gain);
-                gain.neg_mut();
                 let ff = &mut self.feedforward[k];
+                r.warm.copy_from(ff);
                 ff.copy_from(&r.q_u);
                 r.chol.solve_vector_in_place(ff);
                 ff.neg_mut();
-                // P = Q_xx + K^T H K + K^T G + G^T K and p = Q_x + K^T H l + K^T g + G^T l;
-                // with K = -H^-1 G and l = -H^-1 g from this same (regularized) H,
-                // K^T H K = -K^T G and K^T H l = -K^T g, so P = Q_xx + G^T K, p = Q_x + G^T l.
+                // Control limits (Tassa 2014, sec. III-B): if the Newton step leaves the
+                // box, l is the box-QP solution from the last step at this knot, and K has
+                // the free rows -H_ff^-1 G_f and zero rows for the clamped inputs (eq. 16).
+                let u = &self.inputs[k];
+                let inside = !self.bounded[k] || (0..u.len()).all(|i| (self.lower[k][i]..=self.upper[k][i]).contains(&(u[i] + ff[i])));
+                if inside {
+                    gain.copy_from(&r.q_ux);
+                    r.chol.solve_in_place(gain);
+                    gain.neg_mut();
+                } else {
+                    r.du_lower.copy_from(&self.lower[k]);
+                    r.du_lower -= u;
+                    r.du_upper.copy_from(&self.upper[k]);
+                    r.du_upper -= u;
+                    let status = self.qp.solve(&r.q_uu, &r.q_u, &r.du_lower, &r.du_upper, &r.warm);
+                    if status == BoxQpStatus::NotPositiveDefinite {
+                        self.regularization = (self.regularization * 10.0).max(self.settings.min_regularization * 10.0);
+                        continue 'restart;
+                    }
+                    ff.copy_from(&self.qp.x);
+                    gain.copy_from(&r.q_ux);
+                    for (i, &clamped) in self.qp.clamped.iter().enumerate() {
+                        if clamped {
+                            gain.row_mut(i).fill(0.0);
+                        }
+                    }
+                    self.qp.free_factor.solve_in_place(gain);
+                    gain.neg_mut();
+                }
+                // P = Q_xx + K^T H K + K^T G + G^T K and p = Q_x + K^T H l + K^T g + G^T l.
+                // With K = -H^-1 G from this same (regularized) H, or its free rows
+                // -H_ff^-1 G_f and zero clamped rows, K^T H K = -K^T G, so P = Q_xx + G^T K;
+                // and p = Q_x + G^T l + K^T (H l + g), the last term zero for the Newton step
+                // (and on the free rows of a box-QP solution, up to its tolerance).
                 r.p_mat.copy_from(&r.q_xx);
                 // G^T K as a plain product of G^T (one small transpose): `gemm_tr` forms it
                 // from 48 x 48 scalar dot products, a quarter of this pass's time in `perf`
@@ -379,6 +458,11 @@ impl<'p, P: Problem> Slq<'p, P> {
                 r.p_mat.gemm(1.0, &r.q_ux_t, gain, 1.0);
                 r.p_vec.copy_from(&r.q_x);
                 r.p_vec.gemv_tr(1.0, &r.q_ux, ff, 1.0);
+                if !inside {
+                    r.qp_residual.copy_from(&r.q_u);
+                    r.qp_residual.gemv(1.0, &r.q_uu, ff, 1.0);
+                    r.p_vec.gemv_tr(1.0, gain, &r.qp_residual, 1.0);
+                }
                 // Keep P symmetric against round-off.
                 let nx = r.p_mat.nrows();
                 for i in 0..nx {
@@ -393,7 +477,8 @@ impl<'p, P: Problem> Slq<'p, P> {
         }
     }
 
-    /// Step 4: rollouts with `u = u_n + alpha l + K (x (-) x_n)`, `alpha = 1, 1/alpha_d, ...`
+    /// Step 4: rollouts with `u = clamp(u_n + alpha l + K (x (-) x_n))` (projected onto the
+    /// input box), `alpha = 1, 1/alpha_d, ...`
     /// until the cost is below `cost`; the accepted trajectory replaces the nominal one.
     /// Returns `(alpha, new cost)`, or `None` if no trial decreased the cost.
     ///
@@ -404,6 +489,7 @@ impl<'p, P: Problem> Slq<'p, P> {
         let problem = self.problem;
         let divisor = self.settings.alpha_divisor;
         let (states, inputs, feedforward, gains) = (&self.states, &self.inputs, &self.feedforward, &self.gains);
+        let bounds = (&self.lower[..], &self.upper[..]);
         let mut alpha = 1.0;
         let mut remaining = self.settings.max_line_search_steps;
         while remaining > 0 {
@@ -412,7 +498,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             self.pool.install(|| {
                 jobs.par_bridge().for_each(|(j, (trial, ws))| {
                     let step = divided(alpha, divisor, j);
-                    trial.cost = Self::trial_rollout(problem, ws, states, inputs, feedforward, gains, step, trial);
+                    trial.cost = Self::trial_rollout(problem, ws, states, inputs, feedforward, gains, bounds, step, trial);
                 });
             });
             for j in 0..round {
@@ -438,6 +524,7 @@ impl<'p, P: Problem> Slq<'p, P> {
         inputs: &[DVector<f64>],
         feedforward: &[DVector<f64>],
         gains: &[DMatrix<f64>],
+        (lower, upper): (&[DVector<f64>], &[DVector<f64>]),
         alpha: f64,
         trial: &mut Trial<P::State>,
     ) -> Option<f64> {
@@ -450,6 +537,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             u.copy_from(&inputs[k]);
             u.axpy(alpha, &feedforward[k], 1.0);
             u.gemv(1.0, &gains[k], &trial.dx, 1.0);
+            project(u, &lower[k], &upper[k]);
             let (head, tail) = trial.states.split_at_mut(k + 1);
             cost += problem.step(ws, k, &head[k], u, &mut tail[0]);
             if !problem.is_valid(&tail[0]) || !cost.is_finite() {

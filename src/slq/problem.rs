@@ -38,6 +38,15 @@ pub trait Problem: Sync {
     fn terminal_cost(&self, ws: &mut Self::Workspace, x: &Self::State) -> f64;
     /// `h(x_N)` with its gradient `h_x` and Hessian `h_xx` (tangent space).
     fn terminal_cost_derivatives(&self, ws: &mut Self::Workspace, x: &Self::State, h_x: &mut DVector<f64>, h_xx: &mut DMatrix<f64>) -> f64;
+    /// The box `lower <= u_k <= upper` the input of knot `k` must stay in (Tassa, Mansard,
+    /// Todorov 2014): the backward pass solves a box-constrained QP for the step, and every
+    /// rollout projects its inputs onto the box. Infinite entries leave an input unbounded
+    /// (the default: no bounds). `lower` and `upper` arrive with length `nu`.
+    fn input_bounds(&self, k: usize, lower: &mut DVector<f64>, upper: &mut DVector<f64>) {
+        let _ = k;
+        lower.fill(f64::NEG_INFINITY);
+        upper.fill(f64::INFINITY);
+    }
     /// `true` if a state is usable (finite, not blown up): a rollout reaching an unusable
     /// state is a failed line-search trial, not a result.
     fn is_valid(&self, x: &Self::State) -> bool;
