@@ -52,6 +52,7 @@ fn hyq_shifts_its_base_forward() {
         effort_limits: DVector::from_element(nv - 6, f64::INFINITY),
         waypoints: vec![],
         joint_limit_cost: None,
+        feasibility: None,
         anchor_states: false,
     };
     let pd = JointPd::standing(&model, dt).unwrap();
@@ -150,6 +151,7 @@ fn cost_gradient_with_foot_targets_matches_finite_differences() {
         effort_limits: DVector::from_element(nv - 6, f64::INFINITY),
         waypoints: vec![Waypoint { time: 0.004, rho: 1e4, cost }],
         joint_limit_cost: None,
+        feasibility: None,
         anchor_states: false,
     };
     let mut ws = problem.workspace();

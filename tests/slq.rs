@@ -3,7 +3,7 @@
 //! pendulum swing (cost decreasing, convergence, target reached); the same linear-quadratic
 //! problem with input bounds against its condensed QP solved by Clarabel.
 
-use legwork::slq::{KnotDerivatives, Policy, Problem, Slq, SlqSettings, SolutionPolicy, Termination};
+use legwork::slq::{ControlLimits, KnotDerivatives, Policy, Problem, Slq, SlqSettings, SolutionPolicy, Termination};
 use nalgebra::{DMatrix, DVector};
 
 /// `x_{k+1} = A x + B u`, `l = x^T Q x + u^T R u`, `h = x^T H x`, in R^nx.
@@ -161,8 +161,8 @@ fn linear_quadratic_with_input_bounds_reaches_the_constrained_optimum() {
     let p = double_integrator(40, 1.5);
     let unconstrained = condensed_optimum(&p);
     assert!(unconstrained.amax() > 5.0, "the bound must cut the unconstrained optimum: {}", unconstrained.amax());
-    let settings = SlqSettings { threads: 2, max_iterations: 50, feedforward_tolerance: 1e-9, relative_cost_tolerance: 0.0, normalized_cost_tolerance: 0.0, ..Default::default() };
-    let sol = Slq::new(&p, settings).unwrap().solve(&Zero, |_| {}).unwrap();
+    let settings = SlqSettings { threads: 2, max_iterations: 50, feedforward_tolerance: 1e-9, relative_cost_tolerance: 0.0, normalized_cost_tolerance: 0.0, control_limits: ControlLimits::BoxQp, ..Default::default() };
+    let sol = Slq::new(&p, settings.clone()).unwrap().solve(&Zero, |_| {}).unwrap();
     let exact = clarabel_box_optimum(&p);
     let ours = DVector::from_iterator(80, sol.inputs.iter().flat_map(|u| u.iter().copied()));
     assert!(ours.iter().all(|u| u.abs() <= 1.5), "an input left the box");
@@ -173,6 +173,12 @@ fn linear_quadratic_with_input_bounds_reaches_the_constrained_optimum() {
         assert!(sol.gains[k].row(i).iter().all(|g| *g == 0.0), "knot {k} input {i} at its bound has gains {}", sol.gains[k].row(i));
     }
     assert!(matches!(sol.termination, Termination::Converged | Termination::CostStalled), "{:?}", sol.termination);
+    // The projected rollout keeps every input in the box too, at a cost no lower than the
+    // constrained optimum's (and here within 5 % of it).
+    let projected = Slq::new(&p, SlqSettings { control_limits: ControlLimits::ProjectedRollout, ..settings }).unwrap().solve(&Zero, |_| {}).unwrap();
+    assert!(projected.inputs.iter().all(|u| u.amax() <= 1.5));
+    let (best, clamped) = (*sol.cost_history.last().unwrap(), *projected.cost_history.last().unwrap());
+    assert!(clamped >= best * (1.0 - 1e-9) && clamped < 1.05 * best, "projected {clamped} against the optimum {best}");
 }
 
 /// Bounds the solver cannot use are refused with the knot and the input.

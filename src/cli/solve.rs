@@ -149,6 +149,13 @@ pub fn run(args: SolveArgs) -> Result<()> {
     row("diagonal correlation", &|m| pairs(&m.diagonal_correlation));
     row("lateral correlation", &|m| pairs(&m.lateral_correlation));
     row("past joint limit [deg]", &|m| m.joint_limit_excess.as_ref().map_or("none".into(), |e| format!("{:.0} {}", e.excess_deg, e.joint.trim_end_matches("_joint"))));
+    row("max |tau| / limit", &|m| format!("{:.3}", m.feasibility.max_torque_ratio));
+    row("knots at torque limit [%]", &|m| format!("{:.1}", 100.0 * m.feasibility.knots_at_torque_limit));
+    row("max |v| / limit", &|m| format!("{:.2}", m.feasibility.max_joint_velocity_ratio));
+    row("max friction |Ft|/Fn", &|m| format!("{:.3}", m.feasibility.max_friction_ratio));
+    row("loaded over 0.75 mu [%]", &|m| format!("{:.1}", 100.0 * m.feasibility.friction_margin_excess));
+    row("loaded sliding [%]", &|m| m.feasibility.sliding_share.iter().map(|s| format!("{:.0}", 100.0 * s)).collect::<Vec<_>>().join("/"));
+    row("max penetration [mm]", &|m| format!("{:.1}", 1e3 * m.feasibility.max_penetration));
     for w in &spec.waypoints {
         let show = |traj: Option<&legwork::io::Trajectory>| {
             traj.map_or("failed".to_string(), |traj| {

@@ -19,6 +19,7 @@
 //! ([`JointLimitCost`]) and be solved by horizon continuation ([`ContinuationSpec`]: shorter
 //! versions of the task first, each warm-starting the next).
 
+mod constraints;
 mod continuation;
 mod deviation;
 mod limit_cost;
@@ -26,6 +27,7 @@ mod metrics;
 mod run;
 mod task;
 
+pub use constraints::{tangential_demand, FeasibilityConstraints, FeasibilitySettings, Violation};
 pub use continuation::ContinuationSpec;
 pub use deviation::StateDeviation;
 pub use limit_cost::{JointLimitCost, JointLimitCostSpec};
@@ -157,6 +159,10 @@ pub struct WholeBodyProblem<'a> {
     pub waypoints: Vec<Waypoint>,
     /// A running cost on joint positions outside their limits (`None`: none).
     pub joint_limit_cost: Option<JointLimitCost>,
+    /// The feasibility constraints on every knot's state (friction with a margin,
+    /// penetration, joint limits and speeds, [`FeasibilityConstraints`]). Every task file's
+    /// problem has them; `None` only for problems built in code.
+    pub feasibility: Option<FeasibilityConstraints>,
     /// Linearize with the contact anchors as states (`dx = [dq; dv; da]`, three coordinates
     /// per foot, [`crate::sim::AnchorStepDerivatives`]) rather than as hidden states held
     /// over each step.
@@ -182,6 +188,8 @@ pub struct WholeBodyWorkspace<'a> {
     jac: DMatrix<f64>,
     kinematics: crate::dynamics::Data,
     frame_jac: nalgebra::Matrix6xX<f64>,
+    /// A constraint's gradient row (`nx`).
+    constraint_row: DVector<f64>,
 }
 
 impl<'a> WholeBodyProblem<'a> {
@@ -282,6 +290,35 @@ impl<'a> WholeBodyProblem<'a> {
     }
 }
 
+impl WholeBodyProblem<'_> {
+    /// `f(k, q, v, anchors, feet)` at every knot state `x_0 .. x_{N-1}` of `states` (the
+    /// constrained ones), with the contacts evaluated there.
+    fn for_each_knot_contact(&self, states: &[RobotState], mut f: impl FnMut(usize, &RobotState, &ContactParams, &[crate::sim::FootState])) {
+        let mut ws = ContactModelWorkspace::new(self.model, self.terrain, self.contact).with_joint_limits(self.joint_limits);
+        for (k, x) in states.iter().enumerate().take(self.knots) {
+            ws.evaluate_contacts(&x.q, &x.v, &x.anchors);
+            f(k, x, ws.params(), ws.feet());
+        }
+    }
+
+    /// The largest violation of each feasibility constraint along `states` (`None` without
+    /// the constraints).
+    pub fn constraint_violation(&self, states: &[RobotState]) -> Option<Violation> {
+        let constraints = self.feasibility.as_ref()?;
+        let mut worst = Violation::default();
+        self.for_each_knot_contact(states, |k, x, params, feet| constraints.violation(k, &x.q, &x.v, params, feet, &x.anchors, &mut worst));
+        Some(worst)
+    }
+
+    /// The augmented Lagrangian's outer update of every multiplier at `states`
+    /// ([`FeasibilityConstraints::update_multipliers`]).
+    pub fn update_multipliers(&mut self, states: &[RobotState]) {
+        let Some(mut constraints) = self.feasibility.take() else { return };
+        self.for_each_knot_contact(states, |k, x, params, feet| constraints.update_multipliers(k, &x.q, &x.v, params, feet, &x.anchors));
+        self.feasibility = Some(constraints);
+    }
+}
+
 impl<'a> Problem for WholeBodyProblem<'a> {
     type State = RobotState;
     type Workspace = WholeBodyWorkspace<'a>;
@@ -313,6 +350,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             jac: DMatrix::zeros(2 * nv, 2 * nv),
             kinematics: crate::dynamics::Data::new(model),
             frame_jac: nalgebra::Matrix6xX::zeros(nv),
+            constraint_row: DVector::zeros(self.nx()),
         }
     }
     fn initial_state(&self) -> RobotState {
@@ -337,14 +375,18 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         }
     }
     fn step(&self, ws: &mut WholeBodyWorkspace<'a>, k: usize, x: &RobotState, u: &DVector<f64>, next: &mut RobotState) -> f64 {
-        let cost = self.running_cost(ws, k, x, u);
+        let mut cost = self.running_cost(ws, k, x, u);
         self.torques(ws, u);
         next.q.copy_from(&x.q);
         next.v.copy_from(&x.v);
         next.anchors.clone_from(&x.anchors);
         let h = self.dt / self.substeps as f64;
-        for _ in 0..self.substeps {
+        for substep in 0..self.substeps {
             ws.dynamics.step(&mut next.q, &mut next.v, &mut next.anchors, &ws.tau, h);
+            // The first substep evaluated the contacts at x: the constraints' forces.
+            if let (0, Some(constraints)) = (substep, &self.feasibility) {
+                cost += constraints.cost(k, self.dt, &x.q, &x.v, ws.dynamics.params(), ws.dynamics.feet(), &x.anchors);
+            }
         }
         cost
     }
@@ -353,12 +395,21 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         next.q.copy_from(&x.q);
         next.v.copy_from(&x.v);
         next.anchors.clone_from(&x.anchors);
+        d.l_x.fill(0.0);
+        d.l_xx.fill(0.0);
+        d.l_ux.fill(0.0);
+        let mut cost = 0.0;
         // Each substep's A_i, B_i (the anchor-extended ones with anchor states), chained
         // with the input held: A <- A_i A, B <- A_i B + B_i.
         let h = self.dt / self.substeps as f64;
         for substep in 0..self.substeps {
             ws.anchors_before.clone_from(&next.anchors);
             ws.derivatives.step(&mut ws.dynamics, &mut next.q, &mut next.v, &mut next.anchors, &ws.tau, h);
+            // The first substep evaluated the contacts and foot Jacobians at x.
+            if let (0, Some(constraints)) = (substep, &self.feasibility) {
+                let state = (&x.q, &x.v, &x.anchors[..]);
+                cost += constraints.add_derivatives(k, self.dt, state, ws.dynamics.params(), ws.dynamics.feet(), &ws.derivatives, self.anchor_states, &mut ws.constraint_row, &mut d.l_x, &mut d.l_xx);
+            }
             let (a, b) = if substep == 0 { (&mut d.a, &mut d.b) } else { (&mut ws.step_a, &mut ws.step_b) };
             if self.anchor_states {
                 ws.anchor_derivatives.linearize(&ws.derivatives, &ws.dynamics, &ws.anchors_before, h, a);
@@ -382,11 +433,8 @@ impl<'a> Problem for WholeBodyProblem<'a> {
                 d.b.column_mut(i).fill(0.0);
             }
         }
-        d.l_x.fill(0.0);
-        d.l_xx.fill(0.0);
-        d.l_ux.fill(0.0);
         let t = k as f64 * self.dt;
-        let mut cost = self.add_state_cost_derivatives(ws, &self.running, self.dt, x, &mut d.l_x, &mut d.l_xx);
+        cost += self.add_state_cost_derivatives(ws, &self.running, self.dt, x, &mut d.l_x, &mut d.l_xx);
         for w in &self.waypoints {
             let scale = self.dt * w.window(t);
             if scale > 1e-12 * self.dt {

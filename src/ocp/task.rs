@@ -331,6 +331,8 @@ impl TaskSpec {
             effort_limits: DVector::from_iterator(nu, model.actuated_joints().map(|j| j.limits.effort[0])),
             waypoints,
             joint_limit_cost: self.joint_limit_cost.map(|spec| super::JointLimitCost::new(model, spec)),
+            // Every task gets the feasibility constraints (issue 16): no task field turns them off.
+            feasibility: Some(super::FeasibilityConstraints::new(model, self.knots(), super::FeasibilitySettings::default())),
             // The anchors as states of the linearization: the held-anchor model mispredicts
             // every touch-down and slip (see `crate::sim::AnchorStepDerivatives`).
             anchor_states: true,

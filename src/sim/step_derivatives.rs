@@ -100,6 +100,13 @@ impl StepDerivatives {
         }
     }
 
+    /// Of foot `f` at the start of the last [`Self::step`]: `d p / d dq` and `d pdot / d dq`
+    /// (3 x nv, world frame; `d pdot / d dv = d p / d dq`), zero for a foot not touching
+    /// the ground.
+    pub fn foot_jacobians(&self, f: usize) -> (&Matrix3xX<f64>, &Matrix3xX<f64>) {
+        (&self.foot_dp_dq[f], &self.foot_dpdot_dq[f])
+    }
+
     /// One semi-implicit Euler step from `(q, v)` with torques `tau` (`nv`, base entries
     /// zero) and its linearization into [`Self::a`], [`Self::b`]. `q`, `v` and `anchors`
     /// are advanced exactly as [`ContactModelWorkspace::step`] does.

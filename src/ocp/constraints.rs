@@ -1,0 +1,399 @@
+//! The feasibility layer of the whole-body problem: inequality constraints `g(x_k) <= 0` on
+//! every knot's state that every task gets (issue 16, item 2), handled as an augmented
+//! Lagrangian running cost (Powell-Hestenes-Rockafellar, as ALTRO does around iLQR):
+//!
+//! ```text
+//! psi(c; lambda, rho) = 1 / (2 rho) (max(0, lambda + rho c)^2 - lambda^2)
+//! dpsi/dc = max(0, lambda + rho c),   d2psi/dc2 = rho [lambda + rho c > 0]
+//! ```
+//!
+//! added as `dt psi` per constraint and knot, with Gauss-Newton derivatives (`l_x += dt
+//! psi' J^T`, `l_xx += dt psi'' J^T J`, `J = dc/dx`). With zero multipliers it is the
+//! quadratic exterior penalty `rho / 2 max(0, c)^2`; [`FeasibilityConstraints::update_multipliers`]
+//! is the outer update `lambda <- max(0, lambda + rho c)`.
+//!
+//! The constraints, each normalized so that `c = 1` is a violation of the size of its bound:
+//!
+//! ```text
+//! friction      (|T| - eta mu F_n) / (m g)       per foot in contact, T the tangential force
+//!                                                 the spring and damper ask for (eq. 10,
+//!                                                 before the cone of eq. 11 cuts it)
+//! penetration   (p_n - p_max) / p_max             per foot
+//! joint limits  (q - q_max), (q_min - q)          rad, per limited joint
+//! joint speed   (|v| - v_max) / v_max             per joint with a velocity limit
+//! ```
+//!
+//! Why the demanded tangential force and not the contact force: at the cone's edge the
+//! contact force is `mu F_n` whatever the spring's stretch, so its derivative cannot say
+//! "stretch the spring less", only "press less". The demanded force `T = -s (k_t P (c - a)
+//! + d_t P pdot)` inside `eta mu F_n` means the cone never cuts it: the foot sticks to its
+//! anchor and moves at most `|T| / (k_t s)` from it (issue 16: loaded feet that stick).
+
+use crate::contact::ContactParams;
+use crate::model::Model;
+use crate::sim::joint_limits::{limited_coordinates, LimitedCoordinate};
+use crate::sim::{FootState, StepDerivatives, ANCHOR_DIM};
+use nalgebra::{DMatrix, DVector, Matrix3, RowVector3, Vector3};
+
+/// The constraints' bounds and penalty parameters (defaults in parentheses).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FeasibilitySettings {
+    /// `eta`: a loaded foot's tangential force within `eta mu F_n` (0.75, issue 16).
+    pub friction_margin: f64,
+    /// `p_max`: the deepest a foot sphere may sink into the ground (0.01 m).
+    pub max_penetration: f64,
+    /// `rho` of the friction, penetration, joint-limit and joint-speed constraints (per
+    /// second, on the normalized residuals: 1e4, 1e3, 1e4, 1e3).
+    pub friction_penalty: f64,
+    pub penetration_penalty: f64,
+    pub joint_limit_penalty: f64,
+    pub joint_speed_penalty: f64,
+}
+
+impl Default for FeasibilitySettings {
+    fn default() -> Self {
+        Self { friction_margin: 0.75, max_penetration: 0.01, friction_penalty: 1e4, penetration_penalty: 1e3, joint_limit_penalty: 1e4, joint_speed_penalty: 1e3 }
+    }
+}
+
+/// A speed limit of one velocity coordinate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct SpeedLimit {
+    idx_v: usize,
+    limit: f64,
+}
+
+/// The constraints of one problem, with their multipliers (one per constraint and knot).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FeasibilityConstraints {
+    pub settings: FeasibilitySettings,
+    /// `m g` (N), the friction residuals' unit.
+    weight: f64,
+    feet: usize,
+    coordinates: Vec<LimitedCoordinate>,
+    speeds: Vec<SpeedLimit>,
+    /// `lambda`, knot-major: per knot the feet's friction and penetration, then each limited
+    /// coordinate's upper and lower side, then the speeds.
+    multipliers: Vec<f64>,
+}
+
+/// The largest violation of each kind over a trajectory (in the constraints' units:
+/// friction in `m g`, penetration in `p_max`, joints in rad, speeds in `v_max`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Violation {
+    pub friction: f64,
+    pub penetration: f64,
+    pub joint_limit: f64,
+    pub joint_speed: f64,
+}
+
+impl Violation {
+    pub fn max(&self) -> f64 {
+        self.friction.max(self.penetration).max(self.joint_limit).max(self.joint_speed)
+    }
+}
+
+impl FeasibilityConstraints {
+    /// The constraints of `model` over `knots` knots, multipliers zero.
+    pub fn new(model: &Model, knots: usize, settings: FeasibilitySettings) -> Self {
+        let coordinates: Vec<LimitedCoordinate> = limited_coordinates(model).collect();
+        let speeds: Vec<SpeedLimit> = model.actuated_joints().filter(|j| j.limits.velocity[0].is_finite() && j.limits.velocity[0] > 0.0).map(|j| SpeedLimit { idx_v: j.idx_v, limit: j.limits.velocity[0] }).collect();
+        let feet = model.feet.len();
+        let per_knot = 2 * feet + 2 * coordinates.len() + speeds.len();
+        Self { settings, weight: model.total_mass() * 9.81, feet, coordinates, speeds, multipliers: vec![0.0; per_knot * (knots + 1)] }
+    }
+
+    fn per_knot(&self) -> usize {
+        2 * self.feet + 2 * self.coordinates.len() + self.speeds.len()
+    }
+
+    /// A foot's friction residual `c` and the demanded tangential force `T` it is made of
+    /// ([`tangential_demand`]), `None` for a foot without normal force.
+    fn friction_residual(&self, params: &ContactParams, foot: &FootState, anchor: Option<&Vector3<f64>>) -> Option<(f64, Vector3<f64>)> {
+        let c = &foot.contact;
+        if c.normal_force <= 0.0 {
+            return None;
+        }
+        let demand = tangential_demand(params, foot, anchor);
+        let norm = demand.norm();
+        let residual = (norm - self.settings.friction_margin * params.friction * c.normal_force) / self.weight;
+        Some((residual, demand))
+    }
+
+    /// The residuals of knot `k`'s state, each with its multiplier and penalty, to `f(index,
+    /// c, lambda, rho)` (constraint order of [`Self::multipliers`]).
+    fn for_each_residual(&self, k: usize, q: &DVector<f64>, v: &DVector<f64>, params: &ContactParams, feet: &[FootState], anchors: &[Option<Vector3<f64>>], mut f: impl FnMut(Residual, f64, f64, f64)) {
+        let s = &self.settings;
+        let base = k * self.per_knot();
+        let lambda = |i: usize| self.multipliers.get(base + i).copied().unwrap_or(0.0);
+        for (i, foot) in feet.iter().enumerate() {
+            if let Some((c, _)) = self.friction_residual(params, foot, anchors[i].as_ref()) {
+                f(Residual::Friction(i), c, lambda(2 * i), s.friction_penalty);
+            }
+            if foot.contact.penetration > 0.0 {
+                f(Residual::Penetration(i), (foot.contact.penetration - s.max_penetration) / s.max_penetration, lambda(2 * i + 1), s.penetration_penalty);
+            }
+        }
+        let offset = 2 * self.feet;
+        for (j, b) in self.coordinates.iter().enumerate() {
+            let x = q[b.idx_q];
+            f(Residual::Upper(j), x - b.upper, lambda(offset + 2 * j), s.joint_limit_penalty);
+            f(Residual::Lower(j), b.lower - x, lambda(offset + 2 * j + 1), s.joint_limit_penalty);
+        }
+        let offset = offset + 2 * self.coordinates.len();
+        for (j, sp) in self.speeds.iter().enumerate() {
+            f(Residual::Speed(j), (v[sp.idx_v].abs() - sp.limit) / sp.limit, lambda(offset + j), s.joint_speed_penalty);
+        }
+    }
+
+    /// `scale sum psi(c)` at a knot: `feet` the contacts at its state (`q`, `v`, `anchors`).
+    pub fn cost(&self, k: usize, scale: f64, q: &DVector<f64>, v: &DVector<f64>, params: &ContactParams, feet: &[FootState], anchors: &[Option<Vector3<f64>>]) -> f64 {
+        let mut cost = 0.0;
+        self.for_each_residual(k, q, v, params, feet, anchors, |_, c, lambda, rho| cost += psi(c, lambda, rho).0);
+        scale * cost
+    }
+
+    /// Adds `scale psi` and its Gauss-Newton derivatives to `(l_x, l_xx)`; `step` holds the
+    /// foot Jacobians of the knot's first integration step (from its state), and
+    /// `anchor_states` says whether the tangent has anchor coordinates (`2 nv + 3 f`).
+    /// Returns `scale sum psi`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn add_derivatives(
+        &self,
+        k: usize,
+        scale: f64,
+        (q, v, anchors): (&DVector<f64>, &DVector<f64>, &[Option<Vector3<f64>>]),
+        params: &ContactParams,
+        feet: &[FootState],
+        step: &StepDerivatives,
+        anchor_states: bool,
+        scratch: &mut DVector<f64>,
+        l_x: &mut DVector<f64>,
+        l_xx: &mut DMatrix<f64>,
+    ) -> f64 {
+        let nv = v.len();
+        let mut cost = 0.0;
+        self.for_each_residual(k, q, v, params, feet, anchors, |which, c, lambda, rho| {
+            let (value, slope, curvature) = psi(c, lambda, rho);
+            if slope == 0.0 && curvature == 0.0 {
+                return;
+            }
+            cost += value;
+            // J = dc/dx into `scratch`.
+            scratch.fill(0.0);
+            match which {
+                Residual::Friction(i) => {
+                    let foot = &feet[i];
+                    let Some((_, demand)) = self.friction_residual(params, foot, anchors[i].as_ref()) else { return };
+                    let norm = demand.norm();
+                    if norm == 0.0 {
+                        return;
+                    }
+                    let (jp, jd) = step.foot_jacobians(i);
+                    let d = tangential_demand_derivatives(params, foot, anchors[i].as_ref(), &demand);
+                    let dir = (demand / norm).transpose();
+                    let n_t = foot.normal.transpose();
+                    let eta_mu = self.settings.friction_margin * params.friction;
+                    // dc/dp, dc/dpdot (rows), then through the foot Jacobians.
+                    let a_p: RowVector3<f64> = (dir * d.position - n_t * foot.contact.d_position * eta_mu) / self.weight;
+                    let a_v: RowVector3<f64> = (dir * d.velocity - n_t * foot.contact.d_velocity * eta_mu) / self.weight;
+                    for j in 0..nv {
+                        scratch[j] = a_p.dot(&jp.column(j).transpose()) + a_v.dot(&jd.column(j).transpose());
+                        scratch[nv + j] = a_v.dot(&jp.column(j).transpose());
+                    }
+                    if anchor_states && anchors[i].is_some() {
+                        let a_a = dir * d.anchor / self.weight;
+                        for r in 0..ANCHOR_DIM {
+                            scratch[2 * nv + ANCHOR_DIM * i + r] = a_a[r];
+                        }
+                    }
+                }
+                Residual::Penetration(i) => {
+                    // p_n = r - n . (p - s): dp_n/ddq = -n^T dp/ddq.
+                    let (jp, _) = step.foot_jacobians(i);
+                    let n = feet[i].normal;
+                    for j in 0..nv {
+                        scratch[j] = -n.dot(&jp.column(j)) / self.settings.max_penetration;
+                    }
+                }
+                Residual::Upper(j) => scratch[self.coordinates[j].idx_v] = 1.0,
+                Residual::Lower(j) => scratch[self.coordinates[j].idx_v] = -1.0,
+                Residual::Speed(j) => {
+                    let sp = self.speeds[j];
+                    scratch[nv + sp.idx_v] = v[sp.idx_v].signum() / sp.limit;
+                }
+            }
+            l_x.axpy(scale * slope, scratch, 1.0);
+            if curvature > 0.0 {
+                l_xx.ger(scale * curvature, scratch, scratch, 1.0);
+            }
+        });
+        scale * cost
+    }
+
+    /// The outer update of the augmented Lagrangian, `lambda <- max(0, lambda + rho c)`, at
+    /// knot `k` (`feet` the contacts at its state).
+    pub fn update_multipliers(&mut self, k: usize, q: &DVector<f64>, v: &DVector<f64>, params: &ContactParams, feet: &[FootState], anchors: &[Option<Vector3<f64>>]) {
+        let base = k * self.per_knot();
+        let mut updates = Vec::new();
+        let index = |which: Residual, feet: usize, coordinates: usize| match which {
+            Residual::Friction(i) => 2 * i,
+            Residual::Penetration(i) => 2 * i + 1,
+            Residual::Upper(j) => 2 * feet + 2 * j,
+            Residual::Lower(j) => 2 * feet + 2 * j + 1,
+            Residual::Speed(j) => 2 * feet + 2 * coordinates + j,
+        };
+        let (nf, nc) = (self.feet, self.coordinates.len());
+        self.for_each_residual(k, q, v, params, feet, anchors, |which, c, lambda, rho| updates.push((index(which, nf, nc), (lambda + rho * c).max(0.0))));
+        // A constraint not evaluated at this state (a foot off the ground) releases its
+        // multiplier.
+        for i in 0..nf {
+            if feet[i].contact.normal_force <= 0.0 {
+                self.multipliers[base + 2 * i] = 0.0;
+            }
+            if feet[i].contact.penetration <= 0.0 {
+                self.multipliers[base + 2 * i + 1] = 0.0;
+            }
+        }
+        for (i, lambda) in updates {
+            self.multipliers[base + i] = lambda;
+        }
+    }
+
+    /// Adds knot `k`'s largest violations to `worst`.
+    pub fn violation(&self, k: usize, q: &DVector<f64>, v: &DVector<f64>, params: &ContactParams, feet: &[FootState], anchors: &[Option<Vector3<f64>>], worst: &mut Violation) {
+        self.for_each_residual(k, q, v, params, feet, anchors, |which, c, _, _| {
+            let slot = match which {
+                Residual::Friction(_) => &mut worst.friction,
+                Residual::Penetration(_) => &mut worst.penetration,
+                Residual::Upper(_) | Residual::Lower(_) => &mut worst.joint_limit,
+                Residual::Speed(_) => &mut worst.joint_speed,
+            };
+            *slot = slot.max(c);
+        });
+    }
+
+    /// Multipliers of knots `0 .. knots` from a solution of another horizon with the same
+    /// robot (a continuation stage): knot for knot, zero past its end.
+    pub fn carry_multipliers_from(&mut self, other: &Self) {
+        let n = self.multipliers.len().min(other.multipliers.len());
+        self.multipliers[..n].copy_from_slice(&other.multipliers[..n]);
+    }
+}
+
+/// Which constraint a residual is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Residual {
+    Friction(usize),
+    Penetration(usize),
+    Upper(usize),
+    Lower(usize),
+    Speed(usize),
+}
+
+/// `(psi, dpsi/dc, d2psi/dc2)` of the augmented Lagrangian term.
+#[inline]
+fn psi(c: f64, lambda: f64, rho: f64) -> (f64, f64, f64) {
+    let shifted = lambda + rho * c;
+    if shifted > 0.0 {
+        ((shifted * shifted - lambda * lambda) / (2.0 * rho), shifted, rho)
+    } else {
+        (-lambda * lambda / (2.0 * rho), 0.0, 0.0)
+    }
+}
+
+/// The tangential force the spring and damper of eq. (10) ask for at a foot,
+/// `T = -s(p_n) (k_t P (c - a) + d_t P pdot)` (zero spring without an anchor), before the
+/// friction cone of eq. (11).
+pub fn tangential_demand(params: &ContactParams, foot: &FootState, anchor: Option<&Vector3<f64>>) -> Vector3<f64> {
+    let (s, _) = params.profile(foot.contact.penetration);
+    let tangent = Matrix3::identity() - foot.normal * foot.normal.transpose();
+    let spring = if anchor.is_some() { foot.contact.tangential_offset * params.tangential_stiffness } else { Vector3::zeros() };
+    -(spring + tangent * foot.velocity * params.tangential_damping) * s
+}
+
+/// `dT/dp`, `dT/dpdot`, `dT/da` of [`tangential_demand`] (3 x 3, surface held).
+struct DemandDerivatives {
+    position: Matrix3<f64>,
+    velocity: Matrix3<f64>,
+    anchor: Matrix3<f64>,
+}
+
+/// With `T = s u`, `u = -(k_t P (c - a) + d_t P pdot)` and `dp_n/dp = -n^T`:
+///
+/// ```text
+/// dT/dp = -k_t s P - s'(p_n) u n^T,   dT/dpdot = -d_t s P,   dT/da = k_t s P
+/// ```
+fn tangential_demand_derivatives(params: &ContactParams, foot: &FootState, anchor: Option<&Vector3<f64>>, demand: &Vector3<f64>) -> DemandDerivatives {
+    let (s, ds) = params.profile(foot.contact.penetration);
+    let n = foot.normal;
+    let tangent = Matrix3::identity() - n * n.transpose();
+    let k_t = if anchor.is_some() { params.tangential_stiffness } else { 0.0 };
+    // T = u s: dT/dp = s du/dp + u ds/dp_n dp_n/dp = s du/dp - u ds n^T.
+    let u = if s > 0.0 { demand / s } else { Vector3::zeros() };
+    DemandDerivatives { position: -tangent * (k_t * s) - u * n.transpose() * ds, velocity: -tangent * (params.tangential_damping * s), anchor: tangent * (k_t * s) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contact::{contact_force, Surface};
+
+    /// `psi` is C1 across the activation and its derivatives match differences.
+    #[test]
+    fn the_augmented_lagrangian_term_and_its_derivatives() {
+        for (lambda, rho) in [(0.0, 10.0), (2.0, 10.0), (0.5, 1e3)] {
+            for c in [-1.0, -0.1, 0.05, 0.3] {
+                let (v, d1, d2) = psi(c, lambda, rho);
+                let h = 1e-6;
+                let fd = (psi(c + h, lambda, rho).0 - psi(c - h, lambda, rho).0) / (2.0 * h);
+                assert!((fd - d1).abs() < 1e-5 * (1.0 + d1.abs()), "lambda {lambda}, c {c}: {fd} vs {d1}");
+                let fd2 = (psi(c + h, lambda, rho).1 - psi(c - h, lambda, rho).1) / (2.0 * h);
+                assert!((fd2 - d2).abs() < 1e-4 * (1.0 + d2), "{fd2} vs {d2}");
+                assert!(v.is_finite());
+            }
+        }
+        // Zero multiplier: the quadratic penalty.
+        assert_eq!(psi(0.2, 0.0, 10.0).0, 0.5 * 10.0 * 0.04);
+        assert_eq!(psi(-0.2, 0.0, 10.0), (0.0, 0.0, 0.0));
+    }
+
+    /// The demanded tangential force's derivatives against central differences, sticking
+    /// and beyond the cone (where the contact force saturates but the demand does not).
+    #[test]
+    fn demand_derivatives_match_finite_differences() {
+        let params = ContactParams::default();
+        let r = 0.02;
+        let surface = Surface { point: Vector3::new(0.1, -0.2, 0.05), normal: Vector3::new(0.2, -0.1, 1.0).normalize() };
+        let n = surface.normal;
+        let tangent = Matrix3::identity() - n * n.transpose();
+        let foot_at = |p: Vector3<f64>, v: Vector3<f64>, a: Option<&Vector3<f64>>| {
+            let contact = contact_force(&params, r, &p, &v, &surface, a);
+            FootState { position: p, velocity: v, normal: n, contact }
+        };
+        for (depth, anchor_offset, velocity) in [(0.004, 0.0005, Vector3::new(0.02, 0.01, -0.1)), (0.015, 0.06, Vector3::new(0.3, -0.1, 0.05)), (0.012, 0.0, Vector3::new(0.1, 0.2, 0.0))] {
+            let base = surface.point + tangent * Vector3::new(0.01, 0.02, 0.0);
+            let p = base + n * (r - depth);
+            let a = base - tangent * Vector3::new(anchor_offset, -0.5 * anchor_offset, 0.0);
+            let foot = foot_at(p, velocity, Some(&a));
+            let demand = tangential_demand(&params, &foot, Some(&a));
+            let d = tangential_demand_derivatives(&params, &foot, Some(&a), &demand);
+            let h = 1e-7;
+            for i in 0..3 {
+                let e = Vector3::ith(i, h);
+                let at = |p: Vector3<f64>, v: Vector3<f64>, a: Vector3<f64>| tangential_demand(&params, &foot_at(p, v, Some(&a)), Some(&a));
+                let fd_p = (at(p + e, velocity, a) - at(p - e, velocity, a)) / (2.0 * h);
+                let fd_v = (at(p, velocity + e, a) - at(p, velocity - e, a)) / (2.0 * h);
+                let fd_a = (at(p, velocity, a + e) - at(p, velocity, a - e)) / (2.0 * h);
+                let scale = 1.0 + d.position.norm();
+                assert!((d.position.column(i) - fd_p).norm() / scale < 1e-6, "dT/dp {i}: {} vs {fd_p}", d.position.column(i));
+                assert!((d.velocity.column(i) - fd_v).norm() / (1.0 + d.velocity.norm()) < 1e-6);
+                assert!((d.anchor.column(i) - fd_a).norm() / scale < 1e-6);
+            }
+            if anchor_offset == 0.06 {
+                assert!(foot.contact.slipping, "the far anchor is beyond the cone");
+                assert!(demand.norm() > params.friction * foot.contact.normal_force);
+            }
+        }
+    }
+}
