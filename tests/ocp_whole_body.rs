@@ -291,3 +291,67 @@ fn substepped_knot_is_the_simulators_steps_and_its_linearization_matches_finite_
         column(&perturb, 1e-7, d.a.column(k), format!("A column {k}"));
     }
 }
+
+/// The feasibility constraints' gradient (friction on the demanded tangential force,
+/// penetration, joint limits and speeds) is exact: with heavy penalties and a state that
+/// violates each kind (feet pressed 6 mm deeper and dragged sideways, a knee past its
+/// limit, a hip too fast), the knot's `l_x` matches central differences of its cost along
+/// random tangent directions, anchors included.
+#[test]
+fn feasibility_constraint_gradients_match_finite_differences() {
+    use legwork::ocp::{settled_stance, FeasibilityConstraints, FeasibilitySettings, TaskSpec};
+    use legwork::slq::KnotDerivatives;
+    let text = "name = \"fd\"\nsummary = \"fd\"\nrobot = \"hyq\"\nduration = 0.01\ndt = 0.002\n[running]\nbase_position = [1.0, 1.0, 1.0]\n[final]\n[input]\nweight = 1e-4\n";
+    let spec = TaskSpec::from_toml(text, "fd.toml").unwrap();
+    let model = embedded::load("hyq").unwrap();
+    let ground = Plane::flat(0.0);
+    let initial = settled_stance(&model, &ground, Default::default(), 0.3).unwrap();
+    let mut problem = spec.problem(&model, &ground, initial.clone(), "fd.toml").unwrap();
+    let settings = FeasibilitySettings { friction_penalty: 1e6, penetration_penalty: 1e4, joint_limit_penalty: 1e4, joint_speed_penalty: 1e4, ..Default::default() };
+    problem.feasibility = Some(FeasibilityConstraints::new(&model, problem.knots, settings));
+    let mut x = initial.clone();
+    x.q[2] -= 0.006;
+    x.v[0] = 0.4;
+    x.v[1] = -0.2;
+    let knee = model.joints.iter().find(|j| j.name == "lf_kfe_joint").unwrap();
+    x.q[knee.idx_q] = knee.limits.upper[0] + 0.05;
+    let hip = model.joints.iter().find(|j| j.name == "rh_hfe_joint").unwrap();
+    x.v[hip.idx_v] = 1.3 * hip.limits.velocity[0];
+    let (nx, nu) = (problem.nx(), problem.nu());
+    let u = DVector::zeros(nu);
+    let mut ws = problem.workspace();
+    let mut d = KnotDerivatives::zeros(nx, nu);
+    let mut next = x.clone();
+    problem.step_with_derivatives(&mut ws, 0, &x, &u, &mut next, &mut d);
+    let violation = problem.constraint_violation(std::slice::from_ref(&x)).unwrap();
+    assert!(violation.friction > 0.0 && violation.penetration > 0.0 && violation.joint_limit > 0.0 && violation.joint_speed > 0.0, "{violation:?}");
+    let nv = model.nv;
+    let perturbed = |dx: &DVector<f64>, h: f64| {
+        let mut y = x.clone();
+        legwork::dynamics::integrate(&model, &x.q, &(dx.rows(0, nv) * h), &mut y.q);
+        y.v += dx.rows(nv, nv) * h;
+        for (f, a) in y.anchors.iter_mut().enumerate() {
+            if let Some(a) = a {
+                *a += dx.fixed_rows::<3>(2 * nv + 3 * f) * h;
+            }
+        }
+        y
+    };
+    let cost = |y: &RobotState| {
+        let mut ws = problem.workspace();
+        let mut next = y.clone();
+        problem.step(&mut ws, 0, y, &u, &mut next)
+    };
+    let mut seed = 7u64;
+    let mut r = || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    };
+    for trial in 0..6 {
+        let dx = DVector::from_fn(nx, |_, _| r());
+        let h = 1e-7;
+        let fd = (cost(&perturbed(&dx, h)) - cost(&perturbed(&dx, -h))) / (2.0 * h);
+        let analytic = d.l_x.dot(&dx);
+        assert!((fd - analytic).abs() < 1e-4 * (1.0 + analytic.abs()), "direction {trial}: finite differences {fd} against l_x . dx = {analytic}");
+    }
+}

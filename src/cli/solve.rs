@@ -103,6 +103,8 @@ pub fn run(args: SolveArgs) -> Result<()> {
         "iterations": run.iterations(),
         "termination": format!("{:?}", sol.termination),
         "continuation_stages": run.stages.iter().map(|s| json!({ "horizon_s": s.horizon, "iterations": s.iterations, "termination": format!("{:?}", s.termination), "initial_cost": s.initial_cost, "final_cost": s.final_cost, "solve_time_s": s.time })).collect::<Vec<_>>(),
+        "augmented_lagrangian_rounds": run.rounds.iter().map(|s| json!({ "iterations": s.iterations, "termination": format!("{:?}", s.termination), "initial_cost": s.initial_cost, "final_cost": s.final_cost, "solve_time_s": s.time })).collect::<Vec<_>>(),
+        "constraint_violation": run.violation,
         "initial_cost": sol.cost_history[0],
         "final_cost": sol.cost_history.last(),
         "solve_time_s": solve_time,
@@ -128,7 +130,13 @@ pub fn run(args: SolveArgs) -> Result<()> {
     for (i, stage) in run.stages.iter().enumerate() {
         say!("continuation stage {} on {} s: {:?} after {} iterations in {:.2} s (cost {:.4e} -> {:.4e})", i + 1, stage.horizon, stage.termination, stage.iterations, stage.time, stage.initial_cost, stage.final_cost);
     }
-    let stages_note = if run.stages.is_empty() { String::new() } else { format!(" ({} on the full horizon)", sol.iterations.len()) };
+    for (i, round) in run.rounds.iter().enumerate() {
+        say!("augmented-Lagrangian round {} on the full horizon: {:?} after {} iterations in {:.2} s (cost {:.4e} -> {:.4e})", i + 1, round.termination, round.iterations, round.time, round.initial_cost, round.final_cost);
+    }
+    if let Some(v) = &run.violation {
+        say!("largest constraint violations: friction {:.3} m g, penetration {:.3} p_max, joint limit {:.4} rad, joint speed {:.3} v_max", v.friction, v.penetration, v.joint_limit, v.joint_speed);
+    }
+    let stages_note = if run.stages.is_empty() && run.rounds.is_empty() { String::new() } else { format!(" ({} in the last round on the full horizon)", sol.iterations.len()) };
     say!("{:?} after {} iterations{stages_note} in {:.2} s (cost {:.4e} -> {:.4e})", sol.termination, run.iterations(), solve_time, sol.cost_history[0], sol.cost_history.last().unwrap_or(&f64::NAN));
     say!("                         plan      SLQ policy   tracking ctrl");
     let cell = |r: &Rerun, f: &dyn Fn(&MotionMetrics) -> String| r.metrics().map_or("failed".to_string(), f);

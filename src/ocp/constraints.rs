@@ -48,11 +48,18 @@ pub struct FeasibilitySettings {
     pub penetration_penalty: f64,
     pub joint_limit_penalty: f64,
     pub joint_speed_penalty: f64,
+    /// Augmented-Lagrangian rounds on a task's full horizon (1): its iterations are split
+    /// among them, and the multipliers updated after each round (and after each
+    /// continuation stage), `lambda <- max(0, lambda + rho c)`, `rho` held. One round is
+    /// the quadratic penalty (plus the stages' multipliers): three rounds of 13 iterations
+    /// each left squat_jump at apex 0.789 m and rearing 38 deg past a knee limit, the
+    /// inner solves too short to converge (docs/experiments/feasible-slq.md).
+    pub outer_rounds: usize,
 }
 
 impl Default for FeasibilitySettings {
     fn default() -> Self {
-        Self { friction_margin: 0.75, max_penetration: 0.01, friction_penalty: 1e4, penetration_penalty: 1e3, joint_limit_penalty: 1e4, joint_speed_penalty: 1e3 }
+        Self { friction_margin: 0.75, max_penetration: 0.01, friction_penalty: 1e4, penetration_penalty: 1e3, joint_limit_penalty: 1e4, joint_speed_penalty: 1e3, outer_rounds: 1 }
     }
 }
 
@@ -294,6 +301,9 @@ enum Residual {
 /// `(psi, dpsi/dc, d2psi/dc2)` of the augmented Lagrangian term.
 #[inline]
 fn psi(c: f64, lambda: f64, rho: f64) -> (f64, f64, f64) {
+    if rho <= 0.0 {
+        return (0.0, 0.0, 0.0); // a constraint without penalty is off
+    }
     let shifted = lambda + rho * c;
     if shifted > 0.0 {
         ((shifted * shifted - lambda * lambda) / (2.0 * rho), shifted, rho)

@@ -63,17 +63,36 @@ pub struct TaskRun {
     pub solution: SlqSolution<RobotState>,
     /// The continuation's stages ([`super::ContinuationSpec`]), in order; empty without.
     pub stages: Vec<StageReport>,
+    /// The augmented-Lagrangian rounds on the full horizon before the last one (its
+    /// multipliers updated after each; [`super::FeasibilitySettings::outer_rounds`]), in
+    /// order; `solution` is the last round.
+    pub rounds: Vec<StageReport>,
+    /// The largest violation of each feasibility constraint by the plan.
+    pub violation: Option<super::Violation>,
+}
+
+impl StageReport {
+    fn of(horizon: f64, solution: &SlqSolution<RobotState>) -> Self {
+        Self {
+            horizon,
+            iterations: solution.iterations.len(),
+            termination: solution.termination.clone(),
+            initial_cost: solution.cost_history[0],
+            final_cost: *solution.cost_history.last().unwrap_or(&f64::NAN),
+            time: solution.total_time,
+        }
+    }
 }
 
 impl TaskRun {
     /// SLQ iterations in all: the stages' and the full horizon's.
     pub fn iterations(&self) -> usize {
-        self.stages.iter().map(|s| s.iterations).sum::<usize>() + self.solution.iterations.len()
+        self.stages.iter().chain(&self.rounds).map(|s| s.iterations).sum::<usize>() + self.solution.iterations.len()
     }
 
     /// Seconds of optimization in all: the stages' and the full horizon's.
     pub fn solve_time(&self) -> f64 {
-        self.stages.iter().map(|s| s.time).sum::<f64>() + self.solution.total_time
+        self.stages.iter().chain(&self.rounds).map(|s| s.time).sum::<f64>() + self.solution.total_time
     }
 }
 
@@ -190,6 +209,9 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     // The continuation's stages, each from the last one's policy (the first from standing).
     let mut stages = Vec::new();
     let mut warm: Option<SlqSolution<RobotState>> = None;
+    // The augmented Lagrangian's multipliers, updated after each stage and round and carried
+    // knot for knot (same dt) into the next problem.
+    let mut multipliers: Option<super::FeasibilityConstraints> = None;
     let mut limit_left = limit;
     if let Some(c) = &spec.continuation {
         if c.stage_iterations() >= limit {
@@ -199,25 +221,39 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
         let start = [initial.q[0], initial.q[1], initial.q[2]];
         for (index, &horizon) in c.horizons.iter().enumerate() {
             let stage_spec = spec.continuation_stage(horizon, c.progress_exponent, start);
-            let problem = stage_spec.problem(model, terrain, initial.clone(), origin)?;
+            let mut problem = stage_spec.problem(model, terrain, initial.clone(), origin)?;
+            carry_multipliers(&mut problem, multipliers.as_ref());
             let report = |log: &IterationLog| on_iteration(SolveProgress { stage: Some((index, horizon)), log });
             let solution = solve_from(&problem, settings(c.iterations, 0.0), warm.as_ref(), &standing, report)?;
-            stages.push(StageReport {
-                horizon,
-                iterations: solution.iterations.len(),
-                termination: solution.termination.clone(),
-                initial_cost: solution.cost_history[0],
-                final_cost: *solution.cost_history.last().unwrap_or(&f64::NAN),
-                time: solution.total_time,
-            });
+            stages.push(StageReport::of(horizon, &solution));
+            problem.update_multipliers(&solution.states);
+            multipliers = problem.feasibility.take();
             warm = Some(solution);
         }
     }
 
-    let problem = spec.problem(model, terrain, initial.clone(), origin)?;
+    let mut problem = spec.problem(model, terrain, initial.clone(), origin)?;
+    carry_multipliers(&mut problem, multipliers.as_ref());
     let flat_cost_tolerance = spec.flat_cost_tolerance.unwrap_or(SlqSettings::default().normalized_cost_tolerance);
-    let report = |log: &IterationLog| on_iteration(SolveProgress { stage: None, log });
-    let solution = solve_from(&problem, settings(limit_left, flat_cost_tolerance), warm.as_ref(), &standing, report)?;
+    // The full horizon in augmented-Lagrangian rounds, the iterations left split among them:
+    // each round from the last one's policy, its multipliers updated after it.
+    let rounds_wanted = problem.feasibility.as_ref().map_or(1, |c| c.settings.outer_rounds.max(1)).min(limit_left.max(1));
+    let mut rounds = Vec::new();
+    let mut left = limit_left;
+    let solution = loop {
+        let round = rounds.len();
+        let iterations = if round + 1 == rounds_wanted { left } else { (limit_left / rounds_wanted).max(1) };
+        left = left.saturating_sub(iterations);
+        let report = |log: &IterationLog| on_iteration(SolveProgress { stage: None, log });
+        let solution = solve_from(&problem, settings(iterations, flat_cost_tolerance), warm.as_ref(), &standing, report)?;
+        if round + 1 == rounds_wanted || left == 0 {
+            break solution;
+        }
+        rounds.push(StageReport::of(spec.duration, &solution));
+        problem.update_multipliers(&solution.states);
+        warm = Some(solution);
+    };
+    let violation = problem.constraint_violation(&solution.states);
     let plan = solution_trajectory(&problem, &solution, &format!("solve {}", spec.name));
 
     // Closed loop, both from the optimizer's initial state, contact anchors (spring
@@ -250,5 +286,12 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     let mut tracking = TrackingController::with_default_gains(model, &plan, config.control_dt)?;
     let tracking_rerun = rerun(&mut tracking, "tracking-controller re-run", config)?;
     let plan_metrics = MotionMetrics::of(model, &plan, contact.friction);
-    Ok(TaskRun { plan, plan_metrics, policy_rerun, tracking_rerun, solution, stages })
+    Ok(TaskRun { plan, plan_metrics, policy_rerun, tracking_rerun, solution, stages, rounds, violation })
+}
+
+/// Gives `problem` the multipliers of the last stage's constraints, knot for knot.
+fn carry_multipliers(problem: &mut WholeBodyProblem<'_>, from: Option<&super::FeasibilityConstraints>) {
+    if let (Some(constraints), Some(from)) = (problem.feasibility.as_mut(), from) {
+        constraints.carry_multipliers_from(from);
+    }
 }
