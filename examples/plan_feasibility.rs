@@ -5,21 +5,20 @@
 //! cargo run --release --example plan_feasibility -- out/gallop/trajectory.json out/trot/trajectory.json
 //! ```
 //!
-//! The robot is the one the trajectory names (embedded), the friction coefficient the
-//! default contact model's unless `--mu` is given.
+//! The robot is the one the trajectory names (embedded), the friction coefficient its
+//! contact model's unless `--mu` is given.
 
 use anyhow::{bail, Context, Result};
-use legwork::contact::ContactParams;
 use legwork::io::Trajectory;
 use legwork::ocp::{MotionMetrics, FRICTION_MARGIN};
 
 fn main() -> Result<()> {
-    let mut mu = ContactParams::default().friction;
+    let mut mu: Option<f64> = None;
     let mut files = Vec::new();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         if a == "--mu" {
-            mu = args.next().context("--mu needs a number")?.parse().context("--mu needs a number")?;
+            mu = Some(args.next().context("--mu needs a number")?.parse().context("--mu needs a number")?);
         } else {
             files.push(a);
         }
@@ -32,7 +31,7 @@ fn main() -> Result<()> {
     for file in files {
         let traj = Trajectory::load_file(&file)?;
         let model = legwork::model::embedded::load(&traj.metadata.robot).with_context(|| format!("{file}: robot {}", traj.metadata.robot))?;
-        let m = MotionMetrics::of(&model, &traj, mu);
+        let m = MotionMetrics::of(&model, &traj, mu.unwrap_or(model.contact.friction));
         let f = &m.feasibility;
         println!(
             "| {file} | {:.3} | {:.1} % | {} | {:.2} | {:.1} % | {:.3} | {} | {} | {:.1} |",

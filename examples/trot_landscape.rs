@@ -53,7 +53,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let model = embedded::load("hyq")?;
     let terrain = Plane::flat(0.0);
-    let initial = settled_stance(&model, &terrain, task.contact.unwrap_or_default(), 1.0)?;
+    let initial = settled_stance(&model, &terrain, 1.0)?;
     let pd = JointPd::standing(&model, task.dt)?;
     let standing = PdPolicy(&pd);
     let settings = SlqSettings { max_iterations: task.iterations.unwrap_or(40), ..SlqSettings::default() };
@@ -70,7 +70,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
 fn report(what: &str, model: &Model, problem: &WholeBodyProblem, solution: &SlqSolution<RobotState>) {
     let trajectory = solution_trajectory(problem, solution, what);
-    let m = MotionMetrics::of(model, &trajectory, problem.contact.friction);
+    let m = MotionMetrics::of(model, &trajectory, model.contact.friction);
     let pairs = |c: &[Option<f64>; 2]| c.iter().map(|c| c.map_or("-".into(), |c| format!("{c:.2}"))).collect::<Vec<String>>().join("/");
     println!("{what}:");
     println!("  {:?} after {} iterations, cost {:.4e} -> {:.4e}", solution.termination, solution.iterations.len(), solution.cost_history[0], solution.cost_history.last().unwrap_or(&f64::NAN));

@@ -150,7 +150,7 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         "max_penetration_m": stats.max_penetration,
         "max_torque_nm": stats.max_torque,
         "max_friction_ratio": stats.max_friction_ratio,
-        "friction_coefficient": config.contact.friction,
+        "friction_coefficient": model.contact.friction,
         "slipping_steps": stats.slipping_steps,
         "saturated_control_periods": stats.saturated_controls,
         "physics_steps": stats.steps,
@@ -175,7 +175,7 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     say!("  horizontal drift      {:.1} mm", drift * 1e3);
     say!("  max penetration       {:.2} mm", stats.max_penetration * 1e3);
     say!("  max torque            {:.1} N m", stats.max_torque);
-    say!("  max |F_t| / F_n       {:.3} (friction coefficient {})", stats.max_friction_ratio, config.contact.friction);
+    say!("  max |F_t| / F_n       {:.3} (friction coefficient {})", stats.max_friction_ratio, model.contact.friction);
     say!("  speed                 {:.0} steps/s, {:.1}x real time", steps_per_second, args.duration / stats.wall_time);
     say!("Wrote {}, {}, {} and {} plots in {}", json_path.display(), csv_path.display(), replay_path.display(), plots.len(), args.out.join("plots").display());
     Ok(())

@@ -35,7 +35,6 @@ pub use metrics::{joint_limit_excess, Feasibility, LimitExcess, MotionMetrics, S
 pub use run::{solution_trajectory, solve_task, Rerun, SlqPolicyController, SolveError, SolveOptions, TaskRun};
 pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, TaskError, TaskSpec, WaypointSpec, WeightSpec, EMBEDDED_TASKS};
 
-use crate::contact::ContactParams;
 use crate::control::JointPd;
 use crate::model::Model;
 use crate::sim::{AnchorStepDerivatives, ContactModelWorkspace, JointLimitParams, StepDerivatives, ANCHOR_DIM};
@@ -71,12 +70,12 @@ impl Clone for RobotState {
 }
 
 /// The robot standing still on `terrain`: the `standing` pose put on the ground and
-/// simulated for `seconds` with the standing controller and the contact model `contact`, so
+/// simulated for `seconds` with the standing controller (and the robot's contact model), so
 /// that an optimization starts from rest (its first knots do not fall or bounce).
-pub fn settled_stance(model: &Model, terrain: &dyn Terrain, contact: ContactParams, seconds: f64) -> Result<RobotState, crate::sim::SimError> {
+pub fn settled_stance(model: &Model, terrain: &dyn Terrain, seconds: f64) -> Result<RobotState, crate::sim::SimError> {
     use crate::sim::{standing_on_ground, SimConfig, Simulator};
     let q0 = standing_on_ground(model, terrain, 0.0)?;
-    let config = SimConfig { contact, ..SimConfig::default() };
+    let config = SimConfig::default();
     let mut sim = Simulator::new(model, terrain, config.clone(), q0, None)?;
     let mut stand = JointPd::standing(model, config.control_dt).map_err(|source| crate::sim::SimError::Controller { t: 0.0, source })?;
     let steps = (seconds / config.physics_dt).round() as usize;
@@ -125,11 +124,10 @@ impl Waypoint {
     }
 }
 
-/// The problem: robot, terrain, contact model, horizon, costs.
+/// The problem: robot (with its contact model, [`Model::contact`]), terrain, horizon, costs.
 pub struct WholeBodyProblem<'a> {
     pub model: &'a Model,
     pub terrain: &'a dyn Terrain,
-    pub contact: ContactParams,
     /// The joints' mechanical stops ([`crate::sim::SimConfig::joint_limits`]; `None`: off),
     /// in the dynamics and their linearization as in the simulator.
     pub joint_limits: Option<JointLimitParams>,
@@ -137,7 +135,8 @@ pub struct WholeBodyProblem<'a> {
     pub dt: f64,
     /// Integration steps per knot interval: the dynamics integrate `substeps` steps of
     /// `dt / substeps` with the knot's input held, as the simulator does with its physics
-    /// step inside a control period.
+    /// step inside a control period. `dt / substeps` may not exceed the contact model's
+    /// stable step (`model.contact.max_step`).
     pub substeps: usize,
     /// Number of transitions.
     pub knots: usize,
@@ -293,8 +292,8 @@ impl<'a> WholeBodyProblem<'a> {
 impl WholeBodyProblem<'_> {
     /// `f(k, q, v, anchors, feet)` at every knot state `x_0 .. x_{N-1}` of `states` (the
     /// constrained ones), with the contacts evaluated there.
-    fn for_each_knot_contact(&self, states: &[RobotState], mut f: impl FnMut(usize, &RobotState, &ContactParams, &[crate::sim::FootState])) {
-        let mut ws = ContactModelWorkspace::new(self.model, self.terrain, self.contact).with_joint_limits(self.joint_limits);
+    fn for_each_knot_contact(&self, states: &[RobotState], mut f: impl FnMut(usize, &RobotState, &crate::contact::ContactParams, &[crate::sim::FootState])) {
+        let mut ws = ContactModelWorkspace::new(self.model, self.terrain, self.model.contact).with_joint_limits(self.joint_limits);
         for (k, x) in states.iter().enumerate().take(self.knots) {
             ws.evaluate_contacts(&x.q, &x.v, &x.anchors);
             f(k, x, ws.params(), ws.feet());
@@ -335,7 +334,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
     fn workspace(&self) -> WholeBodyWorkspace<'a> {
         let (model, nv) = (self.model, self.model.nv);
         WholeBodyWorkspace {
-            dynamics: ContactModelWorkspace::new(model, self.terrain, self.contact).with_joint_limits(self.joint_limits),
+            dynamics: ContactModelWorkspace::new(model, self.terrain, model.contact).with_joint_limits(self.joint_limits),
             derivatives: StepDerivatives::new(model),
             anchor_derivatives: AnchorStepDerivatives::new(nv),
             deviation: StateDeviation::new(model),

@@ -123,7 +123,7 @@ pub struct SolveProgress<'l> {
 pub fn solution_trajectory(problem: &WholeBodyProblem<'_>, solution: &SlqSolution<RobotState>, scenario: &str) -> Trajectory {
     let model = problem.model;
     let mut traj = Trajectory::new(model, scenario, problem.dt, problem.terrain.spec());
-    let mut ws = crate::sim::ContactModelWorkspace::new(model, problem.terrain, problem.contact).with_joint_limits(problem.joint_limits);
+    let mut ws = crate::sim::ContactModelWorkspace::new(model, problem.terrain, model.contact).with_joint_limits(problem.joint_limits);
     let n = solution.inputs.len();
     for (k, x) in solution.states.iter().enumerate() {
         ws.evaluate_contacts(&x.q, &x.v, &x.anchors);
@@ -199,8 +199,7 @@ fn solve_from<'a>(problem: &WholeBodyProblem<'a>, settings: SlqSettings, warm: O
 /// Solves `spec` for `model` on `terrain` (by horizon continuation if the task asks for
 /// it) and re-runs it in closed loop; `on_iteration` sees each SLQ iteration.
 pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin: &str, options: &SolveOptions, mut on_iteration: impl FnMut(SolveProgress)) -> Result<TaskRun, SolveError> {
-    let contact = spec.contact.unwrap_or_default();
-    let initial = settled_stance(model, terrain, contact, 1.0).map_err(SolveError::Settle)?;
+    let initial = settled_stance(model, terrain, 1.0).map_err(SolveError::Settle)?;
     let pd = JointPd::standing(model, spec.dt)?;
     let standing = PdPolicy(&pd);
     let limit = options.max_iterations.or(spec.iterations).unwrap_or(SlqSettings::default().max_iterations);
@@ -257,7 +256,7 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     let plan = solution_trajectory(&problem, &solution, &format!("solve {}", spec.name));
 
     // Closed loop, both from the optimizer's initial state, contact anchors (spring
-    // pre-loads) included, with the task's contact model.
+    // pre-loads) included, in the robot's contact model.
     let duration = problem.knots as f64 * problem.dt;
     let rerun = |controller: &mut dyn Controller, what: &'static str, config: SimConfig| -> Result<Rerun, SolveError> {
         let mut sim = Simulator::new(model, terrain, config, initial.q.clone(), Some(initial.v.clone())).map_err(|source| SolveError::ClosedLoop { what, source })?;
@@ -266,7 +265,7 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
             Ok(run) => {
                 let mut trajectory = run.trajectory;
                 trajectory.metadata.scenario = format!("{what}: {}", spec.name);
-                let metrics = MotionMetrics::of(model, &trajectory, contact.friction);
+                let metrics = MotionMetrics::of(model, &trajectory, model.contact.friction);
                 Rerun::Completed { trajectory: Box::new(trajectory), metrics: Box::new(metrics) }
             }
             Err(SimError::Diverged { step, t, reason, .. }) => Rerun::Failed { reason: format!("diverged at t = {t:.3} s (step {step}): {reason}") },
@@ -279,13 +278,13 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     // different system at touch-down, for which the time-varying LQR gains are not made.
     let physics_dt = problem.dt / problem.substeps as f64;
     let joint_limits = problem.joint_limits;
-    let policy_config = SimConfig { contact, joint_limits, physics_dt, control_dt: problem.dt, record_dt: problem.dt, ..SimConfig::default() };
+    let policy_config = SimConfig { joint_limits, physics_dt, control_dt: problem.dt, record_dt: problem.dt, ..SimConfig::default() };
     let policy_rerun = rerun(&mut SlqPolicyController::new(&problem, &solution), "SLQ policy re-run", policy_config)?;
     // (b) The tracking controller at 1 kHz on the simulator's own 2 kHz physics.
-    let config = SimConfig { contact, joint_limits, ..SimConfig::default() };
+    let config = SimConfig { joint_limits, ..SimConfig::default() };
     let mut tracking = TrackingController::with_default_gains(model, &plan, config.control_dt)?;
     let tracking_rerun = rerun(&mut tracking, "tracking-controller re-run", config)?;
-    let plan_metrics = MotionMetrics::of(model, &plan, contact.friction);
+    let plan_metrics = MotionMetrics::of(model, &plan, model.contact.friction);
     Ok(TaskRun { plan, plan_metrics, policy_rerun, tracking_rerun, solution, stages, rounds, violation })
 }
 
