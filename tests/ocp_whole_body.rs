@@ -306,7 +306,7 @@ fn feasibility_constraint_gradients_match_finite_differences() {
     let initial = settled_stance(&model, &ground, 0.3).unwrap();
     let mut problem = spec.problem(&model, &ground, initial.clone(), "fd.toml").unwrap();
     let settings = FeasibilitySettings { friction_penalty: 1e6, penetration_penalty: 1e4, joint_limit_penalty: 1e4, joint_speed_penalty: 1e4, ..Default::default() };
-    problem.feasibility = Some(FeasibilityConstraints::new(&model, problem.knots, settings));
+    problem.feasibility = Some(FeasibilityConstraints::new(&model, problem.knots, settings).unwrap());
     let mut x = initial.clone();
     x.q[2] -= 0.006;
     x.v[0] = 0.4;

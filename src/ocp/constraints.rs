@@ -63,6 +63,38 @@ impl Default for FeasibilitySettings {
     }
 }
 
+/// A feasibility setting out of its range; names the field.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("feasibility setting `{field}`: expected {expected}, got {value}")]
+pub struct FeasibilitySettingsError {
+    pub field: &'static str,
+    pub expected: &'static str,
+    pub value: f64,
+}
+
+impl FeasibilitySettings {
+    /// The margin in (0, 1], the penetration bound positive, the penalties finite and >= 0
+    /// (0 switches a kind off), at least one round.
+    pub fn validate(&self) -> Result<(), FeasibilitySettingsError> {
+        let bad = |field, expected, value| Err(FeasibilitySettingsError { field, expected, value });
+        if !(self.friction_margin > 0.0 && self.friction_margin <= 1.0) {
+            return bad("friction_margin", "a fraction in (0, 1]", self.friction_margin);
+        }
+        if !(self.max_penetration.is_finite() && self.max_penetration > 0.0) {
+            return bad("max_penetration", "a finite depth > 0 (m)", self.max_penetration);
+        }
+        for (field, value) in [("friction_penalty", self.friction_penalty), ("penetration_penalty", self.penetration_penalty), ("joint_limit_penalty", self.joint_limit_penalty), ("joint_speed_penalty", self.joint_speed_penalty)] {
+            if !(value.is_finite() && value >= 0.0) {
+                return bad(field, "a finite number >= 0", value);
+            }
+        }
+        if self.outer_rounds == 0 {
+            return bad("outer_rounds", "at least 1", 0.0);
+        }
+        Ok(())
+    }
+}
+
 /// A speed limit of one velocity coordinate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct SpeedLimit {
@@ -101,13 +133,14 @@ impl Violation {
 }
 
 impl FeasibilityConstraints {
-    /// The constraints of `model` over `knots` knots, multipliers zero.
-    pub fn new(model: &Model, knots: usize, settings: FeasibilitySettings) -> Self {
+    /// The constraints of `model` over `knots` knots, multipliers zero; `settings` checked.
+    pub fn new(model: &Model, knots: usize, settings: FeasibilitySettings) -> Result<Self, FeasibilitySettingsError> {
+        settings.validate()?;
         let coordinates: Vec<LimitedCoordinate> = limited_coordinates(model).collect();
         let speeds: Vec<SpeedLimit> = model.actuated_joints().filter(|j| j.limits.velocity[0].is_finite() && j.limits.velocity[0] > 0.0).map(|j| SpeedLimit { idx_v: j.idx_v, limit: j.limits.velocity[0] }).collect();
         let feet = model.feet.len();
         let per_knot = 2 * feet + 2 * coordinates.len() + speeds.len();
-        Self { settings, weight: model.total_mass() * 9.81, feet, coordinates, speeds, multipliers: vec![0.0; per_knot * (knots + 1)] }
+        Ok(Self { settings, weight: model.total_mass() * 9.81, feet, coordinates, speeds, multipliers: vec![0.0; per_knot * (knots + 1)] })
     }
 
     fn per_knot(&self) -> usize {
@@ -186,10 +219,17 @@ impl FeasibilityConstraints {
                 return;
             }
             cost += value;
-            // J = dc/dx into `scratch`.
-            scratch.fill(0.0);
-            match which {
+            // J = dc/dx: one entry for a joint (l_x[i] += s psi' J_i, l_xx[i, i] += s psi''
+            // J_i^2), a dense row through the foot Jacobians for a foot (into `scratch`).
+            let single = match which {
+                Residual::Upper(j) => Some((self.coordinates[j].idx_v, 1.0)),
+                Residual::Lower(j) => Some((self.coordinates[j].idx_v, -1.0)),
+                Residual::Speed(j) => {
+                    let sp = self.speeds[j];
+                    Some((nv + sp.idx_v, v[sp.idx_v].signum() / sp.limit))
+                }
                 Residual::Friction(i) => {
+                    scratch.fill(0.0);
                     let foot = &feet[i];
                     let Some((_, demand)) = self.friction_residual(params, foot, anchors[i].as_ref()) else { return };
                     let norm = demand.norm();
@@ -214,21 +254,23 @@ impl FeasibilityConstraints {
                             scratch[2 * nv + ANCHOR_DIM * i + r] = a_a[r];
                         }
                     }
+                    None
                 }
                 Residual::Penetration(i) => {
                     // p_n = r - n . (p - s): dp_n/ddq = -n^T dp/ddq.
+                    scratch.fill(0.0);
                     let (jp, _) = step.foot_jacobians(i);
                     let n = feet[i].normal;
                     for j in 0..nv {
                         scratch[j] = -n.dot(&jp.column(j)) / self.settings.max_penetration;
                     }
+                    None
                 }
-                Residual::Upper(j) => scratch[self.coordinates[j].idx_v] = 1.0,
-                Residual::Lower(j) => scratch[self.coordinates[j].idx_v] = -1.0,
-                Residual::Speed(j) => {
-                    let sp = self.speeds[j];
-                    scratch[nv + sp.idx_v] = v[sp.idx_v].signum() / sp.limit;
-                }
+            };
+            if let Some((i, jac)) = single {
+                l_x[i] += scale * slope * jac;
+                l_xx[(i, i)] += scale * curvature * jac * jac;
+                return;
             }
             l_x.axpy(scale * slope, scratch, 1.0);
             if curvature > 0.0 {
@@ -349,6 +391,17 @@ mod tests {
     use super::*;
     use crate::contact::{contact_force, Surface};
 
+    #[test]
+    fn bad_settings_are_named() {
+        let model = crate::model::embedded::load("hyq").unwrap();
+        assert!(FeasibilityConstraints::new(&model, 10, FeasibilitySettings::default()).is_ok());
+        let err = FeasibilityConstraints::new(&model, 10, FeasibilitySettings { friction_margin: 1.5, ..Default::default() }).unwrap_err();
+        assert_eq!(err.field, "friction_margin");
+        let err = FeasibilitySettings { friction_penalty: f64::NAN, ..Default::default() }.validate().unwrap_err();
+        assert!(err.to_string().contains("friction_penalty"), "{err}");
+        assert_eq!(FeasibilitySettings { outer_rounds: 0, ..Default::default() }.validate().unwrap_err().field, "outer_rounds");
+    }
+
     /// `psi` is C1 across the activation and its derivatives match differences.
     #[test]
     fn the_augmented_lagrangian_term_and_its_derivatives() {
@@ -363,6 +416,8 @@ mod tests {
                 assert!(v.is_finite());
             }
         }
+        // Zero penalty: off.
+        assert_eq!(psi(0.2, 1.0, 0.0), (0.0, 0.0, 0.0));
         // Zero multiplier: the quadratic penalty.
         assert_eq!(psi(0.2, 0.0, 10.0).0, 0.5 * 10.0 * 0.04);
         assert_eq!(psi(-0.2, 0.0, 10.0), (0.0, 0.0, 0.0));

@@ -27,7 +27,7 @@ mod metrics;
 mod run;
 mod task;
 
-pub use constraints::{tangential_demand, FeasibilityConstraints, FeasibilitySettings, Violation};
+pub use constraints::{tangential_demand, FeasibilityConstraints, FeasibilitySettings, FeasibilitySettingsError, Violation};
 pub use continuation::ContinuationSpec;
 pub use deviation::StateDeviation;
 pub use limit_cost::{JointLimitCost, JointLimitCostSpec};

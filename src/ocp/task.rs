@@ -347,7 +347,7 @@ impl TaskSpec {
             waypoints,
             joint_limit_cost: self.joint_limit_cost.map(|spec| super::JointLimitCost::new(model, spec)),
             // Every task gets the feasibility constraints (issue 16): no task field turns them off.
-            feasibility: Some(super::FeasibilityConstraints::new(model, self.knots(), super::FeasibilitySettings::default())),
+            feasibility: Some(super::FeasibilityConstraints::new(model, self.knots(), super::FeasibilitySettings::default()).map_err(|e| TaskError::Invalid { origin: origin.into(), field: format!("(feasibility constraints) {}", e.field), problem: e.to_string() })?),
             // The anchors as states of the linearization: the held-anchor model mispredicts
             // every touch-down and slip (see `crate::sim::AnchorStepDerivatives`).
             anchor_states: true,
