@@ -2,8 +2,9 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
+use legwork::export::{check_plan_in_mujoco, MujocoCheck};
 use legwork::ocp::{solve_task, MotionMetrics, Rerun, Snapshot, SolveOptions, TaskSpec, EMBEDDED_TASKS};
-use legwork::terrain::Plane;
+use legwork::terrain::{Plane, Terrain};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -24,9 +25,21 @@ pub struct SolveArgs {
     /// Overrides the task's iteration limit.
     #[arg(long)]
     iterations: Option<usize>,
+    /// After the solve and legwork's re-runs, check the plan in another simulator:
+    /// `mujoco` replays it in MuJoCo with the tracking controller and with the exported
+    /// feedback policy (needs `scripts/install-mujoco.sh`), two more columns.
+    #[arg(long, value_enum)]
+    check: Option<CheckSimulator>,
 }
 
-fn load_task(spec: &str) -> Result<(TaskSpec, String)> {
+/// Simulators a plan can be checked in.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum CheckSimulator {
+    /// MuJoCo 4.0.0 (Python package in `.venv-mujoco/`), default contact, 1 ms step.
+    Mujoco,
+}
+
+pub(super) fn load_task(spec: &str) -> Result<(TaskSpec, String)> {
     let path = Path::new(spec);
     if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml")) || path.exists() {
         return Ok((TaskSpec::load_file(path)?, spec.to_string()));
@@ -44,18 +57,11 @@ pub fn list() -> Result<()> {
     Ok(())
 }
 
-fn metrics_json(m: &MotionMetrics) -> serde_json::Value {
+pub(super) fn metrics_json(m: &MotionMetrics) -> serde_json::Value {
     serde_json::to_value(m).unwrap_or(serde_json::Value::Null)
 }
 
-fn rerun_traj(r: &Rerun) -> Option<&legwork::io::Trajectory> {
-    match r {
-        Rerun::Completed { trajectory, .. } => Some(trajectory.as_ref()),
-        Rerun::Failed { .. } => None,
-    }
-}
-
-fn rerun_json(r: &Rerun) -> serde_json::Value {
+pub(super) fn rerun_json(r: &Rerun) -> serde_json::Value {
     match r {
         Rerun::Completed { metrics, .. } => metrics_json(metrics),
         Rerun::Failed { reason } => json!({ "failed": reason }),
@@ -69,6 +75,11 @@ pub fn run(args: SolveArgs) -> Result<()> {
     let terrain = Plane::flat(0.0);
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&spec.name));
     say!("Solving {} ({}) for {}: {} s, {} knots of {} s", spec.name, spec.summary, model.name, spec.duration, spec.knots(), spec.dt);
+    // A missing MuJoCo environment is reported before the solve, not after it.
+    let mujoco = match args.check {
+        Some(CheckSimulator::Mujoco) => Some(MujocoCheck::locate()?),
+        None => None,
+    };
     let started = Instant::now();
     let options = SolveOptions { threads: args.threads, max_iterations: args.iterations };
     let run = solve_task(&spec, &model, &terrain, &origin, &options, |progress| {
@@ -95,7 +106,17 @@ pub fn run(args: SolveArgs) -> Result<()> {
     let solve_time = run.solve_time();
     let plan = &run.plan_metrics;
     let mut traj = run.plan.clone();
-    let summary = json!({
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create the output folder {}", out.display()))?;
+    // MuJoCo: the plan as solved, on the ground it was solved on, the task's friction.
+    let mujoco_reruns = match &mujoco {
+        Some(check) => {
+            say!("Checking the plan in MuJoCo (tracking controller, feedback policy) ...");
+            let friction = spec.contact.unwrap_or_default().friction;
+            Some(check_plan_in_mujoco(check, &model, &run.plan, &terrain.spec(), friction, &out.join("mujoco"))?)
+        }
+        None => None,
+    };
+    let mut summary = json!({
         "task": spec.name,
         "robot": model.name,
         "knots": spec.knots(),
@@ -111,10 +132,14 @@ pub fn run(args: SolveArgs) -> Result<()> {
         "slq_policy_rerun": rerun_json(&run.policy_rerun),
         "tracking_controller_rerun": rerun_json(&run.tracking_rerun),
     });
+    if let (Some(m), serde_json::Value::Object(map)) = (&mujoco_reruns, &mut summary) {
+        map.insert("mujoco_version".into(), json!(m.version));
+        map.insert("mujoco_tracking_controller".into(), rerun_json(&m.tracking));
+        map.insert("mujoco_policy".into(), rerun_json(&m.policy));
+    }
     if let serde_json::Value::Object(map) = summary {
         traj.summary = map;
     }
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot create the output folder {}", out.display()))?;
     traj.save_file(out.join("trajectory.json"))?;
     for (rerun, file) in [(&run.policy_rerun, "rerun_slq_policy.json"), (&run.tracking_rerun, "rerun_tracking.json")] {
         if let Rerun::Completed { trajectory, .. } = rerun {
@@ -130,9 +155,50 @@ pub fn run(args: SolveArgs) -> Result<()> {
     }
     let stages_note = if run.stages.is_empty() { String::new() } else { format!(" ({} on the full horizon)", sol.iterations.len()) };
     say!("{:?} after {} iterations{stages_note} in {:.2} s (cost {:.4e} -> {:.4e})", sol.termination, run.iterations(), solve_time, sol.cost_history[0], sol.cost_history.last().unwrap_or(&f64::NAN));
-    say!("                         plan      SLQ policy   tracking ctrl");
-    let cell = |r: &Rerun, f: &dyn Fn(&MotionMetrics) -> String| r.metrics().map_or("failed".to_string(), f);
-    let row = |name: &str, f: &dyn Fn(&MotionMetrics) -> String| say!("  {name:<22} {:<10} {:<12} {}", f(plan), cell(&run.policy_rerun, f), cell(&run.tracking_rerun, f));
+    let mut columns = vec![
+        Column::completed("plan", plan, &traj),
+        Column::of("SLQ policy", &run.policy_rerun),
+        Column::of("tracking ctrl", &run.tracking_rerun),
+    ];
+    if let Some(m) = &mujoco_reruns {
+        columns.push(Column::of("MuJoCo track", &m.tracking));
+        columns.push(Column::of("MuJoCo policy", &m.policy));
+    }
+    print_figures(&model, &spec.waypoints.iter().map(|w| w.time).collect::<Vec<_>>(), &columns);
+    say!("Wrote {} (trajectory.json, closed-loop re-runs, replay.html, {} plots) in {:.1} s", out.display(), plots.len() + 1, started.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// One column of the figures table: a plan or a re-run, or why a re-run failed.
+pub(super) struct Column<'a> {
+    pub name: &'a str,
+    pub metrics: Option<&'a MotionMetrics>,
+    pub trajectory: Option<&'a legwork::io::Trajectory>,
+    pub failure: Option<&'a str>,
+}
+
+impl<'a> Column<'a> {
+    pub fn completed(name: &'a str, metrics: &'a MotionMetrics, trajectory: &'a legwork::io::Trajectory) -> Self {
+        Self { name, metrics: Some(metrics), trajectory: Some(trajectory), failure: None }
+    }
+    pub fn of(name: &'a str, rerun: &'a Rerun) -> Self {
+        match rerun {
+            Rerun::Completed { trajectory, metrics } => Self::completed(name, metrics, trajectory),
+            Rerun::Failed { reason } => Self { name, metrics: None, trajectory: None, failure: Some(reason) },
+        }
+    }
+}
+
+/// The task figures of each column side by side, the state at each waypoint time, and
+/// why any re-run failed.
+pub(super) fn print_figures(model: &legwork::model::Model, waypoints: &[f64], columns: &[Column]) {
+    let widths: Vec<usize> = columns.iter().map(|c| c.name.len().max(10) + 2).collect();
+    let header: String = columns.iter().zip(&widths).map(|(c, w)| format!("{:<w$}", c.name, w = *w)).collect();
+    say!("  {:<22} {}", "", header.trim_end());
+    let row = |name: &str, f: &dyn Fn(&MotionMetrics) -> String| {
+        let cells: String = columns.iter().zip(&widths).map(|(c, w)| format!("{:<w$}", c.metrics.map_or("failed".to_string(), f), w = *w)).collect();
+        say!("  {name:<22} {}", cells.trim_end());
+    };
     row("final base x [m]", &|m| format!("{:.3}", m.final_base_position[0]));
     row("final base y [m]", &|m| format!("{:.3}", m.final_base_position[1]));
     row("final yaw [deg]", &|m| format!("{:.1}", m.final_base_rpy_deg[2]));
@@ -149,25 +215,21 @@ pub fn run(args: SolveArgs) -> Result<()> {
     row("diagonal correlation", &|m| pairs(&m.diagonal_correlation));
     row("lateral correlation", &|m| pairs(&m.lateral_correlation));
     row("past joint limit [deg]", &|m| m.joint_limit_excess.as_ref().map_or("none".into(), |e| format!("{:.0} {}", e.excess_deg, e.joint.trim_end_matches("_joint"))));
-    for w in &spec.waypoints {
-        let show = |traj: Option<&legwork::io::Trajectory>| {
-            traj.map_or("failed".to_string(), |traj| {
-                let s = Snapshot::at(&model, traj, w.time);
+    for &time in waypoints {
+        say!("  at the waypoint t = {time:.2} s:");
+        for c in columns {
+            let text = c.trajectory.map_or("failed".to_string(), |traj| {
+                let s = Snapshot::at(model, traj, time);
                 let feet: String = s.in_contact.iter().map(|&c| if c { '1' } else { '0' }).collect();
                 let foot_positions: Vec<String> = s.feet.iter().map(|p| format!("({:.2}, {:.2}, {:.2})", p[0], p[1], p[2])).collect();
                 format!("z {:.3}, rpy ({:.1}, {:.1}, {:.1}), feet down {feet} at {}", s.base_position[2], s.base_rpy_deg[0], s.base_rpy_deg[1], s.base_rpy_deg[2], foot_positions.join(" "))
-            })
-        };
-        say!("  at the waypoint t = {:.2} s:", w.time);
-        say!("    plan                {}", show(Some(&traj)));
-        say!("    SLQ policy          {}", show(rerun_traj(&run.policy_rerun)));
-        say!("    tracking ctrl       {}", show(rerun_traj(&run.tracking_rerun)));
-    }
-    for (name, r) in [("SLQ policy re-run", &run.policy_rerun), ("tracking-controller re-run", &run.tracking_rerun)] {
-        if let Rerun::Failed { reason } = r {
-            say!("  {name} failed: {reason}");
+            });
+            say!("    {:<18}  {text}", c.name);
         }
     }
-    say!("Wrote {} (trajectory.json, closed-loop re-runs, replay.html, {} plots) in {:.1} s", out.display(), plots.len() + 1, started.elapsed().as_secs_f64());
-    Ok(())
+    for c in columns {
+        if let Some(reason) = c.failure {
+            say!("  {} failed: {reason}", c.name);
+        }
+    }
 }
