@@ -9,6 +9,8 @@
 
 pub mod mjcf;
 pub mod mujoco_check;
+pub mod standing_figures;
 
 pub use mjcf::{mjcf_model, mujoco_qpos, mujoco_qvel, MjcfError, MjcfSettings};
-pub use mujoco_check::{check_plan_in_mujoco, CheckController, ControllerSettings, MujocoCheck, MujocoCheckError, MujocoReruns, StandingPd, TrackingGains};
+pub use standing_figures::StandingFigures;
+pub use mujoco_check::{check_plan_in_mujoco, stand_in_mujoco, CheckController, ControllerSettings, MujocoCheck, MujocoCheckError, MujocoReruns, StandingPd, TrackingGains};

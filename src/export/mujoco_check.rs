@@ -250,3 +250,24 @@ pub fn check_plan_in_mujoco(check: &MujocoCheck, model: &Model, plan: &Trajector
     let policy = rerun(CheckController::Policy, ControllerSettings::Policy {})?;
     Ok(MujocoReruns { tracking, policy, version: check.version()? })
 }
+
+/// HyQ (or any robot) dropped from `drop_height` (m, feet above flat ground, standing
+/// pose) in MuJoCo under the standing joint PD of `legwork simulate --controller stand`
+/// (its gains at MuJoCo's 1 ms control period), for `duration` seconds; writes
+/// `model.xml`, `controller_stand.json` and `mujoco_stand.json` into `folder`.
+pub fn stand_in_mujoco(check: &MujocoCheck, model: &Model, drop_height: f64, duration: f64, folder: &Path) -> Result<(Trajectory, Option<String>), MujocoCheckError> {
+    std::fs::create_dir_all(folder).map_err(|error| MujocoCheckError::Io { path: folder.display().to_string(), error })?;
+    let settings = MjcfSettings::default();
+    let terrain = TerrainSpec::flat();
+    let mjcf_path = folder.join("model.xml");
+    write(&mjcf_path, &mjcf_model(model, &terrain, &settings)?)?;
+    let ground = terrain.build("flat ground").map_err(|e| MujocoCheckError::Input(e.to_string()))?;
+    let q0 = crate::sim::standing_on_ground(model, ground.as_ref(), drop_height).map_err(|e| MujocoCheckError::Input(e.to_string()))?;
+    let mut start = Trajectory::new(model, format!("drop from {drop_height} m"), settings.timestep, terrain);
+    let nfeet = model.feet.len();
+    start.knots.push(crate::io::Knot { t: 0.0, q: q0.iter().copied().collect(), v: vec![0.0; model.nv], tau: vec![0.0; model.nv - 6], contact_force: vec![[0.0; 3]; nfeet], in_contact: vec![false; nfeet], feedback_gain: None });
+    let reference = folder.join("start.json");
+    start.save_file(&reference)?;
+    let output = folder.join("mujoco_stand.json");
+    check.run(folder, &mjcf_path, &reference, CheckController::Stand, &ControllerSettings::standing(model, settings.timestep)?, &output, Some(duration), settings.timestep)
+}

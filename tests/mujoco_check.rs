@@ -1,0 +1,181 @@
+//! legwork's robots in MuJoCo (issue 16, item 5): the exported MJCF loaded by MuJoCo 4.0.0
+//! (the checker's Python, `scripts/install-mujoco.sh`) against legwork's own dynamics, HyQ
+//! and A1 dropped and standing in MuJoCo, and a short task checked end to end.
+//!
+//! Without the checker's environment the tests fail when `CI` is set, and otherwise say
+//! they skipped (the rule of tests/replay_browser.rs for Chromium).
+
+use legwork::dynamics::{crba, forward_kinematics, frame_position, rnea, Data};
+use legwork::export::{check_plan_in_mujoco, mjcf_model, stand_in_mujoco, MjcfSettings, MujocoCheck, StandingFigures};
+use legwork::model::embedded;
+use legwork::ocp::{solve_task, Rerun, SolveOptions, TaskSpec};
+use legwork::sim::{standing_on_ground, SimConfig, Simulator};
+use legwork::terrain::{Plane, TerrainSpec};
+use nalgebra::DVector;
+use std::path::PathBuf;
+
+/// The checker, or `None` (the test skips) when its environment is missing outside CI.
+fn mujoco_or_skip() -> Option<MujocoCheck> {
+    match MujocoCheck::locate() {
+        Ok(check) => Some(check),
+        Err(e) if std::env::var_os("CI").is_some() => panic!("{e}, and CI is set"),
+        Err(e) => {
+            eprintln!("skipped: {e}");
+            None
+        }
+    }
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("legwork-mujoco-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A small deterministic generator of U(0, 1) samples.
+fn uniform(seed: u64) -> impl FnMut() -> f64 {
+    let mut s = seed;
+    move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+}
+
+/// MuJoCo's sizes, mass and body count are the model's; in the standing pose its foot
+/// spheres are where legwork's forward kinematics puts them and its mass matrix is
+/// legwork's; at random states in the air
+/// its mass matrix (mj_fullM) and inverse dynamics (mj_inverse) agree with legwork's CRBA
+/// and RNEA to 1e-8, once the free joint's conventions are converted.
+#[test]
+fn mjcf_in_mujoco_is_legworks_model() {
+    let Some(check) = mujoco_or_skip() else { return };
+    for name in ["hyq", "a1"] {
+        let model = embedded::load(name).unwrap();
+        let dir = scratch(&format!("inspect-{name}"));
+        let mjcf = dir.join("model.xml");
+        std::fs::write(&mjcf, mjcf_model(&model, &TerrainSpec::flat(), &MjcfSettings::default()).unwrap()).unwrap();
+        let standing = model.reference_configuration("standing").unwrap().clone();
+        let mut states = vec![(standing.clone(), DVector::zeros(model.nv), DVector::zeros(model.nv))];
+        let mut u = uniform(0x5eed + name.len() as u64);
+        for _ in 0..3 {
+            let mut q = legwork::dynamics::random_configuration(&model, &mut u);
+            q[2] += 5.0; // in the air: no contact, no constraint force in mj_inverse
+            let v = DVector::from_fn(model.nv, |_, _| 4.0 * u() - 2.0);
+            let a = DVector::from_fn(model.nv, |_, _| 20.0 * u() - 10.0);
+            states.push((q, v, a));
+        }
+        let out = check.inspect(&dir, &model, &mjcf, &states).unwrap();
+        assert_eq!(out["nq"], model.nq as u64, "{name}");
+        assert_eq!(out["nv"], model.nv as u64, "{name}");
+        assert_eq!(out["nu"], (model.nv - 6) as u64, "{name}");
+        assert_eq!(out["nbody"], model.njoints() as u64, "{name}: the world and one body per joint");
+        let mass = out["total_mass"].as_f64().unwrap();
+        assert!((mass - model.total_mass()).abs() < 1e-12 * mass, "{name}: MuJoCo {mass} kg, legwork {} kg", model.total_mass());
+        let mut data = Data::new(&model);
+        for (k, (q, v, a)) in states.iter().enumerate() {
+            let s = &out["states"][k];
+            forward_kinematics(&model, &mut data, q);
+            for (i, foot) in model.feet.iter().enumerate() {
+                let p = frame_position(&model, &data, foot.frame);
+                let mj: Vec<f64> = s["feet"][i].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+                assert!(max_abs_diff(p.as_slice(), &mj) < 1e-12, "{name} state {k} foot {}: legwork {p:?}, MuJoCo {mj:?}", foot.name);
+            }
+            let m = crba(&model, &mut data, q).clone();
+            let m = DVector::from_iterator(model.nv * model.nv, (0..model.nv).flat_map(|r| (0..model.nv).map(move |c| (r, c))).map(|(r, c)| m[(r.min(c), r.max(c))]));
+            let mj_m: Vec<f64> = s["mass_matrix"].as_array().unwrap().iter().flat_map(|row| row.as_array().unwrap().iter().map(|x| x.as_f64().unwrap())).collect();
+            let dm = max_abs_diff(m.as_slice(), &mj_m);
+            let tau = rnea(&model, &mut data, q, v, a).clone();
+            let mj_tau: Vec<f64> = s["inverse_dynamics"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+            let dt = max_abs_diff(tau.as_slice(), &mj_tau);
+            let contact = if k == 0 { " (standing on the ground: MuJoCo's contact forces included)" } else { "" };
+            println!("{name} state {k}: |M_legwork - M_mujoco|_max = {dm:.2e}, |rnea - mj_inverse|_max = {dt:.2e}{contact} (|tau|_max {:.1})", tau.amax());
+            assert!(dm < 1e-8, "{name} state {k}: mass matrices differ by {dm:e}");
+            if k == 0 {
+                // Standing on the ground: MuJoCo's contacts add constraint forces.
+                continue;
+            }
+            assert_eq!(s["ncon"], 0, "{name} state {k}: in the air");
+            assert!(dt < 1e-8 * tau.amax().max(1.0), "{name} state {k}: inverse dynamics differ by {dt:e}");
+        }
+    }
+}
+
+/// HyQ and A1 dropped from 0.1 m onto flat ground under the standing joint PD, in MuJoCo
+/// (default contact) and in legwork's simulator: static penetration per foot, rest base
+/// height, sinking and bounce after touch-down (printed: the calibration data of
+/// docs/experiments/mujoco-check.md). Asserted: finite, and the robot stands (every foot
+/// down at the end, the base within 3 cm of legwork's standing height, the feet less than
+/// 1 cm deep).
+#[test]
+fn robots_stand_in_mujoco_after_a_drop() {
+    let Some(check) = mujoco_or_skip() else { return };
+    for name in ["hyq", "a1"] {
+        let model = embedded::load(name).unwrap();
+        let ground = Plane::flat(0.0);
+        let standing_height = standing_on_ground(&model, &ground, 0.0).unwrap()[2];
+        let (mujoco, failed) = stand_in_mujoco(&check, &model, 0.1, 2.0, &scratch(&format!("stand-{name}"))).unwrap();
+        assert_eq!(failed, None, "{name}");
+        let figures = StandingFigures::of(&model, &ground, &mujoco, 0.5);
+        // legwork's own: `legwork simulate --controller stand --drop-height 0.1`.
+        let config = SimConfig::default();
+        let pd = legwork::control::JointPd::standing(&model, config.control_dt).unwrap();
+        let q0 = standing_on_ground(&model, &ground, 0.1).unwrap();
+        let mut sim = Simulator::new(&model, &ground, config, q0, None).unwrap();
+        let ours = sim.run(2.0, &mut pd.clone(), |_| {}).unwrap().trajectory;
+        let legwork = StandingFigures::of(&model, &ground, &ours, 0.5);
+        for (sim, f) in [("MuJoCo 4.0.0", &figures), ("legwork", &legwork)] {
+            println!(
+                "{name} {sim:<12}: penetration {} mm, rest height {:.4} m (standing pose {:.4}), undershoot {:.1} mm, bounce {:.1} mm, lift-offs after touch-down {}, settled at {:.3} s, touch-down at {:.3} s",
+                f.penetration.iter().map(|p| format!("{:.2}", p * 1e3)).collect::<Vec<_>>().join("/"),
+                f.rest_height,
+                standing_height,
+                f.undershoot * 1e3,
+                f.overshoot * 1e3,
+                f.liftoffs_after_touchdown,
+                f.settle_time,
+                f.touchdown_time.unwrap_or(f64::NAN)
+            );
+        }
+        let last = mujoco.knots.last().unwrap();
+        assert!(last.in_contact.iter().all(|&c| c), "{name}: every foot down at the end in MuJoCo: {:?}", last.in_contact);
+        assert!(figures.penetration.iter().all(|p| p.is_finite() && p.abs() < 0.01), "{name}: {:?}", figures.penetration);
+        assert!(figures.rest_height.is_finite() && (figures.rest_height - standing_height).abs() < 0.03, "{name}: rest {} against standing {standing_height}", figures.rest_height);
+        let weight = model.total_mass() * 9.81;
+        let fz: f64 = last.contact_force.iter().map(|f| f[2]).sum();
+        assert!((fz - weight).abs() < 0.05 * weight, "{name}: MuJoCo's feet carry {fz} N of the {weight} N weight");
+    }
+}
+
+/// A short squat jump (0.4 s, 3 SLQ iterations) solved, then checked in MuJoCo with both
+/// controllers: both runs come back as trajectories of the whole horizon with finite
+/// figures (not that they meet the task's targets).
+#[test]
+fn a_short_task_checked_in_mujoco() {
+    let Some(check) = mujoco_or_skip() else { return };
+    let mut spec = TaskSpec::embedded("squat_jump").unwrap();
+    spec.duration = 0.4;
+    spec.iterations = Some(3);
+    spec.waypoints[0].time = 0.2;
+    let model = embedded::load(&spec.robot).unwrap();
+    let ground = Plane::flat(0.0);
+    let run = solve_task(&spec, &model, &ground, "short squat jump", &SolveOptions::default(), |_| {}).unwrap();
+    let reruns = check_plan_in_mujoco(&check, &model, &run.plan, &TerrainSpec::flat(), spec.contact.unwrap_or_default().friction, &scratch("task")).unwrap();
+    assert_eq!(reruns.version, "4.0.0");
+    for (what, rerun) in [("track", &reruns.tracking), ("policy", &reruns.policy)] {
+        let (traj, metrics) = match rerun {
+            Rerun::Completed { trajectory, metrics } => (trajectory, metrics),
+            Rerun::Failed { reason } => panic!("MuJoCo {what} failed: {reason}"),
+        };
+        assert!((traj.duration() - run.plan.duration()).abs() < 1e-9, "{what}: {} s of {} s", traj.duration(), run.plan.duration());
+        let figures = [metrics.apex_base_height, metrics.flight_time, metrics.all_feet_down, metrics.final_base_position[0], metrics.final_base_position[2], metrics.final_base_rpy_deg[1]];
+        assert!(figures.iter().all(|x| x.is_finite()), "{what}: {metrics:?}");
+        println!("MuJoCo {what}: apex {:.4} m, final base z {:.4} m, flight {:.3} s, all feet down {:.0} %", metrics.apex_base_height, metrics.final_base_position[2], metrics.flight_time, 100.0 * metrics.all_feet_down);
+    }
+}
+
