@@ -1,6 +1,7 @@
 //! legwork's robots in MuJoCo (issue 16, item 5): the exported MJCF loaded by MuJoCo 4.0.0
 //! (the checker's Python, `scripts/install-mujoco.sh`) against legwork's own dynamics, HyQ
-//! and A1 dropped and standing in MuJoCo, and a short task checked end to end.
+//! and A1 dropped and standing in MuJoCo, and every embedded task, shortened, checked end
+//! to end.
 //!
 //! Without the checker's environment the tests fail when `CI` is set, and otherwise say
 //! they skipped (the rule of tests/replay_browser.rs for Chromium).
@@ -8,7 +9,7 @@
 use legwork::dynamics::{crba, forward_kinematics, frame_position, rnea, Data};
 use legwork::export::{check_plan_in_mujoco, mjcf_model, stand_in_mujoco, MjcfSettings, MujocoCheck, StandingFigures};
 use legwork::model::embedded;
-use legwork::ocp::{solve_task, Rerun, SolveOptions, TaskSpec};
+use legwork::ocp::{solve_task, Rerun, SolveOptions, TaskSpec, EMBEDDED_TASKS};
 use legwork::sim::{standing_on_ground, SimConfig, Simulator};
 use legwork::terrain::{Plane, TerrainSpec};
 use nalgebra::DVector;
@@ -152,30 +153,37 @@ fn robots_stand_in_mujoco_after_a_drop() {
     }
 }
 
-/// A short squat jump (0.4 s, 3 SLQ iterations) solved, then checked in MuJoCo with both
-/// controllers: both runs come back as trajectories of the whole horizon with finite
-/// figures (not that they meet the task's targets).
+/// Every embedded task in a shortened form (0.3 s, 2 SLQ iterations, no continuation,
+/// the waypoints within the horizon) solved, then checked in MuJoCo with both controllers:
+/// both runs come back as trajectories of the whole horizon with finite figures (not that
+/// they meet the tasks' targets: the full tasks are `legwork bench slq --check mujoco`).
 #[test]
-fn a_short_task_checked_in_mujoco() {
+fn every_embedded_task_shortened_checked_in_mujoco() {
     let Some(check) = mujoco_or_skip() else { return };
-    let mut spec = TaskSpec::embedded("squat_jump").unwrap();
-    spec.duration = 0.4;
-    spec.iterations = Some(3);
-    spec.waypoints[0].time = 0.2;
-    let model = embedded::load(&spec.robot).unwrap();
     let ground = Plane::flat(0.0);
-    let run = solve_task(&spec, &model, &ground, "short squat jump", &SolveOptions::default(), |_| {}).unwrap();
-    let reruns = check_plan_in_mujoco(&check, &model, &run.plan, &TerrainSpec::flat(), spec.contact.unwrap_or_default().friction, &scratch("task")).unwrap();
-    assert_eq!(reruns.version, "4.0.0");
-    for (what, rerun) in [("track", &reruns.tracking), ("policy", &reruns.policy)] {
-        let (traj, metrics) = match rerun {
-            Rerun::Completed { trajectory, metrics } => (trajectory, metrics),
-            Rerun::Failed { reason } => panic!("MuJoCo {what} failed: {reason}"),
-        };
-        assert!((traj.duration() - run.plan.duration()).abs() < 1e-9, "{what}: {} s of {} s", traj.duration(), run.plan.duration());
-        let figures = [metrics.apex_base_height, metrics.flight_time, metrics.all_feet_down, metrics.final_base_position[0], metrics.final_base_position[2], metrics.final_base_rpy_deg[1]];
-        assert!(figures.iter().all(|x| x.is_finite()), "{what}: {metrics:?}");
-        println!("MuJoCo {what}: apex {:.4} m, final base z {:.4} m, flight {:.3} s, all feet down {:.0} %", metrics.apex_base_height, metrics.final_base_position[2], metrics.flight_time, 100.0 * metrics.all_feet_down);
+    for (name, _) in EMBEDDED_TASKS {
+        let mut spec = TaskSpec::embedded(name).unwrap();
+        spec.duration = 0.3;
+        spec.iterations = Some(2);
+        spec.continuation = None;
+        spec.waypoints.retain(|w| w.time <= spec.duration);
+        let model = embedded::load(&spec.robot).unwrap();
+        let run = solve_task(&spec, &model, &ground, name, &SolveOptions::default(), |_| {}).unwrap();
+        let reruns = check_plan_in_mujoco(&check, &model, &run.plan, &TerrainSpec::flat(), spec.contact.unwrap_or_default().friction, &scratch(&format!("task-{name}"))).unwrap();
+        assert_eq!(reruns.version, "4.0.0");
+        for (what, rerun) in [("track", &reruns.tracking), ("policy", &reruns.policy)] {
+            let (traj, metrics) = match rerun {
+                Rerun::Completed { trajectory, metrics } => (trajectory, metrics),
+                Rerun::Failed { reason } => panic!("{name}: MuJoCo {what} failed: {reason}"),
+            };
+            assert!((traj.duration() - run.plan.duration()).abs() < 1e-9, "{name} {what}: {} s of {} s", traj.duration(), run.plan.duration());
+            assert_eq!(traj.knots.len(), (run.plan.duration() / 0.001).round() as usize + 1, "{name} {what}: a knot per millisecond");
+            let figures = [metrics.apex_base_height, metrics.flight_time, metrics.all_feet_down, metrics.final_base_position[0], metrics.final_base_position[2], metrics.final_base_rpy_deg[1]];
+            assert!(figures.iter().all(|x| x.is_finite()), "{name} {what}: {metrics:?}");
+            let weight = model.total_mass() * 9.81;
+            let fz: f64 = traj.knots[0].contact_force.iter().map(|f| f[2]).sum();
+            assert!(fz > 0.5 * weight && fz < 2.0 * weight, "{name} {what}: the feet carry {fz} N at the start (weight {weight} N)");
+            println!("{name:<16} MuJoCo {what:<6}: apex {:.4} m, final base ({:.3}, {:.3}, {:.3}) m, flight {:.3} s, all feet down {:.0} %", metrics.apex_base_height, metrics.final_base_position[0], metrics.final_base_position[1], metrics.final_base_position[2], metrics.flight_time, 100.0 * metrics.all_feet_down);
+        }
     }
 }
-
