@@ -11,7 +11,7 @@ use legwork::export::{check_plan_in_mujoco, mjcf_model, stand_in_mujoco, MjcfSet
 use legwork::model::embedded;
 use legwork::ocp::{solve_task, Rerun, SolveOptions, TaskSpec, EMBEDDED_TASKS};
 use legwork::sim::{standing_on_ground, SimConfig, Simulator};
-use legwork::terrain::{Plane, TerrainSpec};
+use legwork::terrain::{Plane, Terrain, TerrainSpec};
 use nalgebra::DVector;
 use std::path::PathBuf;
 
@@ -71,7 +71,7 @@ fn mjcf_in_mujoco_is_legworks_model() {
             let a = DVector::from_fn(model.nv, |_, _| 20.0 * u() - 10.0);
             states.push((q, v, a));
         }
-        let out = check.inspect(&dir, &model, &mjcf, &states).unwrap();
+        let out = check.inspect(&dir, &model, &mjcf, &states, &[]).unwrap();
         assert_eq!(out["nq"], model.nq as u64, "{name}");
         assert_eq!(out["nv"], model.nv as u64, "{name}");
         assert_eq!(out["nu"], (model.nv - 6) as u64, "{name}");
@@ -104,6 +104,41 @@ fn mjcf_in_mujoco_is_legworks_model() {
             assert_eq!(s["ncon"], 0, "{name} state {k}: in the air");
             assert!(dt < 1e-8 * tau.amax().max(1.0), "{name} state {k}: inverse dynamics differ by {dt:e}");
         }
+    }
+}
+
+/// A walk scenario's world (stepping stones over a pit, between two pallets) as MuJoCo's
+/// hfield: under random points whose grid cell is flat (where legwork's bilinear
+/// interpolation and MuJoCo's two triangles per cell agree), MuJoCo's ray cast finds
+/// legwork's height (to MuJoCo's single-precision height data). The stones are off the centre line in y, so a field flipped in y fails.
+#[test]
+fn a_scenario_height_map_in_mujoco_is_legworks() {
+    let Some(check) = mujoco_or_skip() else { return };
+    let model = embedded::load("hyq").unwrap();
+    let scenario = legwork::walk::ScenarioSpec::embedded("stepping_stones").unwrap();
+    let map = scenario.world_at(0.0);
+    let dir = scratch("hfield");
+    let mjcf = dir.join("model.xml");
+    std::fs::write(&mjcf, mjcf_model(&model, &map.spec(), &MjcfSettings::default()).unwrap()).unwrap();
+    let (origin, r, (columns, rows)) = (map.origin(), map.resolution(), map.size());
+    let mut u = uniform(7);
+    let mut points = Vec::new();
+    let mut levels = std::collections::BTreeSet::new();
+    while points.len() < 200 {
+        let (i, j) = (((columns - 1) as f64 * u()) as usize, ((rows - 1) as f64 * u()) as usize);
+        let h = map.at(i, j);
+        if [map.at(i + 1, j), map.at(i, j + 1), map.at(i + 1, j + 1)].iter().all(|&x| x == h) {
+            points.push([origin[0] + (i as f64 + u()) * r, origin[1] + (j as f64 + u()) * r]);
+            levels.insert((h * 1e3).round() as i64);
+        }
+    }
+    assert!(levels.len() >= 3, "the sample covers the ground, the pit and the stones or pallets: {levels:?}");
+    let out = check.inspect(&dir, &model, &mjcf, &[], &points).unwrap();
+    for (p, h) in points.iter().zip(out["ground_heights"].as_array().unwrap()) {
+        let ours = map.height(p[0], p[1]);
+        let theirs = h.as_f64().unwrap_or_else(|| panic!("no ground under {p:?} in MuJoCo"));
+        // MuJoCo keeps hfield data in single precision: 0.65 m of span to 6e-8 relative.
+        assert!((ours - theirs).abs() < 1e-6, "at {p:?}: legwork {ours} m, MuJoCo {theirs} m");
     }
 }
 

@@ -29,7 +29,8 @@ Commands:
       The model's sizes and total mass and, at each state {q, v, a} of the input (legwork's
       conventions), the feet's positions, the mass matrix (mj_fullM) and the inverse
       dynamics (mj_inverse) both in legwork's velocity coordinates: the test set's
-      comparison with legwork's CRBA, RNEA and forward kinematics.
+      comparison with legwork's CRBA, RNEA and forward kinematics; and the ground's height
+      under each of the input's `ground_points` [x, y] (a ray cast onto the `ground` geom).
 """
 
 import argparse
@@ -458,6 +459,20 @@ def inspect(args):
             "inverse_dynamics": (t.T @ data.qfrc_inverse).tolist(),
             "ncon": int(data.ncon),
         })
+    # Ground heights under given points: a ray cast straight down onto the ground geom.
+    ground = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "ground")
+    data.qpos[:] = model.qpos0
+    data.qpos[2] = 1000.0  # the robot far above the rays
+    mujoco.mj_forward(model, data)
+    heights = []
+    geomid = np.zeros(1, dtype=np.int32)
+    for x, y in spec.get("ground_points", []):
+        top = 100.0
+        group = np.zeros(6, dtype=np.uint8)
+        group[model.geom_group[ground]] = 1
+        dist = mujoco.mj_ray(model, data, np.array([x, y, top]), np.array([0.0, 0.0, -1.0]), group, 1, -1, geomid)
+        heights.append(top - dist if dist >= 0 and geomid[0] == ground else None)
+    out["ground_heights"] = heights
     write_json(args.output, out)
 
 

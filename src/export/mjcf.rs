@@ -25,7 +25,8 @@
 //! normal as its z axis; a height map is an `hfield` on the same grid (MuJoCo draws two
 //! triangles per cell where legwork interpolates bilinearly, so the two agree at the grid
 //! points and on flat cells, and differ by less than the cell's twist elsewhere; and
-//! MuJoCo's field ends at the grid's border, where legwork's extends the border heights).
+//! MuJoCo's field ends at the grid's border, where legwork's extends the border heights;
+//! and MuJoCo stores the field's data in single precision, 6e-8 of the height span).
 //!
 //! Numbers are written with Rust's shortest round-trip formatting: the file holds the
 //! model's `f64`s exactly.
@@ -295,10 +296,11 @@ fn write_terrain(xml: &mut String, terrain: &TerrainSpec, settings: &MjcfSetting
 }
 
 /// A legwork height map as MuJoCo's `hfield`: the field spans `centre +- radius` in x and
-/// y; its elevation data, row-major with row 0 at the lowest y (MuJoCo's and legwork's
-/// order alike), are the heights above the lowest one scaled to [0, 1], `top` the scale,
-/// and the geom sits at the lowest height. Data already in [0, 1] make MuJoCo's own
-/// normalisation a no-op.
+/// y; its elevation data are row-major with MuJoCo's first row at the highest y (legwork's
+/// first row is at the lowest y: the rows are written in reverse; checked with MuJoCo's
+/// ray casts in tests/mujoco_check.rs), the heights above the lowest one scaled to
+/// [0, 1], `top` the scale, and the geom sits at the lowest height. Data already in
+/// [0, 1] make MuJoCo's own normalisation a no-op.
 struct HeightField {
     rows: usize,
     columns: usize,
@@ -328,7 +330,7 @@ impl HeightField {
         let top = if high > low { high - low } else { 1.0 };
         let radius = [0.5 * (columns - 1) as f64 * file.resolution, 0.5 * (rows - 1) as f64 * file.resolution];
         let centre = Vector3::new(file.origin[0] + radius[0], file.origin[1] + radius[1], low);
-        let elevation = file.heights.iter().flatten().map(|h| (h - low) / top).collect();
+        let elevation = file.heights.iter().rev().flatten().map(|h| (h - low) / top).collect();
         Ok(Self { rows, columns, radius, top, centre, elevation })
     }
 }
@@ -496,7 +498,9 @@ mod tests {
         assert_eq!(numbers(&attr(hfield, "size")), vec![0.5, 0.25, 0.3, 0.1]);
         let e = numbers(&attr(hfield, "elevation"));
         assert_eq!(e.len(), 6);
-        assert!((e[2] - 1.0 / 3.0).abs() < 1e-15 && e[4] == 1.0 && e[0] == 0.0);
+        // MuJoCo's first row is legwork's last (the highest y).
+        assert_eq!((e[0], e[1], e[3], e[4]), (0.0, 1.0, 0.0, 0.0));
+        assert!((e[2] - 1.0 / 3.0).abs() < 1e-15 && (e[5] - 1.0 / 3.0).abs() < 1e-15);
         let ground = elements(&root, "geom").into_iter().find(|g| g.get_attribute("name", None) == Some("ground")).unwrap();
         assert_eq!(numbers(&attr(ground, "pos")), vec![-0.5, -0.25, 0.0]);
     }

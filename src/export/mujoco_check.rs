@@ -193,9 +193,11 @@ impl MujocoCheck {
     }
 
     /// The checker's `inspect`: MuJoCo's sizes, and at each `(q, v, a)` (legwork's
-    /// conventions) the feet, mass matrix and inverse dynamics in legwork's coordinates.
-    pub fn inspect(&self, folder: &Path, model: &Model, mjcf: &Path, states: &[(DVector<f64>, DVector<f64>, DVector<f64>)]) -> Result<serde_json::Value, MujocoCheckError> {
+    /// conventions) the feet, mass matrix and inverse dynamics in legwork's coordinates;
+    /// and the ground's height under each of `ground_points` (`ground_heights`).
+    pub fn inspect(&self, folder: &Path, model: &Model, mjcf: &Path, states: &[(DVector<f64>, DVector<f64>, DVector<f64>)], ground_points: &[[f64; 2]]) -> Result<serde_json::Value, MujocoCheckError> {
         let input = serde_json::json!({
+            "ground_points": ground_points,
             "joint_names": model.actuated_joint_names(),
             "foot_names": model.feet.iter().map(|f| f.name.as_str()).collect::<Vec<_>>(),
             "states": states.iter().map(|(q, v, a)| serde_json::json!({ "q": q.as_slice(), "v": v.as_slice(), "a": a.as_slice() })).collect::<Vec<_>>(),
