@@ -192,13 +192,9 @@ impl<'a> Column<'a> {
 /// The task figures of each column side by side, the state at each waypoint time, and
 /// why any re-run failed.
 pub(super) fn print_figures(model: &legwork::model::Model, waypoints: &[f64], columns: &[Column]) {
-    let widths: Vec<usize> = columns.iter().map(|c| c.name.len().max(10) + 2).collect();
-    let header: String = columns.iter().zip(&widths).map(|(c, w)| format!("{:<w$}", c.name, w = *w)).collect();
-    say!("  {:<22} {}", "", header.trim_end());
-    let row = |name: &str, f: &dyn Fn(&MotionMetrics) -> String| {
-        let cells: String = columns.iter().zip(&widths).map(|(c, w)| format!("{:<w$}", c.metrics.map_or("failed".to_string(), f), w = *w)).collect();
-        say!("  {name:<22} {}", cells.trim_end());
-    };
+    // The rows first, then each column as wide as its widest cell.
+    let mut rows: Vec<(&str, Vec<String>)> = Vec::new();
+    let mut row = |name: &'static str, f: &dyn Fn(&MotionMetrics) -> String| rows.push((name, columns.iter().map(|c| c.metrics.map_or("failed".to_string(), f)).collect()));
     row("final base x [m]", &|m| format!("{:.3}", m.final_base_position[0]));
     row("final base y [m]", &|m| format!("{:.3}", m.final_base_position[1]));
     row("final yaw [deg]", &|m| format!("{:.1}", m.final_base_rpy_deg[2]));
@@ -215,6 +211,16 @@ pub(super) fn print_figures(model: &legwork::model::Model, waypoints: &[f64], co
     row("diagonal correlation", &|m| pairs(&m.diagonal_correlation));
     row("lateral correlation", &|m| pairs(&m.lateral_correlation));
     row("past joint limit [deg]", &|m| m.joint_limit_excess.as_ref().map_or("none".into(), |e| format!("{:.0} {}", e.excess_deg, e.joint.trim_end_matches("_joint"))));
+    let label = rows.iter().map(|(n, _)| n.len()).max().unwrap_or(0);
+    let widths: Vec<usize> = (0..columns.len()).map(|c| rows.iter().map(|(_, cells)| cells[c].len()).chain([columns[c].name.len()]).max().unwrap_or(0) + 2).collect();
+    let line = |name: &str, cells: &mut dyn Iterator<Item = &str>| {
+        let text: String = cells.zip(&widths).map(|(cell, w)| format!("{cell:<w$}", w = *w)).collect();
+        say!("  {name:<label$} {}", text.trim_end());
+    };
+    line("", &mut columns.iter().map(|c| c.name));
+    for (name, cells) in &rows {
+        line(name, &mut cells.iter().map(String::as_str));
+    }
     for &time in waypoints {
         say!("  at the waypoint t = {time:.2} s:");
         for c in columns {
