@@ -15,6 +15,8 @@ use legwork::terrain::{Plane, Terrain, TerrainSpec};
 use nalgebra::DVector;
 use std::path::PathBuf;
 
+mod common;
+
 /// The checker, or `None` (the test skips) when its environment is missing outside CI.
 fn mujoco_or_skip() -> Option<MujocoCheck> {
     match MujocoCheck::locate() {
@@ -104,6 +106,73 @@ fn mjcf_in_mujoco_is_legworks_model() {
             assert_eq!(s["ncon"], 0, "{name} state {k}: in the air");
             assert!(dt < 1e-8 * tau.amax().max(1.0), "{name} state {k}: inverse dynamics differ by {dt:e}");
         }
+    }
+}
+
+/// The checker's controllers are legwork's: on a trot of HyQ (some feet in swing, the
+/// reference between knots), at perturbed states, MuJoCo's `track` gives the torques of
+/// legwork's [`TrackingController`] with its default gains (feet and Jacobians from
+/// MuJoCo, the reference interpolated on SE(3) in Python), and `policy` gives
+/// `tau_ff + K [q (-) q*; v - v*]` computed with legwork's own `difference`, to 1e-9 (the
+/// tracking controller to 1e-7: see below).
+#[test]
+fn the_checkers_controllers_are_legworks() {
+    let Some(check) = mujoco_or_skip() else { return };
+    let (model, mut reference) = common::hyq_trot(1.5);
+    let mut u = uniform(11);
+    for knot in &mut reference.knots {
+        knot.feedback_gain = Some((0..model.nv - 6).map(|_| (0..2 * model.nv).map(|_| 200.0 * u() - 100.0).collect()).collect());
+    }
+    let dir = scratch("controllers");
+    let mjcf = dir.join("model.xml");
+    std::fs::write(&mjcf, mjcf_model(&model, &TerrainSpec::flat(), &MjcfSettings::default()).unwrap()).unwrap();
+    let reference_path = dir.join("reference.json");
+    reference.save_file(&reference_path).unwrap();
+    // States near the reference: between knots for `track`, at knots for `policy`.
+    let perturbed = |t: f64, u: &mut dyn FnMut() -> f64| {
+        let k = reference.knots.iter().position(|k| k.t >= t).unwrap();
+        let mut q = DVector::from_column_slice(&reference.knots[k].q);
+        let dq = DVector::from_fn(model.nv, |_, _| 0.04 * u() - 0.02);
+        let q_ref = q.clone();
+        legwork::dynamics::integrate(&model, &q_ref, &dq, &mut q);
+        let v = DVector::from_column_slice(&reference.knots[k].v) + DVector::from_fn(model.nv, |_, _| 0.4 * u() - 0.2);
+        (q, v)
+    };
+    let track_states: Vec<(f64, DVector<f64>, DVector<f64>)> = [0.3, 0.7013, 0.8871, 1.0005].iter().map(|&t| {
+        let (q, v) = perturbed(t, &mut u);
+        (t, q, v)
+    }).collect();
+    let settings = legwork::export::ControllerSettings::tracking(&model, &reference, 0.001).unwrap();
+    let theirs = check.torques(&dir, &mjcf, &reference_path, legwork::export::CheckController::Track, &settings, &track_states).unwrap();
+    let mut ours = legwork::control::TrackingController::with_default_gains(&model, &reference, 0.001).unwrap();
+    for ((t, q, v), theirs) in track_states.iter().zip(&theirs) {
+        let mut tau = DVector::zeros(model.nv);
+        let state = legwork::sim::SimState { t: *t, q: q.clone(), v: v.clone(), anchors: vec![None; model.feet.len()] };
+        legwork::sim::Controller::compute(&mut ours, &model, &state, &mut tau).unwrap();
+        let d = max_abs_diff(&tau.as_slice()[6..], theirs);
+        println!("track at t = {t}: |tau_legwork - tau_checker|_max = {d:.2e} (|tau|_max {:.1})", tau.amax());
+        // With two stance feet G G^T is singular but for its eps = 1e-8 of the trace
+        // (condition about 1e8): the two solves' round-off differs by some 1e-8 relative.
+        assert!(d < 1e-7 * tau.amax().max(1.0), "track at t = {t}: legwork {:?}, checker {theirs:?}", &tau.as_slice()[6..]);
+    }
+    let policy_states: Vec<(f64, DVector<f64>, DVector<f64>)> = [20usize, 351, 444, 600].iter().map(|&k| {
+        let t = reference.knots[k].t;
+        let (q, v) = perturbed(t, &mut u);
+        (t, q, v)
+    }).collect();
+    let theirs = check.torques(&dir, &mjcf, &reference_path, legwork::export::CheckController::Policy, &legwork::export::ControllerSettings::Policy {}, &policy_states).unwrap();
+    for ((t, q, v), theirs) in policy_states.iter().zip(&theirs) {
+        let knot = reference.knots.iter().find(|k| k.t == *t).unwrap();
+        let mut dx = DVector::zeros(2 * model.nv);
+        legwork::dynamics::difference_into(&model, &DVector::from_column_slice(&knot.q), q, &mut dx.as_mut_slice()[..model.nv]);
+        for i in 0..model.nv {
+            dx[model.nv + i] = v[i] - knot.v[i];
+        }
+        let gain = knot.feedback_gain.as_ref().unwrap();
+        let tau: Vec<f64> = (0..model.nv - 6).map(|r| knot.tau[r] + gain[r].iter().zip(dx.iter()).map(|(g, x)| g * x).sum::<f64>()).collect();
+        let d = max_abs_diff(&tau, theirs);
+        println!("policy at t = {t}: |tau_legwork - tau_checker|_max = {d:.2e}");
+        assert!(d < 1e-9 * tau.iter().fold(1.0f64, |a, x| a.max(x.abs())), "policy at t = {t}: legwork {tau:?}, checker {theirs:?}");
     }
 }
 

@@ -25,6 +25,10 @@ Commands:
       flags (a contact of the foot with positive normal force). A run that MuJoCo flags as
       unstable stops there; its summary says `mujoco_failed`.
 
+  torques  --mjcf M --reference R --controller C [--settings S] --input states.json --output out.json
+      The controller's torques (legwork's joint order, before the effort clip) at each
+      state {t, q, v} of the input: the test set's comparison with legwork's controllers.
+
   inspect  --mjcf M --input states.json --output out.json
       The model's sizes and total mass and, at each state {q, v, a} of the input (legwork's
       conventions), the feet's positions, the mass matrix (mj_fullM) and the inverse
@@ -476,6 +480,25 @@ def inspect(args):
     write_json(args.output, out)
 
 
+def torques(args):
+    """The controller's torques (before the effort clip) at given states {t, q, v}."""
+    model = mujoco.MjModel.from_xml_path(args.mjcf)
+    data = mujoco.MjData(model)
+    traj = load_json(args.reference)
+    meta = traj["metadata"]
+    robot = Robot(model, meta["joint_names"], meta["foot_names"])
+    reference = Reference(traj, robot.nj)
+    settings = load_json(args.settings) if args.settings else {}
+    controller = {"track": lambda: Tracking(robot, reference, settings), "policy": lambda: Policy(robot, reference, meta["dt"]), "stand": lambda: Stand(robot, settings)}[args.controller]()
+    out = []
+    for s in load_json(args.input)["states"]:
+        robot.set_state(data, s["q"], s["v"])
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        out.append(controller.torques(data, s["t"]).tolist())
+    write_json(args.output, {"torques": out})
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -487,6 +510,13 @@ def main():
     p.add_argument("--output", required=True)
     p.add_argument("--duration", type=float)
     p.add_argument("--record-dt", type=float, default=0.001)
+    p = sub.add_parser("torques", help="a controller's torques at given states (tests)")
+    p.add_argument("--mjcf", required=True)
+    p.add_argument("--reference", required=True)
+    p.add_argument("--controller", required=True, choices=["track", "policy", "stand"])
+    p.add_argument("--settings")
+    p.add_argument("--input", required=True)
+    p.add_argument("--output", required=True)
     p = sub.add_parser("inspect", help="sizes, feet, mass matrix and inverse dynamics at given states")
     p.add_argument("--mjcf", required=True)
     p.add_argument("--input", required=True)
@@ -496,6 +526,8 @@ def main():
         if args.controller in ("track", "stand") and not args.settings:
             parser.error(f"--controller {args.controller} needs --settings")
         run(args)
+    elif args.command == "torques":
+        torques(args)
     else:
         inspect(args)
 

@@ -456,7 +456,8 @@ mod tests {
         let model = embedded::load("hyq").unwrap();
         let q = model.reference_configuration("standing").unwrap().clone();
         let text = mjcf_model(&model, &TerrainSpec::flat(), &MjcfSettings::default()).unwrap();
-        let key = &elements(&parse(&text), "key")[0];
+        let root = parse(&text);
+        let key = &elements(&root, "key")[0];
         let qpos = numbers(&attr(key, "qpos"));
         assert_eq!(qpos.len(), model.nq);
         assert_eq!(&qpos[..3], &q.as_slice()[..3]);

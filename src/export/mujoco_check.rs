@@ -161,6 +161,21 @@ impl MujocoCheck {
         Ok(String::from_utf8_lossy(&out.stdout).trim().to_string())
     }
 
+    /// The checker's `torques`: `controller`'s joint torques (legwork's joint order, before
+    /// the effort clip) on `reference` at each state `(t, q, v)` (legwork's conventions).
+    pub fn torques(&self, folder: &Path, mjcf: &Path, reference: &Path, controller: CheckController, settings: &ControllerSettings, states: &[(f64, DVector<f64>, DVector<f64>)]) -> Result<Vec<Vec<f64>>, MujocoCheckError> {
+        let settings_path = folder.join(format!("controller_{}.json", controller.name()));
+        write(&settings_path, &serde_json::to_string_pretty(settings).map_err(|e| MujocoCheckError::Input(e.to_string()))?)?;
+        let input = serde_json::json!({ "states": states.iter().map(|(t, q, v)| serde_json::json!({ "t": t, "q": q.as_slice(), "v": v.as_slice() })).collect::<Vec<_>>() });
+        let (input_path, output_path) = (folder.join("torques_in.json"), folder.join("torques_out.json"));
+        write(&input_path, &input.to_string())?;
+        let args: [&std::ffi::OsStr; 13] = ["torques".as_ref(), "--mjcf".as_ref(), mjcf.as_os_str(), "--reference".as_ref(), reference.as_os_str(), "--controller".as_ref(), controller.name().as_ref(), "--settings".as_ref(), settings_path.as_os_str(), "--input".as_ref(), input_path.as_os_str(), "--output".as_ref(), output_path.as_os_str()];
+        self.call(folder, &args)?;
+        let text = std::fs::read_to_string(&output_path).map_err(|error| MujocoCheckError::Io { path: output_path.display().to_string(), error })?;
+        let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| MujocoCheckError::Input(format!("{}: {e}", output_path.display())))?;
+        serde_json::from_value(value["torques"].clone()).map_err(|e| MujocoCheckError::Input(format!("{}: {e}", output_path.display())))
+    }
+
     /// Writes the checker script into `folder` and runs it with `args`.
     fn call(&self, folder: &Path, args: &[&std::ffi::OsStr]) -> Result<(), MujocoCheckError> {
         let script = folder.join("mujoco_check.py");
