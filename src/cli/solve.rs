@@ -74,12 +74,12 @@ pub fn run(args: SolveArgs) -> Result<()> {
     let (model, _) = super::robot::load(&robot)?;
     let terrain = Plane::flat(0.0);
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&spec.name));
-    say!("Solving {} ({}) for {}: {} s, {} knots of {} s", spec.name, spec.summary, model.name, spec.duration, spec.knots(), spec.dt);
     // A missing MuJoCo environment is reported before the solve, not after it.
     let mujoco = match args.check {
         Some(CheckSimulator::Mujoco) => Some(MujocoCheck::locate()?),
         None => None,
     };
+    say!("Solving {} ({}) for {}: {} s, {} knots of {} s", spec.name, spec.summary, model.name, spec.duration, spec.knots(), spec.dt);
     let started = Instant::now();
     let options = SolveOptions { threads: args.threads, max_iterations: args.iterations };
     let run = solve_task(&spec, &model, &terrain, &origin, &options, |progress| {
