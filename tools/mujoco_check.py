@@ -165,8 +165,6 @@ class Robot:
             self.feet.append(gid)
         self.foot_index = {g: i for i, g in enumerate(self.feet)}
         self.effort = np.array([model.actuator_forcerange[a, 1] if model.actuator_forcelimited[a] else np.inf for a in self.actuator])
-        # T maps legwork's v to MuJoCo's qvel (rotation of the base's linear velocity is set
-        # per state; the joints are a permutation).
         self.nv = 6 + self.nj
 
     def set_state(self, d, q, v):

@@ -99,7 +99,7 @@ pub fn mjcf_model(model: &Model, terrain: &TerrainSpec, settings: &MjcfSettings)
     let _ = writeln!(xml, "  <compiler angle=\"radian\" autolimits=\"false\" inertiafromgeom=\"false\"/>");
     let _ = writeln!(xml, "  <option timestep=\"{}\" gravity=\"{}\"/>", num(settings.timestep), vec3(&g));
     if let TerrainSpec::HeightMap(file) = terrain {
-        let field = HeightField::of(file, settings)?;
+        let field = HeightField::of(file)?;
         let _ = writeln!(xml, "  <asset>");
         let _ = writeln!(xml, "    <hfield name=\"terrain\" nrow=\"{}\" ncol=\"{}\" size=\"{} {} {} {}\" elevation=\"{}\"/>", field.rows, field.columns, num(field.radius[0]), num(field.radius[1]), num(field.top), num(settings.hfield_base_depth), field.elevation.iter().map(|&x| num(x)).collect::<Vec<_>>().join(" "));
         let _ = writeln!(xml, "  </asset>");
@@ -288,7 +288,7 @@ fn write_terrain(xml: &mut String, terrain: &TerrainSpec, settings: &MjcfSetting
             let _ = writeln!(xml, "    <geom name=\"ground\" type=\"plane\" size=\"0 0 1\" {} friction=\"{friction} 0.005 0.0001\" contype=\"1\" conaffinity=\"1\" condim=\"3\"/>", pose(&ground));
         }
         TerrainSpec::HeightMap(file) => {
-            let field = HeightField::of(file, settings)?;
+            let field = HeightField::of(file)?;
             let _ = writeln!(xml, "    <geom name=\"ground\" type=\"hfield\" hfield=\"terrain\" pos=\"{}\" friction=\"{friction} 0.005 0.0001\" contype=\"1\" conaffinity=\"1\" condim=\"3\"/>", vec3(&field.centre));
         }
     }
@@ -311,7 +311,7 @@ struct HeightField {
 }
 
 impl HeightField {
-    fn of(file: &HeightMapFile, _settings: &MjcfSettings) -> Result<Self, MjcfError> {
+    fn of(file: &HeightMapFile) -> Result<Self, MjcfError> {
         let rows = file.heights.len();
         let columns = file.heights.first().map_or(0, |r| r.len());
         if rows < 2 || columns < 2 || file.heights.iter().any(|r| r.len() != columns) {

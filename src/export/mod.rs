@@ -13,4 +13,4 @@ pub mod standing_figures;
 
 pub use mjcf::{mjcf_model, mujoco_qpos, mujoco_qvel, MjcfError, MjcfSettings};
 pub use standing_figures::StandingFigures;
-pub use mujoco_check::{check_plan_in_mujoco, stand_in_mujoco, CheckController, ControllerSettings, MujocoCheck, MujocoCheckError, MujocoReruns, StandingPd, TrackingGains};
+pub use mujoco_check::{check_plan_in_mujoco, stand_in_mujoco, CheckController, CheckRun, ControllerSettings, MujocoCheck, MujocoCheckError, MujocoReruns, StandingPd, TrackingGains};

@@ -128,6 +128,22 @@ pub enum MujocoCheckError {
     Checker { command: String, status: String, stderr: String },
 }
 
+/// One run of the checker: what to replay, with which controller, where to write it.
+pub struct CheckRun<'a> {
+    /// The MJCF (from [`mjcf_model`]).
+    pub mjcf: &'a Path,
+    /// The reference trajectory.json; the run starts at its first knot.
+    pub reference: &'a Path,
+    pub controller: CheckController,
+    pub settings: &'a ControllerSettings,
+    /// Where the run is written (a trajectory.json).
+    pub output: &'a Path,
+    /// Seconds to run; `None`: the reference's own duration.
+    pub duration: Option<f64>,
+    /// Time between recorded knots (s).
+    pub record_dt: f64,
+}
+
 /// A located checker: the Python to run it with.
 #[derive(Clone, Debug)]
 pub struct MujocoCheck {
@@ -188,21 +204,21 @@ impl MujocoCheck {
         Ok(())
     }
 
-    /// Runs `controller` in MuJoCo on `mjcf` from `reference`'s first knot for `duration`
-    /// seconds (the reference's own if `None`), recording every `record_dt`; returns the
-    /// run and, if MuJoCo flagged it as unstable, why (the run up to there is kept).
-    pub fn run(&self, folder: &Path, mjcf: &Path, reference: &Path, controller: CheckController, settings: &ControllerSettings, output: &Path, duration: Option<f64>, record_dt: f64) -> Result<(Trajectory, Option<String>), MujocoCheckError> {
-        let settings_path = folder.join(format!("controller_{}.json", controller.name()));
-        write(&settings_path, &serde_json::to_string_pretty(settings).map_err(|e| MujocoCheckError::Input(e.to_string()))?)?;
-        let duration = duration.map(|d| d.to_string());
-        let record_dt = record_dt.to_string();
-        let mut args: Vec<&std::ffi::OsStr> = vec!["run".as_ref(), "--mjcf".as_ref(), mjcf.as_os_str(), "--reference".as_ref(), reference.as_os_str(), "--controller".as_ref(), controller.name().as_ref()];
-        args.extend::<[&std::ffi::OsStr; 6]>(["--settings".as_ref(), settings_path.as_os_str(), "--output".as_ref(), output.as_os_str(), "--record-dt".as_ref(), record_dt.as_ref()]);
+    /// Runs `run.controller` in MuJoCo on `run.mjcf` from `run.reference`'s first knot;
+    /// returns the run and, if MuJoCo flagged it as unstable, why (the run up to there is
+    /// kept).
+    pub fn run(&self, folder: &Path, run: &CheckRun) -> Result<(Trajectory, Option<String>), MujocoCheckError> {
+        let settings_path = folder.join(format!("controller_{}.json", run.controller.name()));
+        write(&settings_path, &serde_json::to_string_pretty(run.settings).map_err(|e| MujocoCheckError::Input(e.to_string()))?)?;
+        let duration = run.duration.map(|d| d.to_string());
+        let record_dt = run.record_dt.to_string();
+        let mut args: Vec<&std::ffi::OsStr> = vec!["run".as_ref(), "--mjcf".as_ref(), run.mjcf.as_os_str(), "--reference".as_ref(), run.reference.as_os_str(), "--controller".as_ref(), run.controller.name().as_ref()];
+        args.extend::<[&std::ffi::OsStr; 6]>(["--settings".as_ref(), settings_path.as_os_str(), "--output".as_ref(), run.output.as_os_str(), "--record-dt".as_ref(), record_dt.as_ref()]);
         if let Some(d) = &duration {
             args.extend::<[&std::ffi::OsStr; 2]>(["--duration".as_ref(), d.as_ref()]);
         }
         self.call(folder, &args)?;
-        let traj = Trajectory::load_file(output)?;
+        let traj = Trajectory::load_file(run.output)?;
         let failed = traj.summary.get("mujoco_failed").and_then(|f| f.as_str()).map(String::from);
         Ok((traj, failed))
     }
@@ -253,7 +269,7 @@ pub fn check_plan_in_mujoco(check: &MujocoCheck, model: &Model, plan: &Trajector
     let control_dt = settings.timestep;
     let rerun = |controller: CheckController, settings: ControllerSettings| -> Result<Rerun, MujocoCheckError> {
         let output = folder.join(format!("mujoco_{}.json", controller.name()));
-        let (trajectory, failed) = check.run(folder, &mjcf_path, &reference, controller, &settings, &output, None, control_dt)?;
+        let (trajectory, failed) = check.run(folder, &CheckRun { mjcf: &mjcf_path, reference: &reference, controller, settings: &settings, output: &output, duration: None, record_dt: control_dt })?;
         Ok(match failed {
             Some(reason) => Rerun::Failed { reason },
             None => {
@@ -286,5 +302,6 @@ pub fn stand_in_mujoco(check: &MujocoCheck, model: &Model, drop_height: f64, dur
     let reference = folder.join("start.json");
     start.save_file(&reference)?;
     let output = folder.join("mujoco_stand.json");
-    check.run(folder, &mjcf_path, &reference, CheckController::Stand, &ControllerSettings::standing(model, settings.timestep)?, &output, Some(duration), settings.timestep)
+    let stand = ControllerSettings::standing(model, settings.timestep)?;
+    check.run(folder, &CheckRun { mjcf: &mjcf_path, reference: &reference, controller: CheckController::Stand, settings: &stand, output: &output, duration: Some(duration), record_dt: settings.timestep })
 }
