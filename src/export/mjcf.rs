@@ -317,7 +317,8 @@ impl HeightField {
         if rows < 2 || columns < 2 || file.heights.iter().any(|r| r.len() != columns) {
             return Err(MjcfError::Terrain { field: "heights".into(), problem: format!("expected at least 2 x 2 heights in rows of equal length, got {rows} rows") });
         }
-        if !(file.resolution.is_finite() && file.resolution > 0.0) || !file.origin.iter().all(|x| x.is_finite()) {
+        let positive_resolution = file.resolution.is_finite() && file.resolution > 0.0;
+        if !positive_resolution || !file.origin.iter().all(|x| x.is_finite()) {
             return Err(MjcfError::Terrain { field: "resolution".into(), problem: format!("expected a positive resolution and a finite origin, got {} and {:?}", file.resolution, file.origin) });
         }
         let all = file.heights.iter().flatten().copied();
@@ -445,7 +446,7 @@ mod tests {
             for banned in ["armature", "damping", "solref", "solimp", "margin"] {
                 assert!(!text.contains(banned), "{name}: MJCF sets {banned}");
             }
-            assert_eq!(numbers(&attr(&elements(&root, "option")[0], "timestep")), vec![0.001]);
+            assert_eq!(numbers(&attr(elements(&root, "option")[0], "timestep")), vec![0.001]);
         }
     }
 
