@@ -53,7 +53,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let model = embedded::load("hyq")?;
     let terrain = Plane::flat(0.0);
-    let initial = settled_stance(&model, &terrain, task.contact.unwrap_or_default(), 1.0)?;
+    let initial = settled_stance(&model, &terrain, 1.0)?;
     let pd = JointPd::standing(&model, task.dt)?;
     let standing = PdPolicy(&pd);
     let settings = SlqSettings { max_iterations: task.iterations.unwrap_or(40), ..SlqSettings::default() };

@@ -69,7 +69,7 @@ fn linearization_matching_central_differences(problem: &WholeBodyProblem<'_>, st
 fn extended_linearization_matches_central_differences_through_the_anchor_update() {
     let model = embedded::load("hyq").unwrap();
     let ground = Plane::flat(0.0);
-    let settled = settled_stance(&model, &ground, Default::default(), 0.3).unwrap();
+    let settled = settled_stance(&model, &ground, 0.3).unwrap();
     // A task on the default contact model, the one the stance was settled on.
     let spec = TaskSpec::embedded("turn").unwrap();
     let mut problem = spec.problem(&model, &ground, settled.clone(), "test").unwrap();
@@ -88,7 +88,7 @@ fn extended_linearization_matches_central_differences_through_the_anchor_update(
     x.anchors[1] = x.anchors[1].map(|a| a - nalgebra::Vector3::new(0.05, 0.0, 0.0));
     let mut sticking = settled.clone();
     sticking.anchors[3] = sticking.anchors[3].map(|a| a - nalgebra::Vector3::new(0.001, 0.0, 0.0));
-    let mut ws_contacts = ContactModelWorkspace::new(&model, &ground, problem.contact);
+    let mut ws_contacts = ContactModelWorkspace::new(&model, &ground, model.contact);
     ws_contacts.evaluate_contacts(&x.q, &x.v, &x.anchors);
     assert!(ws_contacts.feet()[1].contact.slipping, "foot 1 slips");
     assert!(ws_contacts.feet()[0].contact.penetration > 0.0, "foot 0 touches down");
@@ -112,7 +112,7 @@ fn extended_linearization_with_joints_past_their_stops() {
     // force and its derivatives enter the extended linearization as in the plain one.
     let hyq = embedded::load("hyq").unwrap();
     let ground = Plane::flat(0.0);
-    let settled = settled_stance(&hyq, &ground, Default::default(), 0.3).unwrap();
+    let settled = settled_stance(&hyq, &ground, 0.3).unwrap();
     let mut model = hyq.clone();
     for (name, upper, penetration) in [("lf_kfe_joint", true, 0.04), ("rh_hfe_joint", false, 0.012)] {
         let id = model.joint_id(name).unwrap();

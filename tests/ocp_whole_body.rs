@@ -39,10 +39,9 @@ fn hyq_shifts_its_base_forward() {
     let problem = WholeBodyProblem {
         model: &model,
         terrain: &ground,
-        contact: config.contact,
         joint_limits: config.joint_limits,
         dt,
-        substeps: 1,
+        substeps: 2,
         knots: 500,
         initial: RobotState { q: start.q.clone(), v: start.v.clone(), anchors: start.anchors.clone() },
         running: StateCost { q: target.clone(), v: DVector::zeros(nv), weights: running, feet: vec![] },
@@ -83,7 +82,7 @@ fn hyq_shifts_its_base_forward() {
     assert!((last.q[0] - target[0]).abs() < 0.01, "final x {} vs {}", last.q[0], target[0]);
     // Still standing on four feet at the end (the height kept, every foot down).
     assert!((last.q[2] - start.q[2]).abs() < 0.02);
-    let mut ws = ContactModelWorkspace::new(&model, &ground, config.contact);
+    let mut ws = ContactModelWorkspace::new(&model, &ground, model.contact);
     ws.evaluate_contacts(&last.q, &last.v, &last.anchors);
     assert!(ws.feet().iter().all(|f| f.contact.normal_force > 0.0));
 
@@ -123,7 +122,7 @@ fn cost_gradient_with_foot_targets_matches_finite_differences() {
     use nalgebra::Vector3;
     let model = embedded::load("a1").unwrap();
     let ground = Plane::flat(0.0);
-    let initial = legwork::ocp::settled_stance(&model, &ground, Default::default(), 0.2).unwrap();
+    let initial = legwork::ocp::settled_stance(&model, &ground, 0.2).unwrap();
     let nv = model.nv;
     let mut target = initial.q.clone();
     target[0] += 0.1;
@@ -137,10 +136,9 @@ fn cost_gradient_with_foot_targets_matches_finite_differences() {
     let problem = WholeBodyProblem {
         model: &model,
         terrain: &ground,
-        contact: Default::default(),
         joint_limits: Some(Default::default()),
         dt: 0.002,
-        substeps: 1,
+        substeps: 2,
         knots: 10,
         initial: initial.clone(),
         running: cost.clone(),
@@ -187,7 +185,7 @@ fn inputs_beyond_the_effort_limit_act_as_the_limit_with_zero_sensitivity() {
     let spec = legwork::ocp::TaskSpec::embedded("squat_jump").unwrap();
     let model = embedded::load("hyq").unwrap();
     let ground = Plane::flat(0.0);
-    let initial = legwork::ocp::settled_stance(&model, &ground, Default::default(), 0.2).unwrap();
+    let initial = legwork::ocp::settled_stance(&model, &ground, 0.2).unwrap();
     let problem = spec.problem(&model, &ground, initial.clone(), "test").unwrap();
     let nu = model.nv - 6;
     assert!(problem.effort_limits.iter().all(|l| *l == 150.0), "HyQ's limits are 150 N m");
@@ -236,7 +234,7 @@ fn substepped_knot_is_the_simulators_steps_and_its_linearization_matches_finite_
     let spec = legwork::ocp::TaskSpec::embedded("squat_jump").unwrap();
     let model = embedded::load("hyq").unwrap();
     let ground = Plane::flat(0.0);
-    let initial = legwork::ocp::settled_stance(&model, &ground, Default::default(), 0.2).unwrap();
+    let initial = legwork::ocp::settled_stance(&model, &ground, 0.2).unwrap();
     let mut problem = spec.problem(&model, &ground, initial.clone(), "test").unwrap();
     problem.substeps = 4;
     let (nv, nu) = (model.nv, model.nv - 6);
@@ -248,7 +246,7 @@ fn substepped_knot_is_the_simulators_steps_and_its_linearization_matches_finite_
     let mut next = x.clone();
     problem.step_with_derivatives(&mut ws, 0, &x, &u, &mut next, &mut d);
     // Four simulator steps of 0.5 ms with the same torques.
-    let mut sim_ws = ContactModelWorkspace::new(&model, &ground, problem.contact);
+    let mut sim_ws = ContactModelWorkspace::new(&model, &ground, model.contact);
     let (mut q, mut v, mut anchors) = (x.q.clone(), x.v.clone(), x.anchors.clone());
     let mut tau = DVector::zeros(nv);
     tau.rows_mut(6, nu).copy_from(&u);

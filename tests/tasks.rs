@@ -30,7 +30,7 @@ fn a_task_file_becomes_a_problem() {
     assert_eq!(spec.knots(), 250);
     let model = embedded::load("hyq").unwrap();
     let ground = Plane::flat(0.0);
-    let initial = settled_stance(&model, &ground, spec.contact.unwrap_or_default(), 0.3).unwrap();
+    let initial = settled_stance(&model, &ground, 0.3).unwrap();
     let p = spec.problem(&model, &ground, initial.clone(), "shift.toml").unwrap();
     // base x absolute, y and z from the start
     assert_eq!(p.running.q[0], 0.05);
@@ -65,7 +65,9 @@ fn bad_task_files_are_named() {
         (MINIMAL.replace("[100.0, 100.0, 100.0]", "[100.0, -1.0, 100.0]"), vec!["running.base_position", ">= 0"]),
         (MINIMAL.replace("duration = 0.5", "duration = -0.5"), vec!["`duration`"]),
         (MINIMAL.replace("[0.05, \"start\", \"start\"]", "[0.05, \"begin\", \"start\"]"), vec!["desired.base_position[1]", "\"start\""]),
-        (MINIMAL.replace("[input]", "[contact]\nalpha = 0.0\n[input]"), vec!["contact.alpha"]),
+        // The contact model is the robot's: a task may not change the world.
+        (MINIMAL.replace("[input]", "[contact]\nnormal_stiffness = 30000.0\n[input]"), vec!["shift.toml", "`contact`", "belong to the robot"]),
+        (MINIMAL.replace("dt = 0.002", "dt = 0.002\nsubsteps = 1"), vec!["shift.toml", "substeps", "contact.max_step", "at least 2"]),
         (MINIMAL.replace("[input]", "[joint_limits]\ndamping = -5.0\n[input]"), vec!["shift.toml", "joint_limits.damping", ">= 0"]),
         (MINIMAL.replace("[input]", "[joint_limits]\nstifness = 5000.0\n[input]"), vec!["shift.toml", "stifness"]),
         (MINIMAL.replace("[input]", "[joint_limit_cost]\nweight = 1e4\nmargin = -0.1\n[input]"), vec!["shift.toml", "joint_limit_cost.margin", ">= 0"]),
@@ -80,7 +82,7 @@ fn bad_task_files_are_named() {
     ];
     let model = embedded::load("hyq").unwrap();
     let ground = Plane::flat(0.0);
-    let initial = settled_stance(&model, &ground, Default::default(), 0.05).unwrap();
+    let initial = settled_stance(&model, &ground, 0.05).unwrap();
     for (text, needles) in cases {
         let err = match TaskSpec::from_toml(&text, "shift.toml") {
             Err(e) => e.to_string(),

@@ -190,7 +190,7 @@ fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> 
     // horizons from 0.25 s to 3 s at dt = 2 ms; a fixed number of iterations each.
     let mut base = TaskSpec::embedded("squat_jump")?;
     base.waypoints.clear();
-    let initial = settled_stance(&model, &ground, base.contact.unwrap_or_default(), 1.0)?;
+    let initial = settled_stance(&model, &ground, 1.0)?;
     let pd = legwork::control::JointPd::standing(&model, base.dt)?;
     let mut scaling = Vec::new();
     for horizon in [0.25, 0.5, 1.0, 1.5, 2.0, 3.0] {

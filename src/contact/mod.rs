@@ -17,18 +17,54 @@ pub use anchor::{anchor_derivatives, AnchorDerivatives};
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
-/// Parameters of the contact model. Defaults are inside the ranges the paper gives as
-/// typical (Neunert 2017, Table I: alpha_c 0.01, k_n 8000-90000, d_n 2000-50000,
-/// k_t 0-5000000, d_t 2000-5000), chosen so that HyQ (86.8 kg) standing on four feet
-/// penetrates about 7 mm and a drop from 0.1 m stays below 2 cm.
+/// Parameters of the contact model: a property of the robot's feet on the ground, not of a
+/// task ([`crate::model::Model::contact`]; a robot description's `[contact]` section).
+///
+/// # Calibration (issue 16, "one world")
+///
+/// The values come from [`ContactParams::for_foot_load`], calibrated against MuJoCo 4.0's
+/// default contact (`solref = 0.02 1`, `solimp = 0.9 0.95 0.001`), the engine legwork's motions
+/// are checked in. MuJoCo's default contact is mass-normalized (a reference acceleration with a
+/// 20 ms time constant, critically damped), so legwork scales its stiffnesses and dampings
+/// with the load one foot carries standing, `m_f = total mass / number of feet`, and the feet of
+/// a light and a heavy robot behave alike. Measured with a foot-sphere of `m_f = 21.7 kg` (HyQ)
+/// dropped from 0.1 m onto MuJoCo's default plane at a 1 ms step: 0.37 mm static
+/// penetration, 10.2 mm at impact, no lift-off after touch-down (rebound 0.19 m/s of 1.39);
+/// tangentially a loaded sphere creeps 3.5-25 mm/s under `|F_t| / F_n` = 0.2-0.75 and moves
+/// 0.1-0.8 mm within 50 ms. legwork's spring-damper (eq. 9-11) is chosen to match the drop
+/// and to hold a loaded foot as firmly:
+///
+/// * `alpha_c = 0.01` m (Table I);
+/// * `k_n = 9000 m_f` N/m: HyQ standing under its joint PD and dropped from 0.1 m (legwork's
+///   simulator, 1 or 2 kHz) sinks at most 9.1-9.3 mm (MuJoCo's foot-load drop: 10.2 mm) and
+///   rests at 4.7 mm (MuJoCo 0.37 mm: a spring cannot have both MuJoCo's impact compliance
+///   and its near-rigid rest; the impact is what a motion's landings feel);
+/// * `d_n = 4500 m_f` and `d_t = 4500 m_f` N s/m^2: about as much damping as stays stable at
+///   the step [`max_step`](Self::max_step) on the whole robot (on HyQ, twice as much makes
+///   the feet chatter at 1 ms). The foot load alone on this contact would rebound at 64 % of
+///   its impact speed; on the robot the legs absorb it: the dropped HyQ keeps every foot on
+///   the ground after touch-down, as in MuJoCo (A1: 12.7 mm, two brief lift-offs);
+/// * `k_t = 2.3e6 m_f` N/m^2: the tangential spring stiffens with the penetration (it
+///   multiplies `s(p_n)`); standing, HyQ's foot then resists like a 54 kN/m spring, so
+///   100 N of side load stretches it 1.8 mm (Table I's largest `k_t`, 5e6 N/m^2, gives
+///   18 mm: feet that move while they stick);
+/// * `mu = 0.8`, the friction of the MuJoCo check.
+///
+/// These are outside Table I's ranges for `k_n` (8e3-9e4), `d_n` (2e3-5e4) and `k_t` (0-5e6):
+/// Table I's contacts are softer and bouncier than MuJoCo's (HyQ's foot load dropped from
+/// 0.1 m on `k_n = 9e4`, `d_n = 2e4` rebounds at 80 % of its impact speed, MuJoCo's at 13 %).
+/// The price is the step: these contacts need integration steps of at most
+/// [`max_step`](Self::max_step) = 1 ms (HyQ diverges at 2 ms), so the optimizer integrates each
+/// knot interval in substeps of at most 1 ms.
 ///
 /// ```
-/// let p = legwork::contact::ContactParams::default();
+/// let p = legwork::contact::ContactParams::for_foot_load(86.8 / 4.0);
 /// assert_eq!(p.alpha, 0.01);
+/// assert!((p.normal_stiffness - 195_300.0).abs() < 1e-6);
 /// p.validate().unwrap();
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(deny_unknown_fields)]
 pub struct ContactParams {
     /// Smoothing penetration `alpha_c` (m): the force grows quadratically below it.
     pub alpha: f64,
@@ -42,18 +78,53 @@ pub struct ContactParams {
     pub tangential_damping: f64,
     /// Friction coefficient `mu` (static = dynamic, as the paper).
     pub friction: f64,
+    /// The largest integration step (s) at which this contact is stable on its robot:
+    /// simulations and the optimizer's substeps may not be longer.
+    pub max_step: f64,
 }
 
+/// Per kilogram of the standing load of one foot: the calibration of [`ContactParams`].
+pub mod calibration {
+    /// `k_n / m_f` (N/m per kg).
+    pub const NORMAL_STIFFNESS_PER_KG: f64 = 9000.0;
+    /// `d_n / m_f` (N s/m^2 per kg).
+    pub const NORMAL_DAMPING_PER_KG: f64 = 4500.0;
+    /// `k_t / m_f` (N/m^2 per kg).
+    pub const TANGENTIAL_STIFFNESS_PER_KG: f64 = 2.3e6;
+    /// `d_t / m_f` (N s/m^2 per kg).
+    pub const TANGENTIAL_DAMPING_PER_KG: f64 = 4500.0;
+    /// `alpha_c` (m), Neunert 2017 Table I.
+    pub const ALPHA: f64 = 0.01;
+    /// Friction coefficient of the ground (MuJoCo check: 0.8).
+    pub const FRICTION: f64 = 0.8;
+    /// Largest stable integration step (s).
+    pub const MAX_STEP: f64 = 0.001;
+    /// HyQ's standing load per foot (86.8 kg / 4), the load of [`super::ContactParams::default`].
+    pub const REFERENCE_FOOT_LOAD: f64 = 21.7;
+}
+
+impl ContactParams {
+    /// The calibrated contact ([`ContactParams`], "Calibration") for feet that each carry
+    /// `mass_per_foot` kg standing.
+    pub fn for_foot_load(mass_per_foot: f64) -> Self {
+        use calibration::*;
+        Self {
+            alpha: ALPHA,
+            normal_stiffness: NORMAL_STIFFNESS_PER_KG * mass_per_foot,
+            normal_damping: NORMAL_DAMPING_PER_KG * mass_per_foot,
+            tangential_stiffness: TANGENTIAL_STIFFNESS_PER_KG * mass_per_foot,
+            tangential_damping: TANGENTIAL_DAMPING_PER_KG * mass_per_foot,
+            friction: FRICTION,
+            max_step: MAX_STEP,
+        }
+    }
+}
+
+/// The calibrated contact for HyQ's foot load (21.7 kg); a robot's own is
+/// [`crate::model::Model::contact`].
 impl Default for ContactParams {
     fn default() -> Self {
-        Self {
-            alpha: 0.01,
-            normal_stiffness: 90_000.0,
-            normal_damping: 20_000.0,
-            tangential_stiffness: 2_000_000.0,
-            tangential_damping: 5_000.0,
-            friction: 0.8,
-        }
+        Self::for_foot_load(calibration::REFERENCE_FOOT_LOAD)
     }
 }
 
@@ -67,15 +138,16 @@ pub struct ContactParamsError {
 }
 
 impl ContactParams {
-    /// Every parameter finite; `alpha`, `k_n` positive; the others non-negative.
+    /// Every parameter finite; `alpha`, `k_n`, `max_step` positive; the others non-negative.
     pub fn validate(&self) -> Result<(), ContactParamsError> {
-        let checks: [(&'static str, f64, bool); 6] = [
+        let checks: [(&'static str, f64, bool); 7] = [
             ("alpha", self.alpha, true),
             ("normal_stiffness", self.normal_stiffness, true),
             ("normal_damping", self.normal_damping, false),
             ("tangential_stiffness", self.tangential_stiffness, false),
             ("tangential_damping", self.tangential_damping, false),
             ("friction", self.friction, false),
+            ("max_step", self.max_step, true),
         ];
         for (field, value, strictly_positive) in checks {
             let ok = value.is_finite() && if strictly_positive { value > 0.0 } else { value >= 0.0 };
@@ -257,9 +329,17 @@ pub fn update_anchor(params: &ContactParams, contact: &ContactForce, anchor: &mu
     }
 }
 
+/// Values inside Neunert 2017's Table I (the unit tests' numbers are worked out for them).
+#[cfg(test)]
+pub(crate) fn table_i() -> ContactParams {
+    ContactParams { alpha: 0.01, normal_stiffness: 90_000.0, normal_damping: 20_000.0, tangential_stiffness: 2_000_000.0, tangential_damping: 5_000.0, friction: 0.8, max_step: 0.001 }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    use super::table_i;
 
     fn flat() -> Surface {
         Surface { point: Vector3::zeros(), normal: Vector3::z() }
@@ -288,7 +368,7 @@ mod tests {
 
     #[test]
     fn normal_force_follows_eq_9() {
-        let params = ContactParams::default();
+        let params = table_i();
         let r = 0.02;
         // Above the ground: nothing.
         let c = contact_force(&params, r, &Vector3::new(0.0, 0.0, 0.03), &Vector3::zeros(), &flat(), None);
@@ -304,7 +384,7 @@ mod tests {
 
     #[test]
     fn no_adhesion_when_leaving_fast() {
-        let params = ContactParams::default();
+        let params = table_i();
         // Leaving at 10 m/s: k_n + d_n pd_n = 90000 - 200000 < 0: no pull.
         let c = contact_force(&params, 0.02, &Vector3::new(0.0, 0.0, 0.01), &Vector3::new(0.3, 0.0, 10.0), &flat(), Some(&Vector3::new(-0.01, 0.0, 0.0)));
         assert_eq!(c.normal_force, 0.0);
@@ -313,7 +393,7 @@ mod tests {
 
     #[test]
     fn friction_cone_bounds_the_tangential_force() {
-        let params = ContactParams::default();
+        let params = table_i();
         let anchor = Vector3::new(-0.05, 0.02, 0.0); // far: the spring would exceed the cone
         let c = contact_force(&params, 0.02, &Vector3::new(0.0, 0.0, 0.012), &Vector3::new(0.1, 0.0, 0.0), &flat(), Some(&anchor));
         assert!(c.slipping);
@@ -325,7 +405,7 @@ mod tests {
 
     #[test]
     fn derivatives_match_finite_differences() {
-        let params = ContactParams::default();
+        let params = table_i();
         let r = 0.02;
         let cases = [
             // (surface, position offset along -normal (penetration), lateral position, velocity, anchor offset)
@@ -351,7 +431,7 @@ mod tests {
 
     #[test]
     fn anchor_is_set_kept_dragged_and_released() {
-        let params = ContactParams::default();
+        let params = table_i();
         let mut anchor = None;
         let p = Vector3::new(0.0, 0.0, 0.012);
         let c = contact_force(&params, 0.02, &p, &Vector3::zeros(), &flat(), anchor.as_ref());
@@ -372,9 +452,9 @@ mod tests {
 
     #[test]
     fn bad_parameters_are_named() {
-        let p = ContactParams { normal_stiffness: f64::NAN, ..Default::default() };
+        let p = ContactParams { normal_stiffness: f64::NAN, ..table_i() };
         assert_eq!(p.validate().unwrap_err().field, "normal_stiffness");
-        let p = ContactParams { friction: -0.1, ..Default::default() };
+        let p = ContactParams { friction: -0.1, ..table_i() };
         assert!(p.validate().unwrap_err().to_string().contains("friction"));
     }
 }

@@ -116,6 +116,22 @@
 //! | `base_height` | number | height of the base frame origin above the ground, m |
 //! | `hip`, `thigh`, `shank` | number or 4 numbers | HAA, HFE, KFE angles, rad; must be within the limits |
 //!
+//! `[contact]`, optional, the feet's contact with the ground (shared by the optimizer, the
+//! simulator and the MuJoCo export). Every field defaults to the calibration against
+//! MuJoCo's default contact for the robot's standing load per foot, `m_f = total mass /
+//! number of feet` ([`crate::contact::ContactParams::for_foot_load`], whose documentation says how it
+//! was calibrated):
+//!
+//! | field | type | meaning (default) |
+//! |---|---|---|
+//! | `alpha` | number > 0 | smoothing penetration, m (0.01) |
+//! | `normal_stiffness` | number > 0 | `k_n`, N/m (9000 `m_f`) |
+//! | `normal_damping` | number >= 0 | `d_n`, N s/m^2 (4500 `m_f`) |
+//! | `tangential_stiffness` | number >= 0 | `k_t`, N/m^2 (2.3e6 `m_f`) |
+//! | `tangential_damping` | number >= 0 | `d_t`, N s/m^2 (4500 `m_f`) |
+//! | `friction` | number >= 0 | friction coefficient (0.8) |
+//! | `max_step` | number > 0 | largest stable integration step, s (0.001) |
+//!
 //! # Errors
 //!
 //! A [`DescriptionError`] names the file (for an embedded robot its name, e.g.
@@ -295,6 +311,19 @@ pub struct StandingSection {
     pub shank: PerLeg,
 }
 
+/// `[contact]`: any of [`crate::contact::ContactParams`]'s fields.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSection {
+    pub alpha: Option<f64>,
+    pub normal_stiffness: Option<f64>,
+    pub normal_damping: Option<f64>,
+    pub tangential_stiffness: Option<f64>,
+    pub tangential_damping: Option<f64>,
+    pub friction: Option<f64>,
+    pub max_step: Option<f64>,
+}
+
 /// A parsed description file (fields as written; see the module documentation).
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -310,6 +339,10 @@ pub struct Description {
     pub shank: SegmentSection,
     pub foot: FootSection,
     pub standing: Option<StandingSection>,
+    /// `[contact]`: the feet's contact with the ground (absent fields: the calibration for
+    /// the robot's foot load, [`crate::contact::ContactParams::for_foot_load`]).
+    #[serde(default)]
+    pub contact: ContactSection,
     /// The file it was read from (for error messages); not a TOML field.
     #[serde(skip)]
     pub file: String,
@@ -549,6 +582,27 @@ impl Description {
         Ok(())
     }
 
+    /// The `[contact]` section over the calibration for the robot's foot load.
+    fn contact(&self, model: &Model) -> Result<crate::contact::ContactParams, DescriptionError> {
+        let c = &self.contact;
+        let mut p = model.calibrated_contact();
+        for (value, field) in [
+            (c.alpha, &mut p.alpha),
+            (c.normal_stiffness, &mut p.normal_stiffness),
+            (c.normal_damping, &mut p.normal_damping),
+            (c.tangential_stiffness, &mut p.tangential_stiffness),
+            (c.tangential_damping, &mut p.tangential_damping),
+            (c.friction, &mut p.friction),
+            (c.max_step, &mut p.max_step),
+        ] {
+            if let Some(v) = value {
+                *field = v;
+            }
+        }
+        p.validate().map_err(|e| self.err(format!("contact.{}", e.field), format!("expected {}, got {}", e.expected, e.value)))?;
+        Ok(p)
+    }
+
     fn segments(&self) -> [(&'static str, &SegmentSection); 3] {
         [("hip", &self.hip), ("thigh", &self.thigh), ("shank", &self.shank)]
     }
@@ -650,6 +704,7 @@ impl Description {
             }
             model.reference_configurations.push(("standing".to_string(), q));
         }
+        model.contact = self.contact(&model)?;
         Ok(model)
     }
 }

@@ -26,6 +26,7 @@ pub mod embedded;
 pub mod info;
 pub mod urdf;
 
+use crate::contact::ContactParams;
 use crate::spatial::{Inertia, Motion, SE3};
 use nalgebra::{DVector, Vector3};
 
@@ -206,6 +207,10 @@ pub struct Model {
     pub gravity: Motion,
     /// Named reference configurations (e.g. `standing`).
     pub reference_configurations: Vec<(String, DVector<f64>)>,
+    /// The feet's contact with the ground: one model for the optimizer, the simulator and
+    /// the MuJoCo export ([`ContactParams`]; a description's `[contact]` section, or the
+    /// calibration for the robot's foot load, [`Model::calibrated_contact`]).
+    pub contact: ContactParams,
     /// `last_subtree_joint[i]`: the last joint of the subtree rooted at `i` (depth-first).
     pub last_subtree_joint: Vec<usize>,
     /// Number of velocity coordinates in the subtree rooted at each joint.
@@ -244,6 +249,8 @@ impl Model {
             feet: Vec::new(),
             gravity: Motion::new(Vector3::new(0.0, 0.0, -STANDARD_GRAVITY), Vector3::zeros()),
             reference_configurations: Vec::new(),
+            // Set by the builders once the masses and feet are known.
+            contact: ContactParams::default(),
             last_subtree_joint: vec![0],
             nv_subtree: vec![0],
             joint_of_dof: Vec::new(),
@@ -392,6 +399,13 @@ impl Model {
             .position(|f| f.name == name && f.kind == FrameKind::Body)
             .or_else(|| self.frames.iter().position(|f| f.name == name))
             .ok_or_else(|| ModelError::NoSuchFrame(name.into()))
+    }
+
+    /// The calibrated contact ([`ContactParams::for_foot_load`]) for this robot's standing
+    /// load per foot, `total mass / number of feet` (the total mass on one foot if the model
+    /// has no feet).
+    pub fn calibrated_contact(&self) -> ContactParams {
+        ContactParams::for_foot_load(self.total_mass() / self.feet.len().max(1) as f64)
     }
 
     /// Total mass of the robot, kg.

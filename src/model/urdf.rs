@@ -612,6 +612,8 @@ impl Builder<'_> {
             self.check_body(&model, id, &joints[k].name, &joints[k].child.link)?;
         }
         self.declare_feet(&mut model, &link_index)?;
+        // A URDF says nothing of contact: the calibration for the robot's foot load.
+        model.contact = model.calibrated_contact();
         Ok(model)
     }
 

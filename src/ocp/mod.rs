@@ -23,6 +23,7 @@ mod continuation;
 mod deviation;
 mod limit_cost;
 mod metrics;
+mod physical_gains;
 mod run;
 mod task;
 
@@ -30,10 +31,10 @@ pub use continuation::ContinuationSpec;
 pub use deviation::StateDeviation;
 pub use limit_cost::{JointLimitCost, JointLimitCostSpec};
 pub use metrics::{joint_limit_excess, LimitExcess, MotionMetrics, Snapshot};
+pub use physical_gains::{physical_gain, PhysicalGainWorkspace};
 pub use run::{solution_trajectory, solve_task, Rerun, SlqPolicyController, SolveError, SolveOptions, TaskRun};
 pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, TaskError, TaskSpec, WaypointSpec, WeightSpec, EMBEDDED_TASKS};
 
-use crate::contact::ContactParams;
 use crate::control::JointPd;
 use crate::model::Model;
 use crate::sim::{AnchorStepDerivatives, ContactModelWorkspace, JointLimitParams, StepDerivatives, ANCHOR_DIM};
@@ -69,12 +70,12 @@ impl Clone for RobotState {
 }
 
 /// The robot standing still on `terrain`: the `standing` pose put on the ground and
-/// simulated for `seconds` with the standing controller and the contact model `contact`, so
+/// simulated for `seconds` with the standing controller (and the robot's contact model), so
 /// that an optimization starts from rest (its first knots do not fall or bounce).
-pub fn settled_stance(model: &Model, terrain: &dyn Terrain, contact: ContactParams, seconds: f64) -> Result<RobotState, crate::sim::SimError> {
+pub fn settled_stance(model: &Model, terrain: &dyn Terrain, seconds: f64) -> Result<RobotState, crate::sim::SimError> {
     use crate::sim::{standing_on_ground, SimConfig, Simulator};
     let q0 = standing_on_ground(model, terrain, 0.0)?;
-    let config = SimConfig { contact, ..SimConfig::default() };
+    let config = SimConfig::default();
     let mut sim = Simulator::new(model, terrain, config.clone(), q0, None)?;
     let mut stand = JointPd::standing(model, config.control_dt).map_err(|source| crate::sim::SimError::Controller { t: 0.0, source })?;
     let steps = (seconds / config.physics_dt).round() as usize;
@@ -123,11 +124,10 @@ impl Waypoint {
     }
 }
 
-/// The problem: robot, terrain, contact model, horizon, costs.
+/// The problem: robot (with its contact model, [`Model::contact`]), terrain, horizon, costs.
 pub struct WholeBodyProblem<'a> {
     pub model: &'a Model,
     pub terrain: &'a dyn Terrain,
-    pub contact: ContactParams,
     /// The joints' mechanical stops ([`crate::sim::SimConfig::joint_limits`]; `None`: off),
     /// in the dynamics and their linearization as in the simulator.
     pub joint_limits: Option<JointLimitParams>,
@@ -135,7 +135,8 @@ pub struct WholeBodyProblem<'a> {
     pub dt: f64,
     /// Integration steps per knot interval: the dynamics integrate `substeps` steps of
     /// `dt / substeps` with the knot's input held, as the simulator does with its physics
-    /// step inside a control period.
+    /// step inside a control period. `dt / substeps` may not exceed the contact model's
+    /// stable step (`model.contact.max_step`).
     pub substeps: usize,
     /// Number of transitions.
     pub knots: usize,
@@ -295,7 +296,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
     fn workspace(&self) -> WholeBodyWorkspace<'a> {
         let (model, nv) = (self.model, self.model.nv);
         WholeBodyWorkspace {
-            dynamics: ContactModelWorkspace::new(model, self.terrain, self.contact).with_joint_limits(self.joint_limits),
+            dynamics: ContactModelWorkspace::new(model, self.terrain, model.contact).with_joint_limits(self.joint_limits),
             derivatives: StepDerivatives::new(model),
             anchor_derivatives: AnchorStepDerivatives::new(nv),
             deviation: StateDeviation::new(model),

@@ -7,12 +7,10 @@
 //! robot = "hyq"
 //! duration = 1.5            # s
 //! dt = 0.002                # s: knot spacing (the input is held over it)
-//! substeps = 1              # integration steps per knot (optional; also the SLQ policy re-run's physics step, dt / substeps)
+//! substeps = 2              # integration steps per knot (optional; also the SLQ policy re-run's physics step, dt / substeps;
+//!                           # default: the fewest that keep dt / substeps within the robot's contact.max_step)
 //! iterations = 40           # SLQ iteration limit (optional)
 //! flat_cost_tolerance = 1e-3 # stop when 5 iterations lower the cost by less than this fraction of the initial cost (optional; 0 = never)
-//!
-//! [contact]                 # optional: the optimizer's contact model (ContactParams fields)
-//! normal_stiffness = 90000.0
 //!
 //! [joint_limits]            # optional: stops at the joints' position limits (JointLimitParams fields; empty = defaults)
 //! stiffness = 5000.0
@@ -54,10 +52,11 @@
 //! ```
 //!
 //! Every field is checked; unknown fields, a joint name the robot does not have, a NaN or a
-//! negative weight are errors naming the file and the field.
+//! negative weight are errors naming the file and the field. A task says nothing of how the
+//! world behaves: the contact model belongs to the robot (its description's `[contact]`
+//! section, [`crate::model::Model::contact`]), and a `[contact]` section here is an error.
 
 use super::{RobotState, StateCost, Waypoint, WholeBodyProblem};
-use crate::contact::ContactParams;
 use crate::model::Model;
 use crate::terrain::Terrain;
 use nalgebra::{DVector, UnitQuaternion};
@@ -154,8 +153,9 @@ pub struct TaskSpec {
     /// (standing up) makes its later progress look flat.
     #[serde(default)]
     pub flat_cost_tolerance: Option<f64>,
+    /// Not allowed: read only to say where contact parameters go.
     #[serde(default)]
-    pub contact: Option<ContactParams>,
+    contact: Option<toml::Value>,
     /// The joints' mechanical stops at their position limits, in the dynamics and both
     /// re-runs (absent: none, as [`crate::sim::SimConfig`]'s default).
     #[serde(default)]
@@ -251,8 +251,8 @@ impl TaskSpec {
                 return bad("flat_cost_tolerance".into(), format!("expected a fraction in [0, 1), got {t}"));
             }
         }
-        if let Some(c) = &self.contact {
-            c.validate().map_err(|e| TaskError::Invalid { origin: origin.into(), field: format!("contact.{}", e.field), problem: format!("expected {}, got {}", e.expected, e.value) })?;
+        if self.contact.is_some() {
+            return bad("contact".into(), "a task may not set the contact model: contact parameters belong to the robot (the `[contact]` section of its description, legwork::model::description), so that the optimizer, the simulator and the MuJoCo check share one world; remove this section".into());
         }
         if let Some(j) = &self.joint_limits {
             j.validate().map_err(|e| TaskError::Invalid { origin: origin.into(), field: format!("joint_limits.{}", e.field), problem: format!("expected {}, got {}", e.expected, e.value) })?;
@@ -289,6 +289,22 @@ impl TaskSpec {
         Ok(())
     }
 
+    /// Integration steps per knot interval: the task's `substeps`, checked against the
+    /// robot's stable contact step, or the fewest that keep `dt / substeps` within it.
+    pub fn substeps(&self, model: &Model, origin: &str) -> Result<usize, TaskError> {
+        let max_step = model.contact.max_step;
+        let fewest = ((self.dt / max_step) * (1.0 - 1e-9)).ceil().max(1.0) as usize;
+        match self.substeps {
+            None => Ok(fewest),
+            Some(n) if n >= fewest => Ok(n),
+            Some(n) => Err(TaskError::Invalid {
+                origin: origin.into(),
+                field: "substeps".into(),
+                problem: format!("{n} steps of {} s each: the robot's contact model is stable only up to {max_step} s steps (contact.max_step); use at least {fewest}, or leave `substeps` out", self.dt / n as f64),
+            }),
+        }
+    }
+
     /// The optimal-control problem for `model` on `terrain` from `initial`.
     pub fn problem<'a>(&self, model: &'a Model, terrain: &'a dyn Terrain, initial: RobotState, origin: &str) -> Result<WholeBodyProblem<'a>, TaskError> {
         let stance = model.reference_configuration("standing").cloned().unwrap_or_else(|| model.neutral());
@@ -318,10 +334,9 @@ impl TaskSpec {
         Ok(WholeBodyProblem {
             model,
             terrain,
-            contact: self.contact.unwrap_or_default(),
             joint_limits: self.joint_limits,
             dt: self.dt,
-            substeps: self.substeps.unwrap_or(1),
+            substeps: self.substeps(model, origin)?,
             knots: self.knots(),
             initial,
             running,

@@ -58,8 +58,9 @@ pub enum Integrator {
     Rk4,
 }
 
-/// Simulation settings. Defaults: 2 kHz physics, 1 kHz control, semi-implicit Euler,
-/// the default contact parameters, no joint stops, knots recorded at the control rate.
+/// Simulation settings. Defaults: 2 kHz physics, 1 kHz control, semi-implicit Euler, no
+/// joint stops, knots recorded at the control rate. The contact model is the robot's
+/// ([`Model::contact`]): one world for the simulator and the optimizer.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SimConfig {
     /// Physics time step (s).
@@ -67,7 +68,6 @@ pub struct SimConfig {
     /// Control period (s): a whole multiple of `physics_dt`.
     pub control_dt: f64,
     pub integrator: Integrator,
-    pub contact: ContactParams,
     /// The joints' mechanical stops at their position limits; `None` (the default) leaves
     /// the joints free. Off by default for now: the terrain walks (Winkler 2015) pass HyQ's
     /// published hip limits by up to 41 deg and fail with the stops on, and so do several
@@ -88,7 +88,6 @@ impl Default for SimConfig {
             physics_dt: 0.0005,
             control_dt: 0.001,
             integrator: Integrator::SemiImplicitEuler,
-            contact: ContactParams::default(),
             joint_limits: None,
             record_dt: 0.001,
             enforce_effort_limits: true,
@@ -98,8 +97,9 @@ impl Default for SimConfig {
 }
 
 impl SimConfig {
-    /// Physics steps per control period and per recorded knot.
-    fn ratios(&self) -> Result<(usize, usize), SimError> {
+    /// Physics steps per control period and per recorded knot, for a robot whose contact
+    /// model is `contact` (the physics step may not exceed its stable step).
+    fn ratios(&self, contact: &ContactParams) -> Result<(usize, usize), SimError> {
         let ratio = |field: &'static str, value: f64| -> Result<usize, SimError> {
             if !(value > 0.0 && value.is_finite()) {
                 return Err(SimError::Config { field, problem: format!("expected a positive time in seconds, got {value}") });
@@ -119,7 +119,13 @@ impl SimConfig {
         if self.max_speed.is_nan() || self.max_speed <= 0.0 {
             return Err(SimError::Config { field: "max_speed", problem: format!("expected a positive speed, got {}", self.max_speed) });
         }
-        self.contact.validate()?;
+        contact.validate()?;
+        if self.physics_dt > contact.max_step * (1.0 + 1e-9) {
+            return Err(SimError::Config {
+                field: "physics_dt",
+                problem: format!("{} s is longer than the robot's contact model allows ({} s, `contact.max_step`): use a physics rate of at least {} Hz", self.physics_dt, contact.max_step, (1.0 / contact.max_step).round()),
+            });
+        }
         if let Some(stops) = &self.joint_limits {
             stops.validate()?;
         }
@@ -290,11 +296,11 @@ impl<'a> Simulator<'a> {
     /// A simulator at `q0` (checked: length, finiteness, unit quaternion) with velocity
     /// `v0` (zero if `None`).
     pub fn new(model: &'a Model, terrain: &'a dyn Terrain, config: SimConfig, q0: DVector<f64>, v0: Option<DVector<f64>>) -> Result<Self, SimError> {
-        let (control_every, record_every) = config.ratios()?;
+        let (control_every, record_every) = config.ratios(&model.contact)?;
         model.check_configuration(&q0).map_err(|e| SimError::InitialState(e.to_string()))?;
         let v0 = v0.unwrap_or_else(|| DVector::zeros(model.nv));
         model.check_tangent("initial velocity", &v0).map_err(|e| SimError::InitialState(e.to_string()))?;
-        let workspace = ContactModelWorkspace::new(model, terrain, config.contact).with_joint_limits(config.joint_limits);
+        let workspace = ContactModelWorkspace::new(model, terrain, model.contact).with_joint_limits(config.joint_limits);
         Ok(Self {
             model,
             state: SimState { t: 0.0, q: q0, v: v0, anchors: vec![None; model.feet.len()] },
@@ -322,6 +328,23 @@ impl<'a> Simulator<'a> {
         }
         self.state.anchors.clone_from_slice(anchors);
         Ok(())
+    }
+
+    /// A simulator in the world a plan was made in, as its file records it: started at the
+    /// plan's first state with its contact anchors (`metadata.initial_anchors`, so the
+    /// tangential springs carry the plan's pre-load), and with the plan's joint stops
+    /// (`metadata.joint_stops`, replacing `config.joint_limits`). The terrain is the caller's:
+    /// build it from `plan.metadata.terrain` to replay on the plan's ground. `legwork solve`'s
+    /// re-runs and `legwork simulate --controller track` both start here, so they agree.
+    pub fn from_plan(model: &'a Model, terrain: &'a dyn Terrain, plan: &crate::io::Trajectory, config: SimConfig) -> Result<Self, SimError> {
+        let first = plan.knots.first().ok_or_else(|| SimError::InitialState("the plan has no knots".into()))?;
+        let config = SimConfig { joint_limits: plan.metadata.joint_stops, ..config };
+        let mut sim = Self::new(model, terrain, config, DVector::from_column_slice(&first.q), Some(DVector::from_column_slice(&first.v)))?;
+        if let Some(anchors) = &plan.metadata.initial_anchors {
+            let anchors: Vec<Option<Vector3<f64>>> = anchors.iter().map(|a| a.map(Vector3::from)).collect();
+            sim.set_contact_anchors(&anchors)?;
+        }
+        Ok(sim)
     }
 
     /// Adds a push on the base.
