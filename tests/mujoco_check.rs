@@ -273,7 +273,7 @@ fn every_embedded_task_shortened_checked_in_mujoco() {
         spec.waypoints.retain(|w| w.time <= spec.duration);
         let model = embedded::load(&spec.robot).unwrap();
         let run = solve_task(&spec, &model, &ground, name, &SolveOptions::default(), |_| {}).unwrap();
-        let reruns = check_plan_in_mujoco(&check, &model, &run.plan, &TerrainSpec::flat(), spec.contact.unwrap_or_default().friction, &scratch(&format!("task-{name}"))).unwrap();
+        let reruns = check_plan_in_mujoco(&check, &model, &run.plan, &TerrainSpec::flat(), &scratch(&format!("task-{name}"))).unwrap();
         assert_eq!(reruns.version, "4.0.0");
         for (what, rerun) in [("track", &reruns.tracking), ("policy", &reruns.policy)] {
             let (traj, metrics) = match rerun {

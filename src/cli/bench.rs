@@ -227,7 +227,7 @@ fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> 
         let mujoco_figures = match &mujoco {
             Some(check) => {
                 let folder = std::path::Path::new("out").join("bench").join(name).join("mujoco");
-                let m = check_plan_in_mujoco(check, &task_model, &run.plan, &ground.spec(), spec.contact.unwrap_or_default().friction, &folder)?;
+                let m = check_plan_in_mujoco(check, &task_model, &run.plan, &ground.spec(), &folder)?;
                 json!({
                     "plan": super::solve::metrics_json(&run.plan_metrics),
                     "tracking_controller_rerun": super::solve::rerun_json(&run.tracking_rerun),

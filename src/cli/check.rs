@@ -25,10 +25,6 @@ pub struct MujocoArgs {
     /// The robot (embedded name, URDF or legwork description); default: the file's.
     #[arg(long)]
     robot: Option<String>,
-    /// Friction coefficient of feet and ground; default: the task's (from the file's
-    /// summary), else legwork's contact default (0.8).
-    #[arg(long)]
-    friction: Option<f64>,
 }
 
 pub fn run(cmd: CheckCommand) -> Result<()> {
@@ -45,14 +41,10 @@ fn mujoco(args: MujocoArgs) -> Result<()> {
     let (model, _) = super::robot::load(&robot)?;
     plan.check_against(&model, &plan_path.display().to_string())?;
     let task = plan.summary.get("task").and_then(|t| t.as_str()).and_then(|t| TaskSpec::embedded(t).ok());
-    let friction = match (args.friction, &task) {
-        (Some(f), _) => f,
-        (None, Some(spec)) => spec.contact.unwrap_or_default().friction,
-        (None, None) => legwork::contact::ContactParams::default().friction,
-    };
+    let friction = model.contact.friction;
     let folder = args.folder.join("mujoco");
     say!("Checking {} in MuJoCo (tracking controller, feedback policy), friction {friction} ...", plan_path.display());
-    let reruns = check_plan_in_mujoco(&check, &model, &plan, &plan.metadata.terrain, friction, &folder)?;
+    let reruns = check_plan_in_mujoco(&check, &model, &plan, &plan.metadata.terrain, &folder)?;
     let plan_metrics = MotionMetrics::of(&model, &plan);
     // legwork's own re-runs, where the solve left them.
     let legwork_rerun = |file: &str| -> Result<Option<(Trajectory, MotionMetrics)>> {

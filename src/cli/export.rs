@@ -11,7 +11,8 @@ use std::path::PathBuf;
 #[derive(Debug, Subcommand)]
 pub enum ExportCommand {
     /// MuJoCo MJCF: bodies, inertias, joints with their limits, foot spheres (the only
-    /// colliding geoms), torque motors at the effort limits, and the ground (flat, or a
+    /// colliding geoms, the robot's friction), torque motors at the effort limits, and the
+    /// ground (flat, or a
     /// scenario's height map as an hfield); MuJoCo's default contact, 1 ms time step.
     Mjcf(MjcfArgs),
 }
@@ -23,7 +24,7 @@ pub struct MjcfArgs {
     /// A walk scenario (embedded name or file): its world at t = 0 as the ground.
     #[arg(long, conflicts_with = "task")]
     scenario: Option<String>,
-    /// A task (embedded name or file): flat ground, the task's friction coefficient.
+    /// A task (embedded name or file): its ground (flat).
     #[arg(long)]
     task: Option<String>,
     /// Output file; standard output if absent.
@@ -39,12 +40,12 @@ pub fn run(cmd: ExportCommand) -> Result<()> {
 
 fn mjcf(args: MjcfArgs) -> Result<()> {
     let (model, _) = super::robot::load(&args.robot)?;
-    let mut settings = MjcfSettings::default();
+    let settings = MjcfSettings::default();
     let terrain = match (&args.scenario, &args.task) {
         (Some(s), _) => ScenarioSpec::resolve(s)?.world_at(0.0).spec(),
         (None, Some(t)) => {
-            let (spec, _) = super::solve::load_task(t)?;
-            settings.friction = spec.contact.unwrap_or_default().friction;
+            // Tasks are solved on flat ground (`legwork solve`); the file is still checked.
+            super::solve::load_task(t)?;
             TerrainSpec::flat()
         }
         (None, None) => TerrainSpec::flat(),

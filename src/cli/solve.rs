@@ -111,8 +111,7 @@ pub fn run(args: SolveArgs) -> Result<()> {
     let mujoco_reruns = match &mujoco {
         Some(check) => {
             say!("Checking the plan in MuJoCo (tracking controller, feedback policy) ...");
-            let friction = spec.contact.unwrap_or_default().friction;
-            Some(check_plan_in_mujoco(check, &model, &run.plan, &terrain.spec(), friction, &out.join("mujoco"))?)
+            Some(check_plan_in_mujoco(check, &model, &run.plan, &terrain.spec(), &out.join("mujoco"))?)
         }
         None => None,
     };

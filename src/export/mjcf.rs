@@ -11,7 +11,7 @@
 //! its effort limit. The foot spheres are the robot's only collision geoms (the capsules
 //! drawn along the links are visual: `contype = conaffinity = 0`); a foot collides with
 //! the ground and not with another foot. Friction is the contact model's (legwork's
-//! [`crate::contact::ContactParams::friction`]) on the feet and the ground alike, so
+//! robot's contact model, [`Model::contact`]) on the feet and the ground alike, so
 //! MuJoCo's pairwise maximum is that number. Nothing else is set: no armature, no joint
 //! damping (legwork's model has neither), MuJoCo's default contact parameters
 //! (`solref`, `solimp`), its default integrator, the given time step.
@@ -42,9 +42,9 @@ use std::fmt::Write;
 pub struct MjcfSettings {
     /// MuJoCo's physics time step (s). Default 0.001 (1 ms, issue 16's set-up).
     pub timestep: f64,
-    /// Sliding friction coefficient of the feet and the ground. Default 0.8, legwork's
-    /// [`crate::contact::ContactParams::friction`].
-    pub friction: f64,
+    /// Sliding friction coefficient of the feet and the ground; `None` (the default): the
+    /// robot's contact model's, [`Model::contact`]'s `friction` (0.8 for HyQ and A1).
+    pub friction: Option<f64>,
     /// Radius of the visual capsules drawn along the links (m). Default 0.02.
     pub visual_radius: f64,
     /// Depth of a height field's base below its lowest point (m; MuJoCo's `hfield` size[3],
@@ -54,7 +54,7 @@ pub struct MjcfSettings {
 
 impl Default for MjcfSettings {
     fn default() -> Self {
-        Self { timestep: 0.001, friction: crate::contact::ContactParams::default().friction, visual_radius: 0.02, hfield_base_depth: 0.1 }
+        Self { timestep: 0.001, friction: None, visual_radius: 0.02, hfield_base_depth: 0.1 }
     }
 }
 
@@ -88,6 +88,7 @@ pub enum MjcfError {
 /// ```
 pub fn mjcf_model(model: &Model, terrain: &TerrainSpec, settings: &MjcfSettings) -> Result<String, MjcfError> {
     check_settings(settings)?;
+    let friction = settings.friction.unwrap_or(model.contact.friction);
     if model.njoints() < 2 {
         return Err(MjcfError::Empty { robot: model.name.clone() });
     }
@@ -105,9 +106,9 @@ pub fn mjcf_model(model: &Model, terrain: &TerrainSpec, settings: &MjcfSettings)
         let _ = writeln!(xml, "  </asset>");
     }
     let _ = writeln!(xml, "  <worldbody>");
-    write_terrain(&mut xml, terrain, settings)?;
+    write_terrain(&mut xml, terrain, friction)?;
     for child in children(model, 0) {
-        write_body(&mut xml, model, child, 2, settings)?;
+        write_body(&mut xml, model, child, 2, settings, friction)?;
     }
     let _ = writeln!(xml, "  </worldbody>");
     let actuated: Vec<_> = model.actuated_joints().collect();
@@ -141,8 +142,10 @@ fn check_settings(s: &MjcfSettings) -> Result<(), MjcfError> {
             return Err(MjcfError::Setting { field, expected: "a finite number > 0", value });
         }
     }
-    if !(s.friction.is_finite() && s.friction >= 0.0) {
-        return Err(MjcfError::Setting { field: "friction", expected: "a finite number >= 0", value: s.friction });
+    if let Some(friction) = s.friction {
+        if !(friction.is_finite() && friction >= 0.0) {
+            return Err(MjcfError::Setting { field: "friction", expected: "a finite number >= 0", value: friction });
+        }
     }
     Ok(())
 }
@@ -191,7 +194,7 @@ fn body_name(model: &Model, i: usize) -> String {
         .unwrap_or_else(|| format!("{}_body", model.joints[i].name))
 }
 
-fn write_body(xml: &mut String, model: &Model, i: usize, depth: usize, settings: &MjcfSettings) -> Result<(), MjcfError> {
+fn write_body(xml: &mut String, model: &Model, i: usize, depth: usize, settings: &MjcfSettings, friction: f64) -> Result<(), MjcfError> {
     let joint = &model.joints[i];
     let pad = "  ".repeat(depth);
     let _ = writeln!(xml, "{pad}<body name=\"{}\" {}>", escape(&body_name(model, i)), pose(&joint.placement));
@@ -226,10 +229,10 @@ fn write_body(xml: &mut String, model: &Model, i: usize, depth: usize, settings:
         }
         // contype 1, conaffinity 0: a foot collides with the ground (conaffinity 1), not
         // with another foot, as in legwork's contact model.
-        let _ = writeln!(xml, "{pad}  <geom name=\"{}\" type=\"sphere\" size=\"{}\" pos=\"{}\" friction=\"{} 0.005 0.0001\" contype=\"1\" conaffinity=\"0\" condim=\"3\" group=\"0\"/>", escape(&foot.name), num(foot.radius), vec3(&p), num(settings.friction));
+        let _ = writeln!(xml, "{pad}  <geom name=\"{}\" type=\"sphere\" size=\"{}\" pos=\"{}\" friction=\"{} 0.005 0.0001\" contype=\"1\" conaffinity=\"0\" condim=\"3\" group=\"0\"/>", escape(&foot.name), num(foot.radius), vec3(&p), num(friction));
     }
     for child in children(model, i) {
-        write_body(xml, model, child, depth + 1, settings)?;
+        write_body(xml, model, child, depth + 1, settings, friction)?;
     }
     let _ = writeln!(xml, "{pad}</body>");
     Ok(())
@@ -274,8 +277,8 @@ fn write_inertial(xml: &mut String, model: &Model, i: usize, pad: &str) -> Resul
 }
 
 /// The ground geom: a plane (its z axis the plane's normal) or the height field.
-fn write_terrain(xml: &mut String, terrain: &TerrainSpec, settings: &MjcfSettings) -> Result<(), MjcfError> {
-    let friction = num(settings.friction);
+fn write_terrain(xml: &mut String, terrain: &TerrainSpec, friction: f64) -> Result<(), MjcfError> {
+    let friction = num(friction);
     match terrain {
         TerrainSpec::Plane { elevation, normal } => {
             let n = Vector3::from(*normal);

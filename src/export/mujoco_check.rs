@@ -257,11 +257,12 @@ pub struct MujocoReruns {
 
 /// Checks `plan` (a motion of `model` on `terrain`, saved or not) in MuJoCo with both
 /// controllers; writes `model.xml`, the controllers' settings and `mujoco_track.json` /
-/// `mujoco_policy.json` into `folder`. `friction` is the contact model's coefficient.
-pub fn check_plan_in_mujoco(check: &MujocoCheck, model: &Model, plan: &Trajectory, terrain: &TerrainSpec, friction: f64, folder: &Path) -> Result<MujocoReruns, MujocoCheckError> {
+/// `mujoco_policy.json` into `folder`. The friction coefficient is the robot's contact
+/// model's ([`Model::contact`]).
+pub fn check_plan_in_mujoco(check: &MujocoCheck, model: &Model, plan: &Trajectory, terrain: &TerrainSpec, folder: &Path) -> Result<MujocoReruns, MujocoCheckError> {
     plan.check_against(model, "the plan")?;
     std::fs::create_dir_all(folder).map_err(|error| MujocoCheckError::Io { path: folder.display().to_string(), error })?;
-    let settings = MjcfSettings { friction, ..MjcfSettings::default() };
+    let settings = MjcfSettings::default();
     let mjcf_path = folder.join("model.xml");
     write(&mjcf_path, &mjcf_model(model, terrain, &settings)?)?;
     let reference = folder.join("reference.json");
