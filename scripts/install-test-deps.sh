@@ -1,8 +1,12 @@
 #!/usr/bin/env bash
 # Installs what legwork's tests need beyond Rust: Debian's `chromium`, for the headless
-# browser test of the HTML replay (tests/replay_browser.rs). Idempotent: does nothing when
-# `chromium` is already on PATH. Uses sudo only when not root. Prints what it did.
+# browser test of the HTML replay (tests/replay_browser.rs), and the MuJoCo checker's
+# Python environment (scripts/install-mujoco.sh, for tests/mujoco_check.rs). Idempotent:
+# does nothing for what is already there. Uses sudo only when not root; apt-get waits (up
+# to 5 minutes) for another apt-get's lock instead of failing. Prints what it did.
 set -euo pipefail
+
+bash "$(dirname "$0")/install-mujoco.sh"
 
 if command -v chromium >/dev/null 2>&1; then
     echo "install-test-deps: chromium already installed ($(command -v chromium)); nothing to do"
@@ -26,6 +30,6 @@ if [ "$(id -u)" -ne 0 ]; then
 fi
 
 echo "install-test-deps: chromium not found; installing Debian's chromium with apt-get"
-"${SUDO[@]}" apt-get update -q
-DEBIAN_FRONTEND=noninteractive "${SUDO[@]}" apt-get install -y -q --no-install-recommends chromium
+"${SUDO[@]}" apt-get -o DPkg::Lock::Timeout=300 update -q
+DEBIAN_FRONTEND=noninteractive "${SUDO[@]}" apt-get -o DPkg::Lock::Timeout=300 install -y -q --no-install-recommends chromium
 echo "install-test-deps: installed $(chromium --version 2>/dev/null || echo chromium)"

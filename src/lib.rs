@@ -25,6 +25,7 @@
 pub mod contact;
 pub mod control;
 pub mod dynamics;
+pub mod export;
 pub mod io;
 pub mod model;
 pub mod ocp;

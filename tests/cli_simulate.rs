@@ -81,3 +81,50 @@ fn tasks_lists_the_embedded_tasks_and_bench_slq_reports_json() {
     let o = legwork(&["solve", "no_such_task"]);
     assert!(!o.status.success() && text(&o.stderr).contains("no embedded task named 'no_such_task'"));
 }
+
+/// A short task for the replay tests: shift the base 5 cm forward in 0.6 s (a few
+/// iterations; the replays must agree whatever the plan's quality).
+const SHIFT_TASK: &str = r#"
+name = "shift"
+summary = "move the base 5 cm forward"
+robot = "hyq"
+duration = 0.6
+dt = 0.002
+iterations = 4
+[desired]
+base_position = [0.05, "start", "start"]
+[running]
+base_position = [100.0, 100.0, 100.0]
+[final]
+base_position = [1000.0, 1000.0, 1000.0]
+[input]
+weight = 1e-4
+"#;
+
+/// The README's recipe: `legwork simulate --controller track --reference <solve's
+/// trajectory.json>` runs in the world the plan was made in (contact model, start state,
+/// contact anchors, ground, joint stops), so it reproduces `legwork solve`'s own tracking
+/// re-run knot for knot.
+#[test]
+fn simulate_track_reproduces_the_tracking_rerun_of_solve() {
+    let dir = out_dir("solve-track");
+    std::fs::create_dir_all(&dir).unwrap();
+    let task = dir.join("shift.toml");
+    std::fs::write(&task, SHIFT_TASK).unwrap();
+    let solved = dir.join("solved");
+    let o = legwork(&["solve", task.to_str().unwrap(), "--out", solved.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let plan = solved.join("trajectory.json");
+    let replay = dir.join("replay");
+    let o = legwork(&["simulate", "--controller", "track", "--reference", plan.to_str().unwrap(), "--duration", "0.6", "--out", replay.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let ours = Trajectory::load_file(replay.join("trajectory.json")).unwrap();
+    let solves = Trajectory::load_file(solved.join("rerun_tracking.json")).unwrap();
+    assert_eq!(ours.knots.len(), solves.knots.len());
+    for (a, b) in ours.knots.iter().zip(&solves.knots) {
+        assert_eq!((a.t, &a.q, &a.v, &a.tau), (b.t, &b.q, &b.v, &b.tau), "the replays part at t = {}", a.t);
+    }
+    // The plan records the world it was made in.
+    let plan = Trajectory::load_file(&plan).unwrap();
+    assert!(plan.metadata.initial_anchors.as_ref().is_some_and(|a| a.iter().all(Option::is_some)), "four feet down at the start");
+}

@@ -5,10 +5,11 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Subcommand;
+use legwork::export::{check_plan_in_mujoco, MujocoCheck};
 use legwork::model::embedded;
 use legwork::ocp::{settled_stance, solve_task, PdPolicy, SolveOptions, TaskSpec, EMBEDDED_TASKS};
 use legwork::slq::{Slq, SlqSettings};
-use legwork::terrain::Plane;
+use legwork::terrain::{Plane, Terrain};
 use legwork::report::walk::{paper_result, terrain_benchmark, TerrainBenchmark, TrialReport, TABLE_I, TARGET_SPEED_FACTOR, TARGET_SUCCESS_RATE};
 use legwork::walk::trial::WalkConfig;
 use legwork::walk::{ScenarioSpec, EMBEDDED_SCENARIOS};
@@ -27,6 +28,10 @@ pub enum BenchCommand {
         /// Iterations timed per horizon.
         #[arg(long, default_value_t = 5)]
         iterations: usize,
+        /// Also check every solved task in MuJoCo (tracking controller and feedback
+        /// policy; needs `scripts/install-mujoco.sh`); the runs go to `out/bench/<task>/mujoco`.
+        #[arg(long, value_enum)]
+        check: Option<super::solve::CheckSimulator>,
     },
     /// Winkler 2015's Table I: randomized walk trials over the paper's four terrains
     /// (start +-5 cm, yaw +-5 deg, map noise), speed and success beside the paper's.
@@ -50,7 +55,7 @@ pub enum BenchCommand {
 
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
-        BenchCommand::Slq { json, threads, iterations } => slq(json, threads, iterations),
+        BenchCommand::Slq { json, threads, iterations, check } => slq(json, threads, iterations, check.is_some()),
         BenchCommand::Terrain { trials, json, threads, scenarios } => terrain(trials, json, threads, &scenarios),
     }
 }
@@ -176,7 +181,9 @@ fn linear_fit(x: &[f64], y: &[f64]) -> (f64, f64, f64) {
     (a, b, 1.0 - ss_res / ss_tot)
 }
 
-fn slq(as_json: bool, threads: usize, iterations: usize) -> Result<()> {
+fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> Result<()> {
+    // A missing MuJoCo environment is reported before the benchmark, not after it.
+    let mujoco = if check_mujoco { Some(MujocoCheck::locate()?) } else { None };
     let model = embedded::load("hyq")?;
     let ground = Plane::flat(0.0);
     // Fig. 13: one cost structure (the squat jump's running and final costs, no waypoint),
@@ -216,7 +223,22 @@ fn slq(as_json: bool, threads: usize, iterations: usize) -> Result<()> {
         let task_model = embedded::load(&spec.robot)?;
         let run = solve_task(&spec, &task_model, &ground, name, &SolveOptions { threads, max_iterations: None }, |_| ())?;
         let sol = &run.solution;
+        // The plan and legwork's tracking re-run beside MuJoCo's two runs, when asked.
+        let mujoco_figures = match &mujoco {
+            Some(check) => {
+                let folder = std::path::Path::new("out").join("bench").join(name).join("mujoco");
+                let m = check_plan_in_mujoco(check, &task_model, &run.plan, &ground.spec(), &folder)?;
+                json!({
+                    "plan": super::solve::metrics_json(&run.plan_metrics),
+                    "tracking_controller_rerun": super::solve::rerun_json(&run.tracking_rerun),
+                    "mujoco_tracking_controller": super::solve::rerun_json(&m.tracking),
+                    "mujoco_policy": super::solve::rerun_json(&m.policy),
+                })
+            }
+            None => serde_json::Value::Null,
+        };
         tasks.push(json!({
+            "mujoco": mujoco_figures,
             "task": name,
             "knots": spec.knots(),
             "iterations": run.iterations(),
@@ -271,6 +293,25 @@ fn slq(as_json: bool, threads: usize, iterations: usize) -> Result<()> {
             t["initial_cost"].as_f64().unwrap_or(0.0),
             t["final_cost"].as_f64().unwrap_or(0.0)
         );
+        if !t["mujoco"].is_null() {
+            let cell = |key: &str| {
+                let m = &t["mujoco"][key];
+                match m.get("failed") {
+                    Some(reason) => format!("failed ({})", first_line(reason.as_str().unwrap_or(""), 40)),
+                    None => format!(
+                        "apex {:.3} m, final ({:.2}, {:.2}) m yaw {:.0} deg, flight {:.2} s",
+                        m["apex_base_height"].as_f64().unwrap_or(f64::NAN),
+                        m["final_base_position"][0].as_f64().unwrap_or(f64::NAN),
+                        m["final_base_position"][1].as_f64().unwrap_or(f64::NAN),
+                        m["final_base_rpy_deg"][2].as_f64().unwrap_or(f64::NAN),
+                        m["flight_time"].as_f64().unwrap_or(f64::NAN)
+                    ),
+                }
+            };
+            for (label, key) in [("plan", "plan"), ("legwork tracking", "tracking_controller_rerun"), ("MuJoCo tracking", "mujoco_tracking_controller"), ("MuJoCo policy", "mujoco_policy")] {
+                say!("      {label:<17} {}", cell(key));
+            }
+        }
     }
     Ok(())
 }

@@ -24,6 +24,8 @@ pub(crate) fn emit(args: std::fmt::Arguments) {
 }
 
 mod bench;
+mod check;
+mod export;
 mod robot;
 mod simulate;
 mod solve;
@@ -60,6 +62,12 @@ enum Command {
     /// 2015's terrains (Table I).
     #[command(subcommand)]
     Bench(bench::BenchCommand),
+    /// Write a robot (and the ground) in another simulator's format: MuJoCo's MJCF.
+    #[command(subcommand)]
+    Export(export::ExportCommand),
+    /// Check a solved motion in physics legwork did not write: MuJoCo.
+    #[command(subcommand)]
+    Check(check::CheckCommand),
     /// Replay a trajectory: write a self-contained HTML page (3D robot, plots) and,
     /// optionally, static SVG plots.
     View(view::ViewArgs),
@@ -76,6 +84,8 @@ pub fn main() -> ExitCode {
         Command::Walk(args) => walk::run(args),
         Command::Bench(cmd) => bench::run(cmd),
         Command::View(args) => view::run(args),
+        Command::Export(cmd) => export::run(cmd),
+        Command::Check(cmd) => check::run(cmd),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -3,7 +3,7 @@
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use legwork::control::{JointPd, TrackingController};
+use legwork::control::{FeedbackPolicy, JointPd, TrackingController};
 use legwork::io::Trajectory;
 use legwork::sim::{standing_on_ground, Controller, Integrator, Push, SimConfig, Simulator};
 use legwork::terrain::{HeightMap, Plane, Terrain};
@@ -17,6 +17,9 @@ pub enum ControllerKind {
     Stand,
     /// Neunert 2017's tracking controller on a planned trajectory (`--reference`).
     Track,
+    /// The planned trajectory's exported feedback policy, `tau = tau_ff + K [q (-) q*; v - v*]`
+    /// (`--reference`, written by `legwork solve`).
+    Policy,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -89,21 +92,36 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     };
     // The controller, and where the run starts: the standing pose (raised by the drop
     // height), or the reference's first state when tracking it.
-    let (mut controller, q0, v0): (Box<dyn Controller>, _, _) = match (args.controller, &args.reference) {
+    let (mut controller, q0, reference): (Box<dyn Controller>, _, Option<Trajectory>) = match (args.controller, &args.reference) {
         (ControllerKind::Stand, None) => {
             (Box::new(JointPd::standing(&model, config.control_dt)?), standing_on_ground(&model, terrain.as_ref(), args.drop_height)?, None)
         }
-        (ControllerKind::Stand, Some(_)) => bail!("--reference is for --controller track"),
-        (ControllerKind::Track, None) => bail!("--controller track needs --reference <trajectory.json>"),
-        (ControllerKind::Track, Some(path)) => {
+        (ControllerKind::Stand, Some(_)) => bail!("--reference is for --controller track or policy"),
+        (ControllerKind::Track | ControllerKind::Policy, None) => bail!("--controller {} needs --reference <trajectory.json>", if matches!(args.controller, ControllerKind::Track) { "track" } else { "policy" }),
+        (kind, Some(path)) => {
             let reference = Trajectory::load_file(path)?;
-            let controller = TrackingController::with_default_gains(&model, &reference, config.control_dt)?;
-            let k = &reference.knots[0];
-            (Box::new(controller), nalgebra::DVector::from_column_slice(&k.q), Some(nalgebra::DVector::from_column_slice(&k.v)))
+            reference.check_against(&model, &path.display().to_string())?;
+            let controller: Box<dyn Controller> = match kind {
+                ControllerKind::Policy => Box::new(FeedbackPolicy::new(&model, &reference)?),
+                _ => Box::new(TrackingController::with_default_gains(&model, &reference, config.control_dt)?),
+            };
+            (controller, nalgebra::DVector::zeros(0), Some(reference))
         }
     };
+    // Tracking replays the plan in the world its file records (its ground unless --terrain
+    // says otherwise, its first state and contact anchors, its joint stops), as `legwork
+    // solve`'s own tracking re-run does.
+    let plan_terrain: Option<Box<dyn Terrain>> = match (&reference, &args.terrain) {
+        (Some(plan), None) => Some(plan.metadata.terrain.build(&format!("{}: metadata.terrain", args.reference.as_ref().map(|p| p.display().to_string()).unwrap_or_default()))?),
+        _ => None,
+    };
+    let terrain: Box<dyn Terrain> = plan_terrain.unwrap_or(terrain);
     let standing_height = standing_on_ground(&model, terrain.as_ref(), 0.0)?[2];
-    let mut sim = Simulator::new(&model, terrain.as_ref(), config.clone(), q0.clone(), v0)?;
+    let mut sim = match &reference {
+        Some(plan) => Simulator::from_plan(&model, terrain.as_ref(), plan, config.clone())?,
+        None => Simulator::new(&model, terrain.as_ref(), config.clone(), q0.clone(), None)?,
+    };
+    let q0 = sim.state().q.clone();
     for p in pushes {
         sim.add_push(p);
     }

@@ -2,8 +2,9 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
+use legwork::export::{check_plan_in_mujoco, MujocoCheck};
 use legwork::ocp::{solve_task, MotionMetrics, Rerun, Snapshot, SolveOptions, TaskSpec, EMBEDDED_TASKS};
-use legwork::terrain::Plane;
+use legwork::terrain::{Plane, Terrain};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -24,9 +25,21 @@ pub struct SolveArgs {
     /// Overrides the task's iteration limit.
     #[arg(long)]
     iterations: Option<usize>,
+    /// After the solve and legwork's re-runs, check the plan in another simulator:
+    /// `mujoco` replays it in MuJoCo with the tracking controller and with the exported
+    /// feedback policy (needs `scripts/install-mujoco.sh`), two more columns.
+    #[arg(long, value_enum)]
+    check: Option<CheckSimulator>,
 }
 
-fn load_task(spec: &str) -> Result<(TaskSpec, String)> {
+/// Simulators a plan can be checked in.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum CheckSimulator {
+    /// MuJoCo 4.0.0 (Python package in `.venv-mujoco/`), default contact, 1 ms step.
+    Mujoco,
+}
+
+pub(super) fn load_task(spec: &str) -> Result<(TaskSpec, String)> {
     let path = Path::new(spec);
     if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml")) || path.exists() {
         return Ok((TaskSpec::load_file(path)?, spec.to_string()));
@@ -44,18 +57,11 @@ pub fn list() -> Result<()> {
     Ok(())
 }
 
-fn metrics_json(m: &MotionMetrics) -> serde_json::Value {
+pub(super) fn metrics_json(m: &MotionMetrics) -> serde_json::Value {
     serde_json::to_value(m).unwrap_or(serde_json::Value::Null)
 }
 
-fn rerun_traj(r: &Rerun) -> Option<&legwork::io::Trajectory> {
-    match r {
-        Rerun::Completed { trajectory, .. } => Some(trajectory.as_ref()),
-        Rerun::Failed { .. } => None,
-    }
-}
-
-fn rerun_json(r: &Rerun) -> serde_json::Value {
+pub(super) fn rerun_json(r: &Rerun) -> serde_json::Value {
     match r {
         Rerun::Completed { metrics, .. } => metrics_json(metrics),
         Rerun::Failed { reason } => json!({ "failed": reason }),
@@ -68,6 +74,11 @@ pub fn run(args: SolveArgs) -> Result<()> {
     let (model, _) = super::robot::load(&robot)?;
     let terrain = Plane::flat(0.0);
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&spec.name));
+    // A missing MuJoCo environment is reported before the solve, not after it.
+    let mujoco = match args.check {
+        Some(CheckSimulator::Mujoco) => Some(MujocoCheck::locate()?),
+        None => None,
+    };
     say!("Solving {} ({}) for {}: {} s, {} knots of {} s", spec.name, spec.summary, model.name, spec.duration, spec.knots(), spec.dt);
     let started = Instant::now();
     let options = SolveOptions { threads: args.threads, max_iterations: args.iterations };
@@ -95,7 +106,16 @@ pub fn run(args: SolveArgs) -> Result<()> {
     let solve_time = run.solve_time();
     let plan = &run.plan_metrics;
     let mut traj = run.plan.clone();
-    let summary = json!({
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create the output folder {}", out.display()))?;
+    // MuJoCo: the plan as solved, on the ground it was solved on, the task's friction.
+    let mujoco_reruns = match &mujoco {
+        Some(check) => {
+            say!("Checking the plan in MuJoCo (tracking controller, feedback policy) ...");
+            Some(check_plan_in_mujoco(check, &model, &run.plan, &terrain.spec(), &out.join("mujoco"))?)
+        }
+        None => None,
+    };
+    let mut summary = json!({
         "task": spec.name,
         "robot": model.name,
         "knots": spec.knots(),
@@ -113,10 +133,14 @@ pub fn run(args: SolveArgs) -> Result<()> {
         "slq_policy_rerun": rerun_json(&run.policy_rerun),
         "tracking_controller_rerun": rerun_json(&run.tracking_rerun),
     });
+    if let (Some(m), serde_json::Value::Object(map)) = (&mujoco_reruns, &mut summary) {
+        map.insert("mujoco_version".into(), json!(m.version));
+        map.insert("mujoco_tracking_controller".into(), rerun_json(&m.tracking));
+        map.insert("mujoco_policy".into(), rerun_json(&m.policy));
+    }
     if let serde_json::Value::Object(map) = summary {
         traj.summary = map;
     }
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot create the output folder {}", out.display()))?;
     traj.save_file(out.join("trajectory.json"))?;
     for (rerun, file) in [(&run.policy_rerun, "rerun_slq_policy.json"), (&run.tracking_rerun, "rerun_tracking.json")] {
         if let Rerun::Completed { trajectory, .. } = rerun {
@@ -138,9 +162,46 @@ pub fn run(args: SolveArgs) -> Result<()> {
     }
     let stages_note = if run.stages.is_empty() && run.rounds.is_empty() { String::new() } else { format!(" ({} in the last round on the full horizon)", sol.iterations.len()) };
     say!("{:?} after {} iterations{stages_note} in {:.2} s (cost {:.4e} -> {:.4e})", sol.termination, run.iterations(), solve_time, sol.cost_history[0], sol.cost_history.last().unwrap_or(&f64::NAN));
-    say!("                         plan      SLQ policy   tracking ctrl");
-    let cell = |r: &Rerun, f: &dyn Fn(&MotionMetrics) -> String| r.metrics().map_or("failed".to_string(), f);
-    let row = |name: &str, f: &dyn Fn(&MotionMetrics) -> String| say!("  {name:<22} {:<10} {:<12} {}", f(plan), cell(&run.policy_rerun, f), cell(&run.tracking_rerun, f));
+    let mut columns = vec![
+        Column::completed("plan", plan, &traj),
+        Column::of("SLQ policy", &run.policy_rerun),
+        Column::of("tracking ctrl", &run.tracking_rerun),
+    ];
+    if let Some(m) = &mujoco_reruns {
+        columns.push(Column::of("MuJoCo track", &m.tracking));
+        columns.push(Column::of("MuJoCo policy", &m.policy));
+    }
+    print_figures(&model, &spec.waypoints.iter().map(|w| w.time).collect::<Vec<_>>(), &columns);
+    say!("Wrote {} (trajectory.json, closed-loop re-runs, replay.html, {} plots) in {:.1} s", out.display(), plots.len() + 1, started.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// One column of the figures table: a plan or a re-run, or why a re-run failed.
+pub(super) struct Column<'a> {
+    pub name: &'a str,
+    pub metrics: Option<&'a MotionMetrics>,
+    pub trajectory: Option<&'a legwork::io::Trajectory>,
+    pub failure: Option<&'a str>,
+}
+
+impl<'a> Column<'a> {
+    pub fn completed(name: &'a str, metrics: &'a MotionMetrics, trajectory: &'a legwork::io::Trajectory) -> Self {
+        Self { name, metrics: Some(metrics), trajectory: Some(trajectory), failure: None }
+    }
+    pub fn of(name: &'a str, rerun: &'a Rerun) -> Self {
+        match rerun {
+            Rerun::Completed { trajectory, metrics } => Self::completed(name, metrics, trajectory),
+            Rerun::Failed { reason } => Self { name, metrics: None, trajectory: None, failure: Some(reason) },
+        }
+    }
+}
+
+/// The task figures of each column side by side, the state at each waypoint time, and
+/// why any re-run failed.
+pub(super) fn print_figures(model: &legwork::model::Model, waypoints: &[f64], columns: &[Column]) {
+    // The rows first, then each column as wide as its widest cell.
+    let mut rows: Vec<(&str, Vec<String>)> = Vec::new();
+    let mut row = |name: &'static str, f: &dyn Fn(&MotionMetrics) -> String| rows.push((name, columns.iter().map(|c| c.metrics.map_or("failed".to_string(), f)).collect()));
     row("final base x [m]", &|m| format!("{:.3}", m.final_base_position[0]));
     row("final base y [m]", &|m| format!("{:.3}", m.final_base_position[1]));
     row("final yaw [deg]", &|m| format!("{:.1}", m.final_base_rpy_deg[2]));
@@ -164,25 +225,31 @@ pub fn run(args: SolveArgs) -> Result<()> {
     row("loaded over 0.75 mu [%]", &|m| format!("{:.1}", 100.0 * m.feasibility.friction_margin_excess));
     row("loaded sliding [%]", &|m| m.feasibility.sliding_share.iter().map(|s| format!("{:.0}", 100.0 * s)).collect::<Vec<_>>().join("/"));
     row("max penetration [mm]", &|m| format!("{:.1}", 1e3 * m.feasibility.max_penetration));
-    for w in &spec.waypoints {
-        let show = |traj: Option<&legwork::io::Trajectory>| {
-            traj.map_or("failed".to_string(), |traj| {
-                let s = Snapshot::at(&model, traj, w.time);
+    let label = rows.iter().map(|(n, _)| n.len()).max().unwrap_or(0);
+    let widths: Vec<usize> = (0..columns.len()).map(|c| rows.iter().map(|(_, cells)| cells[c].len()).chain([columns[c].name.len()]).max().unwrap_or(0) + 2).collect();
+    let line = |name: &str, cells: &mut dyn Iterator<Item = &str>| {
+        let text: String = cells.zip(&widths).map(|(cell, w)| format!("{cell:<w$}", w = *w)).collect();
+        say!("  {name:<label$} {}", text.trim_end());
+    };
+    line("", &mut columns.iter().map(|c| c.name));
+    for (name, cells) in &rows {
+        line(name, &mut cells.iter().map(String::as_str));
+    }
+    for &time in waypoints {
+        say!("  at the waypoint t = {time:.2} s:");
+        for c in columns {
+            let text = c.trajectory.map_or("failed".to_string(), |traj| {
+                let s = Snapshot::at(model, traj, time);
                 let feet: String = s.in_contact.iter().map(|&c| if c { '1' } else { '0' }).collect();
                 let foot_positions: Vec<String> = s.feet.iter().map(|p| format!("({:.2}, {:.2}, {:.2})", p[0], p[1], p[2])).collect();
                 format!("z {:.3}, rpy ({:.1}, {:.1}, {:.1}), feet down {feet} at {}", s.base_position[2], s.base_rpy_deg[0], s.base_rpy_deg[1], s.base_rpy_deg[2], foot_positions.join(" "))
-            })
-        };
-        say!("  at the waypoint t = {:.2} s:", w.time);
-        say!("    plan                {}", show(Some(&traj)));
-        say!("    SLQ policy          {}", show(rerun_traj(&run.policy_rerun)));
-        say!("    tracking ctrl       {}", show(rerun_traj(&run.tracking_rerun)));
-    }
-    for (name, r) in [("SLQ policy re-run", &run.policy_rerun), ("tracking-controller re-run", &run.tracking_rerun)] {
-        if let Rerun::Failed { reason } = r {
-            say!("  {name} failed: {reason}");
+            });
+            say!("    {:<18}  {text}", c.name);
         }
     }
-    say!("Wrote {} (trajectory.json, closed-loop re-runs, replay.html, {} plots) in {:.1} s", out.display(), plots.len() + 1, started.elapsed().as_secs_f64());
-    Ok(())
+    for c in columns {
+        if let Some(reason) = c.failure {
+            say!("  {} failed: {reason}", c.name);
+        }
+    }
 }

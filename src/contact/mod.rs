@@ -50,6 +50,19 @@ use serde::{Deserialize, Serialize};
 ///   18 mm: feet that move while they stick);
 /// * `mu = 0.8`, the friction of the MuJoCo check.
 ///
+/// On the whole robot, standing under its joint PD and dropped from 0.1 m (MuJoCo with
+/// legwork's MJCF export at 1 ms, legwork's simulator at 2 kHz; `tests/mujoco_check.rs`,
+/// docs/experiments/mujoco-check.md):
+///
+/// | | static penetration [mm] | rest base height [m] | sink below rest [mm] | bounce [mm] |
+/// |---|---|---|---|---|
+/// | HyQ, MuJoCo | 0.96-1.29 | 0.5792 | 27.8 | 9.5 |
+/// | HyQ, legwork | 4.28-5.03 | 0.5812 | 30.1 | 7.3 |
+/// | A1, MuJoCo | 0.69-0.95 | 0.2574 | 16.6 | 0.7 |
+/// | A1, legwork | 3.94-5.27 | 0.2538 | 15.6 | 5.1 |
+///
+/// (Table I's contact, the former default: HyQ 6.3-7.4 mm, 0.5769 m, 35.0 mm, 10.8 mm.)
+///
 /// These are outside Table I's ranges for `k_n` (8e3-9e4), `d_n` (2e3-5e4) and `k_t` (0-5e6):
 /// Table I's contacts are softer and bouncier than MuJoCo's (HyQ's foot load dropped from
 /// 0.1 m on `k_n = 9e4`, `d_n = 2e4` rebounds at 80 % of its impact speed, MuJoCo's at 13 %).

@@ -1,11 +1,13 @@
 //! Controllers that run inside the simulator (and on a robot): the joint PD that holds a
 //! pose, and the tracking controller of Neunert 2017 (sec. IV-B) that executes a planned
-//! motion.
+//! motion, and the feedback policy exported with a plan.
 
+mod feedback_policy;
 mod joint_pd;
 mod tracking;
 pub mod whole_body;
 
+pub use feedback_policy::FeedbackPolicy;
 pub use joint_pd::{JointPd, PdGains};
 pub use tracking::{BaseGains, TrackingController};
 pub use whole_body::{

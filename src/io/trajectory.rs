@@ -72,6 +72,14 @@ pub struct Metadata {
     pub legwork_version: String,
     /// The ground the motion was computed on.
     pub terrain: TerrainSpec,
+    /// Where each foot's tangential contact spring was attached at the first knot (world
+    /// frame; `null` for a foot off the ground), for a replay that starts in the same
+    /// state as the plan (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub initial_anchors: Option<Vec<Option<[f64; 3]>>>,
+    /// The joints' mechanical stops the motion was computed with (optional; absent: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_stops: Option<crate::sim::JointLimitParams>,
 }
 
 /// One instant of the motion.
@@ -128,6 +136,8 @@ impl Trajectory {
                 scenario: scenario.into(),
                 legwork_version: env!("CARGO_PKG_VERSION").into(),
                 terrain,
+                initial_anchors: None,
+                joint_stops: None,
             },
             knots: Vec::new(),
             summary: Summary::new(),
@@ -189,6 +199,21 @@ impl Trajectory {
         let nj = m.joint_names.len();
         let nfeet = m.foot_names.len();
         let (nq, nv) = (7 + nj, 6 + nj);
+        if let Some(anchors) = &m.initial_anchors {
+            if anchors.len() != nfeet {
+                return bad("metadata.initial_anchors".into(), format!("expected {nfeet} entries (one per foot in metadata.foot_names), got {}", anchors.len()));
+            }
+            for (f, a) in anchors.iter().enumerate() {
+                if let Some(a) = a {
+                    if a.iter().any(|x| !x.is_finite()) {
+                        return bad(format!("metadata.initial_anchors[{f}]"), format!("expected a finite point [x, y, z] or null, got {a:?}"));
+                    }
+                }
+            }
+        }
+        if let Some(stops) = &m.joint_stops {
+            stops.validate().map_err(|e| TrajectoryError::Invalid { origin: origin.into(), field: format!("metadata.joint_stops.{}", e.field), problem: format!("expected {}, got {}", e.expected, e.value) })?;
+        }
         let mut previous_t = f64::NEG_INFINITY;
         for (k, knot) in self.knots.iter().enumerate() {
             let field = |name: &str| format!("knots[{k}].{name}");

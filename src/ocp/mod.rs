@@ -24,6 +24,7 @@ mod continuation;
 mod deviation;
 mod limit_cost;
 mod metrics;
+mod physical_gains;
 mod run;
 mod task;
 
@@ -32,6 +33,7 @@ pub use continuation::ContinuationSpec;
 pub use deviation::StateDeviation;
 pub use limit_cost::{JointLimitCost, JointLimitCostSpec};
 pub use metrics::{joint_limit_excess, Feasibility, LimitExcess, MotionMetrics, Snapshot, FRICTION_MARGIN, SLIDE_SPEED};
+pub use physical_gains::{physical_gain, PhysicalGainWorkspace};
 pub use run::{solution_trajectory, solve_task, Rerun, SlqPolicyController, SolveError, SolveOptions, TaskRun};
 pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, TaskError, TaskSpec, WaypointSpec, WeightSpec, EMBEDDED_TASKS};
 

@@ -118,17 +118,25 @@ pub struct SolveProgress<'l> {
 
 /// The optimized states and inputs as a trajectory file: contact forces and flags
 /// evaluated at each state, the feedback gains at each knot (the last knot repeats the
-/// last input and gain). With anchor states the file keeps the gains' `(q, v)` columns
-/// (`2 nv`, the trajectory format); the anchor columns act only in [`SlqPolicyController`].
+/// last input and gain). The gains are on the physical state `[q (-) q*; v - v*]`
+/// (`2 nv` columns, the trajectory format): with anchor states, the anchor columns are
+/// folded into the configuration columns through the feet in contact
+/// ([`super::physical_gain`]); the optimizer's own gains act in [`SlqPolicyController`].
 pub fn solution_trajectory(problem: &WholeBodyProblem<'_>, solution: &SlqSolution<RobotState>, scenario: &str) -> Trajectory {
     let model = problem.model;
     let mut traj = Trajectory::new(model, scenario, problem.dt, problem.terrain.spec());
+    traj.metadata.initial_anchors = Some(problem.initial.anchors.iter().map(|a| a.map(Into::into)).collect());
+    traj.metadata.joint_stops = problem.joint_limits;
     let mut ws = crate::sim::ContactModelWorkspace::new(model, problem.terrain, model.contact).with_joint_limits(problem.joint_limits);
     let n = solution.inputs.len();
+    let mut gain_ws = super::PhysicalGainWorkspace::new(model);
+    let mut gain = DMatrix::zeros(model.nv - 6, 2 * model.nv);
     for (k, x) in solution.states.iter().enumerate() {
         ws.evaluate_contacts(&x.q, &x.v, &x.anchors);
         let i = k.min(n - 1);
-        let gain: &DMatrix<f64> = &solution.gains[i];
+        // The gain of knot i acts around state i (the last knot reuses the last gain).
+        let around = &solution.states[i];
+        super::physical_gain(model, problem.terrain, &mut gain_ws, &around.q, &around.anchors, &solution.gains[i], &mut gain);
         traj.knots.push(Knot {
             t: k as f64 * problem.dt,
             q: x.q.iter().copied().collect(),
@@ -136,7 +144,7 @@ pub fn solution_trajectory(problem: &WholeBodyProblem<'_>, solution: &SlqSolutio
             tau: solution.inputs[i].iter().copied().collect(),
             contact_force: ws.feet().iter().map(|f| f.contact.force.into()).collect(),
             in_contact: ws.feet().iter().map(|f| f.contact.normal_force > 0.0).collect(),
-            feedback_gain: Some(gain.row_iter().map(|r| r.iter().take(2 * model.nv).copied().collect()).collect()),
+            feedback_gain: Some(gain.row_iter().map(|r| r.iter().copied().collect()).collect()),
         });
     }
     traj
@@ -256,11 +264,11 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     let plan = solution_trajectory(&problem, &solution, &format!("solve {}", spec.name));
 
     // Closed loop, both from the optimizer's initial state, contact anchors (spring
-    // pre-loads) included, in the robot's contact model.
+    // pre-loads) included, in the robot's contact model, with the plan's joint stops: the
+    // world the plan's file records (`Simulator::from_plan`, as `legwork simulate` replays it).
     let duration = problem.knots as f64 * problem.dt;
     let rerun = |controller: &mut dyn Controller, what: &'static str, config: SimConfig| -> Result<Rerun, SolveError> {
-        let mut sim = Simulator::new(model, terrain, config, initial.q.clone(), Some(initial.v.clone())).map_err(|source| SolveError::ClosedLoop { what, source })?;
-        sim.set_contact_anchors(&initial.anchors).map_err(|source| SolveError::ClosedLoop { what, source })?;
+        let mut sim = Simulator::from_plan(model, terrain, &plan, config).map_err(|source| SolveError::ClosedLoop { what, source })?;
         Ok(match sim.run(duration, controller, |_| {}) {
             Ok(run) => {
                 let mut trajectory = run.trajectory;
@@ -277,11 +285,10 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     // interval. At a finer physics step than the optimizer's, the stiff contact is a
     // different system at touch-down, for which the time-varying LQR gains are not made.
     let physics_dt = problem.dt / problem.substeps as f64;
-    let joint_limits = problem.joint_limits;
-    let policy_config = SimConfig { joint_limits, physics_dt, control_dt: problem.dt, record_dt: problem.dt, ..SimConfig::default() };
+    let policy_config = SimConfig { physics_dt, control_dt: problem.dt, record_dt: problem.dt, ..SimConfig::default() };
     let policy_rerun = rerun(&mut SlqPolicyController::new(&problem, &solution), "SLQ policy re-run", policy_config)?;
     // (b) The tracking controller at 1 kHz on the simulator's own 2 kHz physics.
-    let config = SimConfig { joint_limits, ..SimConfig::default() };
+    let config = SimConfig::default();
     let mut tracking = TrackingController::with_default_gains(model, &plan, config.control_dt)?;
     let tracking_rerun = rerun(&mut tracking, "tracking-controller re-run", config)?;
     let plan_metrics = MotionMetrics::of(model, &plan, model.contact.friction);

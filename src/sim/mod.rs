@@ -330,6 +330,23 @@ impl<'a> Simulator<'a> {
         Ok(())
     }
 
+    /// A simulator in the world a plan was made in, as its file records it: started at the
+    /// plan's first state with its contact anchors (`metadata.initial_anchors`, so the
+    /// tangential springs carry the plan's pre-load), and with the plan's joint stops
+    /// (`metadata.joint_stops`, replacing `config.joint_limits`). The terrain is the caller's:
+    /// build it from `plan.metadata.terrain` to replay on the plan's ground. `legwork solve`'s
+    /// re-runs and `legwork simulate --controller track` both start here, so they agree.
+    pub fn from_plan(model: &'a Model, terrain: &'a dyn Terrain, plan: &crate::io::Trajectory, config: SimConfig) -> Result<Self, SimError> {
+        let first = plan.knots.first().ok_or_else(|| SimError::InitialState("the plan has no knots".into()))?;
+        let config = SimConfig { joint_limits: plan.metadata.joint_stops, ..config };
+        let mut sim = Self::new(model, terrain, config, DVector::from_column_slice(&first.q), Some(DVector::from_column_slice(&first.v)))?;
+        if let Some(anchors) = &plan.metadata.initial_anchors {
+            let anchors: Vec<Option<Vector3<f64>>> = anchors.iter().map(|a| a.map(Vector3::from)).collect();
+            sim.set_contact_anchors(&anchors)?;
+        }
+        Ok(sim)
+    }
+
     /// Adds a push on the base.
     pub fn add_push(&mut self, push: Push) {
         self.pushes.push(push);
