@@ -162,7 +162,8 @@ impl FeasibilityConstraints {
 
     /// The residuals of knot `k`'s state, each with its multiplier and penalty, to `f(index,
     /// c, lambda, rho)` (constraint order of [`Self::multipliers`]).
-    fn for_each_residual(&self, k: usize, q: &DVector<f64>, v: &DVector<f64>, params: &ContactParams, feet: &[FootState], anchors: &[Option<Vector3<f64>>], mut f: impl FnMut(Residual, f64, f64, f64)) {
+    fn for_each_residual(&self, k: usize, at: KnotContacts<'_>, mut f: impl FnMut(Residual, f64, f64, f64)) {
+        let KnotContacts { q, v, anchors, params, feet } = at;
         let s = &self.settings;
         let base = k * self.per_knot();
         let lambda = |i: usize| self.multipliers.get(base + i).copied().unwrap_or(0.0);
@@ -186,10 +187,10 @@ impl FeasibilityConstraints {
         }
     }
 
-    /// `scale sum psi(c)` at a knot: `feet` the contacts at its state (`q`, `v`, `anchors`).
-    pub fn cost(&self, k: usize, scale: f64, q: &DVector<f64>, v: &DVector<f64>, params: &ContactParams, feet: &[FootState], anchors: &[Option<Vector3<f64>>]) -> f64 {
+    /// `scale sum psi(c)` at knot `k`.
+    pub fn cost(&self, k: usize, scale: f64, at: KnotContacts<'_>) -> f64 {
         let mut cost = 0.0;
-        self.for_each_residual(k, q, v, params, feet, anchors, |_, c, lambda, rho| cost += psi(c, lambda, rho).0);
+        self.for_each_residual(k, at, |_, c, lambda, rho| cost += psi(c, lambda, rho).0);
         scale * cost
     }
 
@@ -197,23 +198,21 @@ impl FeasibilityConstraints {
     /// foot Jacobians of the knot's first integration step (from its state), and
     /// `anchor_states` says whether the tangent has anchor coordinates (`2 nv + 3 f`).
     /// Returns `scale sum psi`.
-    #[allow(clippy::too_many_arguments)]
+    #[allow(clippy::too_many_arguments)] // a knot's inputs and outputs, as the solver's rollouts
     pub fn add_derivatives(
         &self,
         k: usize,
         scale: f64,
-        (q, v, anchors): (&DVector<f64>, &DVector<f64>, &[Option<Vector3<f64>>]),
-        params: &ContactParams,
-        feet: &[FootState],
+        at: KnotContacts<'_>,
         step: &StepDerivatives,
         anchor_states: bool,
         scratch: &mut DVector<f64>,
-        l_x: &mut DVector<f64>,
-        l_xx: &mut DMatrix<f64>,
+        (l_x, l_xx): (&mut DVector<f64>, &mut DMatrix<f64>),
     ) -> f64 {
+        let KnotContacts { v, anchors, params, feet, .. } = at;
         let nv = v.len();
         let mut cost = 0.0;
-        self.for_each_residual(k, q, v, params, feet, anchors, |which, c, lambda, rho| {
+        self.for_each_residual(k, at, |which, c, lambda, rho| {
             let (value, slope, curvature) = psi(c, lambda, rho);
             if slope == 0.0 && curvature == 0.0 {
                 return;
@@ -281,8 +280,9 @@ impl FeasibilityConstraints {
     }
 
     /// The outer update of the augmented Lagrangian, `lambda <- max(0, lambda + rho c)`, at
-    /// knot `k` (`feet` the contacts at its state).
-    pub fn update_multipliers(&mut self, k: usize, q: &DVector<f64>, v: &DVector<f64>, params: &ContactParams, feet: &[FootState], anchors: &[Option<Vector3<f64>>]) {
+    /// knot `k`.
+    pub fn update_multipliers(&mut self, k: usize, at: KnotContacts<'_>) {
+        let feet = at.feet;
         let base = k * self.per_knot();
         let mut updates = Vec::new();
         let index = |which: Residual, feet: usize, coordinates: usize| match which {
@@ -293,14 +293,14 @@ impl FeasibilityConstraints {
             Residual::Speed(j) => 2 * feet + 2 * coordinates + j,
         };
         let (nf, nc) = (self.feet, self.coordinates.len());
-        self.for_each_residual(k, q, v, params, feet, anchors, |which, c, lambda, rho| updates.push((index(which, nf, nc), (lambda + rho * c).max(0.0))));
+        self.for_each_residual(k, at, |which, c, lambda, rho| updates.push((index(which, nf, nc), (lambda + rho * c).max(0.0))));
         // A constraint not evaluated at this state (a foot off the ground) releases its
         // multiplier.
-        for i in 0..nf {
-            if feet[i].contact.normal_force <= 0.0 {
+        for (i, foot) in feet.iter().enumerate() {
+            if foot.contact.normal_force <= 0.0 {
                 self.multipliers[base + 2 * i] = 0.0;
             }
-            if feet[i].contact.penetration <= 0.0 {
+            if foot.contact.penetration <= 0.0 {
                 self.multipliers[base + 2 * i + 1] = 0.0;
             }
         }
@@ -310,8 +310,8 @@ impl FeasibilityConstraints {
     }
 
     /// Adds knot `k`'s largest violations to `worst`.
-    pub fn violation(&self, k: usize, q: &DVector<f64>, v: &DVector<f64>, params: &ContactParams, feet: &[FootState], anchors: &[Option<Vector3<f64>>], worst: &mut Violation) {
-        self.for_each_residual(k, q, v, params, feet, anchors, |which, c, _, _| {
+    pub fn violation(&self, k: usize, at: KnotContacts<'_>, worst: &mut Violation) {
+        self.for_each_residual(k, at, |which, c, _, _| {
             let slot = match which {
                 Residual::Friction(_) => &mut worst.friction,
                 Residual::Penetration(_) => &mut worst.penetration,
@@ -328,6 +328,17 @@ impl FeasibilityConstraints {
         let n = self.multipliers.len().min(other.multipliers.len());
         self.multipliers[..n].copy_from_slice(&other.multipliers[..n]);
     }
+}
+
+/// A knot's state with the contacts evaluated there: what the constraints are functions of.
+#[derive(Clone, Copy)]
+pub struct KnotContacts<'s> {
+    pub q: &'s DVector<f64>,
+    pub v: &'s DVector<f64>,
+    pub anchors: &'s [Option<Vector3<f64>>],
+    pub params: &'s ContactParams,
+    /// The feet's contacts at `(q, v, anchors)`.
+    pub feet: &'s [FootState],
 }
 
 /// Which constraint a residual is.

@@ -28,7 +28,7 @@ mod physical_gains;
 mod run;
 mod task;
 
-pub use constraints::{tangential_demand, FeasibilityConstraints, FeasibilitySettings, FeasibilitySettingsError, Violation};
+pub use constraints::{tangential_demand, FeasibilityConstraints, FeasibilitySettings, FeasibilitySettingsError, KnotContacts, Violation};
 pub use continuation::ContinuationSpec;
 pub use deviation::StateDeviation;
 pub use limit_cost::{JointLimitCost, JointLimitCostSpec};
@@ -307,7 +307,7 @@ impl WholeBodyProblem<'_> {
     pub fn constraint_violation(&self, states: &[RobotState]) -> Option<Violation> {
         let constraints = self.feasibility.as_ref()?;
         let mut worst = Violation::default();
-        self.for_each_knot_contact(states, |k, x, params, feet| constraints.violation(k, &x.q, &x.v, params, feet, &x.anchors, &mut worst));
+        self.for_each_knot_contact(states, |k, x, params, feet| constraints.violation(k, KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params, feet }, &mut worst));
         Some(worst)
     }
 
@@ -315,7 +315,7 @@ impl WholeBodyProblem<'_> {
     /// ([`FeasibilityConstraints::update_multipliers`]).
     pub fn update_multipliers(&mut self, states: &[RobotState]) {
         let Some(mut constraints) = self.feasibility.take() else { return };
-        self.for_each_knot_contact(states, |k, x, params, feet| constraints.update_multipliers(k, &x.q, &x.v, params, feet, &x.anchors));
+        self.for_each_knot_contact(states, |k, x, params, feet| constraints.update_multipliers(k, KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params, feet }));
         self.feasibility = Some(constraints);
     }
 }
@@ -386,7 +386,8 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             ws.dynamics.step(&mut next.q, &mut next.v, &mut next.anchors, &ws.tau, h);
             // The first substep evaluated the contacts at x: the constraints' forces.
             if let (0, Some(constraints)) = (substep, &self.feasibility) {
-                cost += constraints.cost(k, self.dt, &x.q, &x.v, ws.dynamics.params(), ws.dynamics.feet(), &x.anchors);
+                let at = KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params: ws.dynamics.params(), feet: ws.dynamics.feet() };
+                cost += constraints.cost(k, self.dt, at);
             }
         }
         cost
@@ -408,8 +409,8 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             ws.derivatives.step(&mut ws.dynamics, &mut next.q, &mut next.v, &mut next.anchors, &ws.tau, h);
             // The first substep evaluated the contacts and foot Jacobians at x.
             if let (0, Some(constraints)) = (substep, &self.feasibility) {
-                let state = (&x.q, &x.v, &x.anchors[..]);
-                cost += constraints.add_derivatives(k, self.dt, state, ws.dynamics.params(), ws.dynamics.feet(), &ws.derivatives, self.anchor_states, &mut ws.constraint_row, &mut d.l_x, &mut d.l_xx);
+                let at = KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params: ws.dynamics.params(), feet: ws.dynamics.feet() };
+                cost += constraints.add_derivatives(k, self.dt, at, &ws.derivatives, self.anchor_states, &mut ws.constraint_row, (&mut d.l_x, &mut d.l_xx));
             }
             let (a, b) = if substep == 0 { (&mut d.a, &mut d.b) } else { (&mut ws.step_a, &mut ws.step_b) };
             if self.anchor_states {
