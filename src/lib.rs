@@ -26,6 +26,7 @@ pub mod contact;
 pub mod control;
 pub mod dynamics;
 pub mod io;
+pub mod ipocp;
 pub mod model;
 pub mod ocp;
 pub mod plan;

@@ -1,0 +1,508 @@
+//! The KKT system of one interior-point step, solved stage by stage with a Riccati
+//! recursion that eliminates the stage-wise equality constraints (the structure FATROP
+//! exploits: Vanroye, Sathya, De Schutter, Decré 2023, "FATROP: A Fast Constrained Optimal
+//! Control Problem Solver for Robot Trajectory Optimization and Control", sec. III).
+//!
+//! The equality-constrained QP of a step is
+//!
+//! ```text
+//! min  sum_k 1/2 dz_k^T H_k dz_k + q_k^T dz_k            dz_k = [dx_k; du_k]
+//! s.t. dx_{k+1} = F_k dz_k + b_k                           (linearized dynamics, F = [A B])
+//!      G_k dz_k + g_k = 0                                  (linearized stage equalities)
+//! ```
+//!
+//! with multipliers `lambda_{k+1}` (dynamics) and `nu_k` (equalities); `dx_0` is free. The
+//! backward sweep keeps a cost-to-go `1/2 dx^T P dx + p^T dx` and a set of state rows
+//! `H dx + h = 0` that the stage before must satisfy. At stage `k`:
+//!
+//! 1. substitute the dynamics: `M = H_k + F^T P' F`, `m = q_k + F^T (P' b + p')`;
+//! 2. stack `[G_k; H' F] dz + [g_k; H' b + h'] = 0` and reduce it with complete pivoting
+//!    ([`RowReduction`]): rows the controls can satisfy fix `du` on an affine set
+//!    `du = K_c dx + k_c + Z w`, the others are state rows passed back;
+//! 3. minimize over `w` (the reduced Hessian `Z^T M_uu Z` must be positive definite: this
+//!    is the inertia test, a failure asks the caller for more regularization);
+//! 4. `du = K dx + k`, and `P = E^T M E`, `p = E^T (M e + m)` with `E = [I; K]`, `e = [0; k]`.
+//!
+//! Stage 0's state solves `min 1/2 dx^T P_0 dx + p_0^T dx s.t. H_0 dx + h_0 = 0` the same
+//! way; the forward sweep rolls out `dx`, `du` and recovers the multipliers from the
+//! stationarity of the controls (`U_11^T mu_1 = -(M dz + m)_u`, FATROP's eq. for the
+//! eliminated constraints) and `lambda' = P' dx' + p' + H'^T eta'`.
+
+use super::elimination::RowReduction;
+use super::stage::StageDims;
+use nalgebra::{DMatrix, DVector};
+
+/// The QP data of one stage (filled by the solver each iteration).
+#[derive(Clone, Debug)]
+pub struct StageQp {
+    /// `H_k` (`nz x nz`): Lagrangian Hessian plus barrier terms plus regularization.
+    pub hessian: DMatrix<f64>,
+    /// `q_k` (`nz`).
+    pub gradient: DVector<f64>,
+    /// `F_k = [A B]` (`nx_next x nz`).
+    pub dynamics: DMatrix<f64>,
+    /// `b_k = f_k(z_k) - x_{k+1}` (`nx_next`).
+    pub defect: DVector<f64>,
+    /// `G_k` (`ng x nz`).
+    pub equality_jacobian: DMatrix<f64>,
+    /// `g_k` (`ng`).
+    pub equality_residual: DVector<f64>,
+}
+
+impl StageQp {
+    pub fn zeros(dims: StageDims) -> Self {
+        let nz = dims.nz();
+        Self {
+            hessian: DMatrix::zeros(nz, nz),
+            gradient: DVector::zeros(nz),
+            dynamics: DMatrix::zeros(dims.nx_next, nz),
+            defect: DVector::zeros(dims.nx_next),
+            equality_jacobian: DMatrix::zeros(dims.ng, nz),
+            equality_residual: DVector::zeros(dims.ng),
+        }
+    }
+}
+
+/// The solution of one stage: the step and the new multipliers.
+#[derive(Clone, Debug)]
+pub struct StageStep {
+    /// `dz_k` (`nz`).
+    pub dz: DVector<f64>,
+    /// Multipliers of the dynamics `x_{k+1} = f_k` (`nx_next`).
+    pub dynamics_multiplier: DVector<f64>,
+    /// Multipliers of `g_k = 0` (`ng`).
+    pub equality_multiplier: DVector<f64>,
+}
+
+impl StageStep {
+    pub fn zeros(dims: StageDims) -> Self {
+        Self {
+            dz: DVector::zeros(dims.nz()),
+            dynamics_multiplier: DVector::zeros(dims.nx_next),
+            equality_multiplier: DVector::zeros(dims.ng),
+        }
+    }
+}
+
+/// Why a Riccati solve stopped.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RiccatiFailure {
+    /// The reduced Hessian of this stage is not positive definite (`None`: that of the
+    /// initial state): the KKT matrix has the wrong inertia.
+    WrongInertia { stage: Option<usize> },
+}
+
+/// `du = K_c dx + k_c + Z w` from a reduction, then the `w` that minimizes the model.
+#[derive(Clone, Debug)]
+struct ConstrainedPolicy {
+    /// `U_11^{-1} [C_x1 | c_1 | U_12]` (`nu x (nx + 1 + nu)`).
+    y: DMatrix<f64>,
+    /// Null-space basis `Z` in the original control order (`nu x nu`, `nu - rank` columns used).
+    null_basis: DMatrix<f64>,
+    /// `K` (`nu x nx`) and `k` (`nu`) of `du = K dx + k`.
+    gain: DMatrix<f64>,
+    feedforward: DVector<f64>,
+    /// Reduced Hessian and its Cholesky factor (`nu x nu`, leading block used).
+    reduced: DMatrix<f64>,
+    /// `Z^T (S + R K_c)` and `Z^T (r + R k_c)`.
+    reduced_cross: DMatrix<f64>,
+    reduced_linear: DVector<f64>,
+}
+
+impl ConstrainedPolicy {
+    fn new(nu: usize, nx: usize) -> Self {
+        Self {
+            y: DMatrix::zeros(nu, nx + 1 + nu),
+            null_basis: DMatrix::zeros(nu, nu),
+            gain: DMatrix::zeros(nu, nx),
+            feedforward: DVector::zeros(nu),
+            reduced: DMatrix::zeros(nu, nu),
+            reduced_cross: DMatrix::zeros(nu, nx),
+            reduced_linear: DVector::zeros(nu),
+        }
+    }
+
+    /// Policy minimizing `1/2 [dx;du]^T M [dx;du] + m^T [dx;du]` over `du` on the rows of
+    /// `red` (which must be reduced); `m_uu`, `m_ux`, `m_u` read from `M`, `m` at offset `nx`.
+    /// Returns false if the reduced Hessian is not positive definite.
+    fn compute(&mut self, red: &RowReduction, m: &DMatrix<f64>, mv: &DVector<f64>) -> bool {
+        let (nu, nx, r) = (red.nu, red.nx, red.rank_u);
+        let nf = nu - r;
+        let rhs = red.rhs_col();
+        // Y = U_11^{-1} [C_x1 | c_1 | U_12] by back substitution (U_11 upper triangular).
+        let ycols = nx + 1 + nf;
+        for col in 0..ycols {
+            let src = if col < nx { nu + col } else if col == nx { rhs } else { r + (col - nx - 1) };
+            for i in (0..r).rev() {
+                let mut s = red.w[(i, src)];
+                for j in i + 1..r {
+                    s -= red.w[(i, j)] * self.y[(j, col)];
+                }
+                self.y[(i, col)] = s / red.w[(i, i)];
+            }
+        }
+        // K_c, k_c, Z in the original control order (permuted row i is control perm_u[i]).
+        self.gain.fill(0.0);
+        self.feedforward.fill(0.0);
+        self.null_basis.fill(0.0);
+        for i in 0..nu {
+            let orig = red.perm_u[i];
+            if i < r {
+                for j in 0..nx {
+                    self.gain[(orig, j)] = -self.y[(i, j)];
+                }
+                self.feedforward[orig] = -self.y[(i, nx)];
+                for f in 0..nf {
+                    self.null_basis[(orig, f)] = -self.y[(i, nx + 1 + f)];
+                }
+            } else {
+                self.null_basis[(orig, i - r)] = 1.0;
+            }
+        }
+        if nf > 0 {
+            let z = self.null_basis.columns(0, nf);
+            let m_uu = m.view((nx, nx), (nu, nu));
+            let m_ux = m.view((nx, 0), (nu, nx));
+            let rz = m_uu * z; // nu x nf
+            let mut red_h = self.reduced.view_mut((0, 0), (nf, nf));
+            red_h.gemm_tr(1.0, &z, &rz, 0.0);
+            // Z^T (S + R K_c) = Z^T S + (R Z)^T K_c, symmetric R.
+            let mut cross = self.reduced_cross.rows_mut(0, nf);
+            cross.gemm_tr(1.0, &z, &m_ux, 0.0);
+            cross.gemm_tr(1.0, &rz, &self.gain, 1.0);
+            let mut lin = self.reduced_linear.rows_mut(0, nf);
+            lin.gemv_tr(1.0, &z, &mv.rows(nx, nu), 0.0);
+            lin.gemv_tr(1.0, &rz, &self.feedforward, 1.0);
+            if !cholesky_in_place(&mut self.reduced, nf) {
+                return false;
+            }
+            // w = -(Z^T R Z)^{-1} [cross | lin]; K -= Z (.), k -= Z (.)
+            for j in 0..nx {
+                let mut col: Vec<f64> = (0..nf).map(|i| self.reduced_cross[(i, j)]).collect();
+                cholesky_solve(&self.reduced, nf, &mut col);
+                for i in 0..nf {
+                    self.reduced_cross[(i, j)] = col[i];
+                }
+            }
+            let mut lin: Vec<f64> = (0..nf).map(|i| self.reduced_linear[i]).collect();
+            cholesky_solve(&self.reduced, nf, &mut lin);
+            for i in 0..nf {
+                self.reduced_linear[i] = lin[i];
+            }
+            let z = self.null_basis.columns(0, nf);
+            self.gain.gemm(-1.0, &z, &self.reduced_cross.rows(0, nf), 1.0);
+            self.feedforward.gemv(-1.0, &z, &self.reduced_linear.rows(0, nf), 1.0);
+        }
+        true
+    }
+}
+
+/// In-place Cholesky of the leading `n x n` block (lower triangle); false if not positive definite.
+fn cholesky_in_place(a: &mut DMatrix<f64>, n: usize) -> bool {
+    for j in 0..n {
+        let mut d = a[(j, j)];
+        for k in 0..j {
+            d -= a[(j, k)] * a[(j, k)];
+        }
+        if !(d > 0.0) || !d.is_finite() {
+            return false;
+        }
+        let d = d.sqrt();
+        a[(j, j)] = d;
+        for i in j + 1..n {
+            let mut s = a[(i, j)];
+            for k in 0..j {
+                s -= a[(i, k)] * a[(j, k)];
+            }
+            a[(i, j)] = s / d;
+        }
+    }
+    true
+}
+
+/// `x <- (L L^T)^{-1} x` with `L` the leading `n x n` lower triangle of `l`.
+fn cholesky_solve(l: &DMatrix<f64>, n: usize, x: &mut [f64]) {
+    for i in 0..n {
+        let mut s = x[i];
+        for k in 0..i {
+            s -= l[(i, k)] * x[k];
+        }
+        x[i] = s / l[(i, i)];
+    }
+    for i in (0..n).rev() {
+        let mut s = x[i];
+        for k in i + 1..n {
+            s -= l[(k, i)] * x[k];
+        }
+        x[i] = s / l[(i, i)];
+    }
+}
+
+/// Multipliers of the rows of `red` from the control gradient `g_u = (M dz + m)_u`
+/// (original order) and the multipliers `eta` of its state rows: `U_11^T mu_1 = -(g_u)_perm`,
+/// then `mu = T^T [mu_1; eta; 0]`.
+fn row_multipliers(red: &RowReduction, g_u: &[f64], eta: &[f64], reduced: &mut [f64], out: &mut [f64]) {
+    let r = red.rank_u;
+    for i in 0..r {
+        let mut s = -g_u[red.perm_u[i]];
+        for j in 0..i {
+            s -= red.w[(j, i)] * reduced[j];
+        }
+        reduced[i] = s / red.w[(i, i)];
+    }
+    for (i, e) in eta.iter().enumerate() {
+        reduced[r + i] = *e;
+    }
+    for v in reduced.iter_mut().take(red.rows).skip(r + eta.len()) {
+        *v = 0.0;
+    }
+    red.original_multipliers(&reduced[..red.rows], &mut out[..red.rows]);
+}
+
+/// Workspace of one stage of the recursion.
+#[derive(Clone, Debug)]
+struct StageWork {
+    dims: StageDims,
+    m: DMatrix<f64>,
+    mv: DVector<f64>,
+    /// `P' F` (`nx_next x nz`) and `P' b + p'`.
+    pf: DMatrix<f64>,
+    pb: DVector<f64>,
+    /// The stacked constraint rows of this stage.
+    red: RowReduction,
+    policy: ConstrainedPolicy,
+    /// Cost-to-go `P` (`nx x nx`), `p`.
+    p: DMatrix<f64>,
+    pv: DVector<f64>,
+    /// `M E` (`nz x nx`).
+    me: DMatrix<f64>,
+    /// Multipliers of this stage's state rows (those passed back), and scratch.
+    eta: Vec<f64>,
+    reduced_mult: Vec<f64>,
+    row_mult: Vec<f64>,
+    grad: DVector<f64>,
+}
+
+/// The Riccati solver of a problem's KKT systems, allocated once for its stage sizes.
+#[derive(Clone, Debug)]
+pub struct RiccatiSolver {
+    stages: Vec<StageWork>,
+    initial: RowReduction,
+    initial_policy: ConstrainedPolicy,
+    initial_grad: DVector<f64>,
+    initial_reduced: Vec<f64>,
+    pivot_tolerance: f64,
+    /// Largest inconsistency of dependent linearized equality rows in the last solve.
+    pub inconsistency: f64,
+}
+
+impl RiccatiSolver {
+    /// Workspace for stages of the given sizes (`dims[k].nx_next == dims[k+1].nx`, checked
+    /// by the problem).
+    pub fn new(dims: &[StageDims], pivot_tolerance: f64) -> Self {
+        let stages = dims
+            .iter()
+            .map(|&d| {
+                let rows = d.ng + d.nx_next;
+                StageWork {
+                    dims: d,
+                    m: DMatrix::zeros(d.nz(), d.nz()),
+                    mv: DVector::zeros(d.nz()),
+                    pf: DMatrix::zeros(d.nx_next, d.nz()),
+                    pb: DVector::zeros(d.nx_next),
+                    red: RowReduction::new(d.nu, d.nx, rows),
+                    policy: ConstrainedPolicy::new(d.nu, d.nx),
+                    p: DMatrix::zeros(d.nx, d.nx),
+                    pv: DVector::zeros(d.nx),
+                    me: DMatrix::zeros(d.nz(), d.nx),
+                    eta: vec![0.0; d.nx],
+                    reduced_mult: vec![0.0; rows],
+                    row_mult: vec![0.0; rows],
+                    grad: DVector::zeros(d.nz()),
+                }
+            })
+            .collect();
+        let nx0 = dims.first().map_or(0, |d| d.nx);
+        Self {
+            stages,
+            initial: RowReduction::new(nx0, 0, nx0),
+            initial_policy: ConstrainedPolicy::new(nx0, 0),
+            initial_grad: DVector::zeros(nx0),
+            initial_reduced: vec![0.0; nx0],
+            pivot_tolerance,
+            inconsistency: 0.0,
+        }
+    }
+
+    /// Solves the QP of `qp` into `steps`. `Err` if the inertia is wrong (increase the
+    /// regularization and call again).
+    pub fn solve(&mut self, qp: &[StageQp], steps: &mut [StageStep]) -> Result<(), RiccatiFailure> {
+        let n = self.stages.len();
+        self.inconsistency = 0.0;
+        // Backward sweep.
+        for k in (0..n).rev() {
+            let (head, tail) = self.stages.split_at_mut(k + 1);
+            let st = &mut head[k];
+            let next = tail.first();
+            if !backward_stage(st, &qp[k], next, self.pivot_tolerance) {
+                return Err(RiccatiFailure::WrongInertia { stage: Some(k) });
+            }
+            self.inconsistency = self.inconsistency.max(st.red.inconsistency());
+        }
+        // Initial state: min 1/2 dx^T P0 dx + p0^T dx  s.t. H0 dx + h0 = 0.
+        let s0 = &self.stages[0];
+        let nx0 = s0.dims.nx;
+        let (ru, rx) = (s0.red.rank_u, s0.red.rank_x);
+        self.initial.begin(rx);
+        for i in 0..rx {
+            for j in 0..nx0 {
+                self.initial.w[(i, j)] = s0.red.w[(ru + i, s0.dims.nu + j)];
+            }
+            let c = self.initial.rhs_col();
+            self.initial.w[(i, c)] = s0.red.w[(ru + i, s0.red.rhs_col())];
+        }
+        self.initial.reduce(self.pivot_tolerance);
+        self.inconsistency = self.inconsistency.max(self.initial.inconsistency());
+        if !self.initial_policy.compute(&self.initial, &s0.p, &s0.pv) {
+            return Err(RiccatiFailure::WrongInertia { stage: None });
+        }
+        let dx0 = self.initial_policy.feedforward.clone_owned();
+        // Multipliers of stage 0's state rows: stationarity P0 dx + p0 + H0^T eta = 0.
+        self.initial_grad.copy_from(&s0.pv);
+        self.initial_grad.gemv(1.0, &s0.p, &dx0, 1.0);
+        let mut eta0 = vec![0.0; rx];
+        row_multipliers(&self.initial, self.initial_grad.as_slice(), &[], &mut self.initial_reduced, &mut eta0);
+        self.stages[0].eta[..rx].copy_from_slice(&eta0);
+        // Forward sweep.
+        let mut dx = dx0;
+        for k in 0..n {
+            let (head, tail) = self.stages.split_at_mut(k + 1);
+            let st = &mut head[k];
+            let next = tail.first_mut();
+            forward_stage(st, &qp[k], next, &dx, &mut steps[k]);
+            if k + 1 < n {
+                dx = &qp[k].dynamics * &steps[k].dz + &qp[k].defect;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Backward step of one stage (steps 1-4 of the module doc); false on wrong inertia.
+fn backward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&StageWork>, pivot_tolerance: f64) -> bool {
+    let d = st.dims;
+    let (nx, nu) = (d.nx, d.nu);
+    // 1. M = H + F^T P' F, m = q + F^T (P' b + p').
+    st.m.copy_from(&qp.hessian);
+    st.mv.copy_from(&qp.gradient);
+    let next_rows = match next {
+        Some(nw) => {
+            st.pf.gemm(1.0, &nw.p, &qp.dynamics, 0.0);
+            st.pb.copy_from(&nw.pv);
+            st.pb.gemv(1.0, &nw.p, &qp.defect, 1.0);
+            st.m.gemm_tr(1.0, &qp.dynamics, &st.pf, 1.0);
+            st.mv.gemv_tr(1.0, &qp.dynamics, &st.pb, 1.0);
+            nw.red.rank_x
+        }
+        None => 0,
+    };
+    // 2. Rows [G; H' F] dz + [g; H' b + h'] = 0, reduced.
+    let rows = d.ng + next_rows;
+    st.red.begin(rows);
+    let rhs = st.red.rhs_col();
+    for i in 0..d.ng {
+        for j in 0..nx {
+            st.red.w[(i, nu + j)] = qp.equality_jacobian[(i, j)];
+        }
+        for j in 0..nu {
+            st.red.w[(i, j)] = qp.equality_jacobian[(i, nx + j)];
+        }
+        st.red.w[(i, rhs)] = qp.equality_residual[i];
+    }
+    if let Some(nw) = next {
+        let (ru, nun) = (nw.red.rank_u, nw.dims.nu);
+        let nrhs = nw.red.rhs_col();
+        for i in 0..next_rows {
+            let row = ru + i;
+            for j in 0..d.nz() {
+                let mut s = 0.0;
+                for l in 0..d.nx_next {
+                    s += nw.red.w[(row, nun + l)] * qp.dynamics[(l, j)];
+                }
+                if j < nx {
+                    st.red.w[(d.ng + i, nu + j)] = s;
+                } else {
+                    st.red.w[(d.ng + i, j - nx)] = s;
+                }
+            }
+            let mut s = nw.red.w[(row, nrhs)];
+            for l in 0..d.nx_next {
+                s += nw.red.w[(row, nun + l)] * qp.defect[l];
+            }
+            st.red.w[(d.ng + i, rhs)] = s;
+        }
+    }
+    st.red.reduce(pivot_tolerance);
+    // 3. Policy du = K dx + k on the constraint set.
+    if !st.policy.compute(&st.red, &st.m, &st.mv) {
+        return false;
+    }
+    // 4. P = E^T M E, p = E^T (M e + m), E = [I; K], e = [0; k].
+    let k_gain = &st.policy.gain;
+    let k_ff = &st.policy.feedforward;
+    // ME = M[:, x] + M[:, u] K
+    st.me.copy_from(&st.m.columns(0, nx));
+    st.me.gemm(1.0, &st.m.columns(nx, nu), k_gain, 1.0);
+    st.p.copy_from(&st.me.rows(0, nx));
+    st.p.gemm_tr(1.0, k_gain, &st.me.rows(nx, nu), 1.0);
+    // Me + m = M[:, u] k + m
+    st.grad.copy_from(&st.mv);
+    st.grad.gemv(1.0, &st.m.columns(nx, nu), k_ff, 1.0);
+    st.pv.copy_from(&st.grad.rows(0, nx));
+    st.pv.gemv_tr(1.0, k_gain, &st.grad.rows(nx, nu), 1.0);
+    for i in 0..nx {
+        for j in 0..i {
+            let a = 0.5 * (st.p[(i, j)] + st.p[(j, i)]);
+            st.p[(i, j)] = a;
+            st.p[(j, i)] = a;
+        }
+    }
+    true
+}
+
+/// Forward step of one stage: `du`, the multipliers of its rows, `lambda_{k+1}`; passes the
+/// multipliers of the next stage's state rows on to it.
+fn forward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&mut StageWork>, dx: &DVector<f64>, step: &mut StageStep) {
+    let d = st.dims;
+    let (nx, nu) = (d.nx, d.nu);
+    step.dz.rows_mut(0, nx).copy_from(dx);
+    let mut du = step.dz.rows_mut(nx, nu);
+    du.copy_from(&st.policy.feedforward);
+    du.gemv(1.0, &st.policy.gain, dx, 1.0);
+    // Control gradient of the model at dz.
+    st.grad.copy_from(&st.mv);
+    st.grad.gemv(1.0, &st.m, &step.dz, 1.0);
+    let rx = st.red.rank_x;
+    row_multipliers(&st.red, &st.grad.as_slice()[nx..], &st.eta[..rx], &mut st.reduced_mult, &mut st.row_mult);
+    for i in 0..d.ng {
+        step.equality_multiplier[i] = st.row_mult[i];
+    }
+    if let Some(nw) = next {
+        let nrx = nw.red.rank_x;
+        for i in 0..nrx {
+            nw.eta[i] = st.row_mult[d.ng + i];
+        }
+        // lambda' = P' dx' + p' + H'^T eta'
+        let dxn = &qp.dynamics * &step.dz + &qp.defect;
+        let lam = &mut step.dynamics_multiplier;
+        lam.copy_from(&nw.pv);
+        lam.gemv(1.0, &nw.p, &dxn, 1.0);
+        let (ru, nun) = (nw.red.rank_u, nw.dims.nu);
+        for i in 0..nrx {
+            let e = nw.eta[i];
+            for l in 0..d.nx_next {
+                lam[l] += nw.red.w[(ru + i, nun + l)] * e;
+            }
+        }
+    }
+}
