@@ -34,6 +34,7 @@ pub mod report;
 pub mod sim;
 pub mod slq;
 pub mod spatial;
+pub mod srb;
 pub mod terrain;
 pub mod viz;
 pub mod walk;
