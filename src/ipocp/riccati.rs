@@ -107,6 +107,10 @@ struct ConstrainedPolicy {
     /// `Z^T (S + R K_c)` and `Z^T (r + R k_c)`.
     reduced_cross: DMatrix<f64>,
     reduced_linear: DVector<f64>,
+    /// `Z^T` and `M_uu Z` (`nu x nu`, leading blocks used).
+    null_basis_t: DMatrix<f64>,
+    rz: DMatrix<f64>,
+    rz_t: DMatrix<f64>,
 }
 
 impl ConstrainedPolicy {
@@ -119,6 +123,9 @@ impl ConstrainedPolicy {
             reduced: DMatrix::zeros(nu, nu),
             reduced_cross: DMatrix::zeros(nu, nx),
             reduced_linear: DVector::zeros(nu),
+            null_basis_t: DMatrix::zeros(nu, nu),
+            rz: DMatrix::zeros(nu, nu),
+            rz_t: DMatrix::zeros(nu, nu),
         }
     }
 
@@ -163,32 +170,31 @@ impl ConstrainedPolicy {
             let z = self.null_basis.columns(0, nf);
             let m_uu = m.view((nx, nx), (nu, nu));
             let m_ux = m.view((nx, 0), (nu, nx));
-            let rz = m_uu * z; // nu x nf
+            let mut zt = self.null_basis_t.view_mut((0, 0), (nf, nu));
+            z.transpose_to(&mut zt);
+            let mut rz = self.rz.view_mut((0, 0), (nu, nf));
+            rz.gemm(1.0, &m_uu, &z, 0.0);
+            let mut rzt = self.rz_t.view_mut((0, 0), (nf, nu));
+            rz.transpose_to(&mut rzt);
+            let zt = self.null_basis_t.view((0, 0), (nf, nu));
+            let rzt = self.rz_t.view((0, 0), (nf, nu));
             let mut red_h = self.reduced.view_mut((0, 0), (nf, nf));
-            red_h.gemm_tr(1.0, &z, &rz, 0.0);
+            red_h.gemm(1.0, &zt, &rz, 0.0);
             // Z^T (S + R K_c) = Z^T S + (R Z)^T K_c, symmetric R.
             let mut cross = self.reduced_cross.rows_mut(0, nf);
-            cross.gemm_tr(1.0, &z, &m_ux, 0.0);
-            cross.gemm_tr(1.0, &rz, &self.gain, 1.0);
+            cross.gemm(1.0, &zt, &m_ux, 0.0);
+            cross.gemm(1.0, &rzt, &self.gain, 1.0);
             let mut lin = self.reduced_linear.rows_mut(0, nf);
-            lin.gemv_tr(1.0, &z, &mv.rows(nx, nu), 0.0);
-            lin.gemv_tr(1.0, &rz, &self.feedforward, 1.0);
+            lin.gemv(1.0, &zt, &mv.rows(nx, nu), 0.0);
+            lin.gemv(1.0, &rzt, &self.feedforward, 1.0);
             if !cholesky_in_place(&mut self.reduced, nf) {
                 return false;
             }
             // w = -(Z^T R Z)^{-1} [cross | lin]; K -= Z (.), k -= Z (.)
             for j in 0..nx {
-                let mut col: Vec<f64> = (0..nf).map(|i| self.reduced_cross[(i, j)]).collect();
-                cholesky_solve(&self.reduced, nf, &mut col);
-                for i in 0..nf {
-                    self.reduced_cross[(i, j)] = col[i];
-                }
+                cholesky_solve(&self.reduced, nf, self.reduced_cross.column_mut(j).as_mut_slice());
             }
-            let mut lin: Vec<f64> = (0..nf).map(|i| self.reduced_linear[i]).collect();
-            cholesky_solve(&self.reduced, nf, &mut lin);
-            for i in 0..nf {
-                self.reduced_linear[i] = lin[i];
-            }
+            cholesky_solve(&self.reduced, nf, self.reduced_linear.as_mut_slice());
             let z = self.null_basis.columns(0, nf);
             self.gain.gemm(-1.0, &z, &self.reduced_cross.rows(0, nf), 1.0);
             self.feedforward.gemv(-1.0, &z, &self.reduced_linear.rows(0, nf), 1.0);
@@ -281,6 +287,11 @@ struct StageWork {
     reduced_mult: Vec<f64>,
     row_mult: Vec<f64>,
     grad: DVector<f64>,
+    /// `F^T` (`nz x nx_next`) and `K^T` (`nx x nu`).
+    dynamics_t: DMatrix<f64>,
+    gain_t: DMatrix<f64>,
+    /// This stage's `dx` in the forward sweep.
+    dx: DVector<f64>,
 }
 
 /// The Riccati solver of a problem's KKT systems, allocated once for its stage sizes.
@@ -319,6 +330,9 @@ impl RiccatiSolver {
                     reduced_mult: vec![0.0; rows],
                     row_mult: vec![0.0; rows],
                     grad: DVector::zeros(d.nz()),
+                    dynamics_t: DMatrix::zeros(d.nz(), d.nx_next),
+                    gain_t: DMatrix::zeros(d.nx, d.nu),
+                    dx: DVector::zeros(d.nx),
                 }
             })
             .collect();
@@ -366,23 +380,16 @@ impl RiccatiSolver {
         if !self.initial_policy.compute(&self.initial, &s0.p, &s0.pv) {
             return Err(RiccatiFailure::WrongInertia { stage: None });
         }
-        let dx0 = self.initial_policy.feedforward.clone_owned();
         // Multipliers of stage 0's state rows: stationarity P0 dx + p0 + H0^T eta = 0.
         self.initial_grad.copy_from(&s0.pv);
-        self.initial_grad.gemv(1.0, &s0.p, &dx0, 1.0);
-        let mut eta0 = vec![0.0; rx];
-        row_multipliers(&self.initial, self.initial_grad.as_slice(), &[], &mut self.initial_reduced, &mut eta0);
-        self.stages[0].eta[..rx].copy_from_slice(&eta0);
+        self.initial_grad.gemv(1.0, &s0.p, &self.initial_policy.feedforward, 1.0);
+        let s0 = &mut self.stages[0];
+        row_multipliers(&self.initial, self.initial_grad.as_slice(), &[], &mut self.initial_reduced, &mut s0.eta[..rx]);
+        s0.dx.copy_from(&self.initial_policy.feedforward);
         // Forward sweep.
-        let mut dx = dx0;
         for k in 0..n {
             let (head, tail) = self.stages.split_at_mut(k + 1);
-            let st = &mut head[k];
-            let next = tail.first_mut();
-            forward_stage(st, &qp[k], next, &dx, &mut steps[k]);
-            if k + 1 < n {
-                dx = &qp[k].dynamics * &steps[k].dz + &qp[k].defect;
-            }
+            forward_stage(&mut head[k], &qp[k], tail.first_mut(), &mut steps[k]);
         }
         Ok(())
     }
@@ -400,8 +407,9 @@ fn backward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&StageWork>, pi
             st.pf.gemm(1.0, &nw.p, &qp.dynamics, 0.0);
             st.pb.copy_from(&nw.pv);
             st.pb.gemv(1.0, &nw.p, &qp.defect, 1.0);
-            st.m.gemm_tr(1.0, &qp.dynamics, &st.pf, 1.0);
-            st.mv.gemv_tr(1.0, &qp.dynamics, &st.pb, 1.0);
+            qp.dynamics.transpose_to(&mut st.dynamics_t);
+            st.m.gemm(1.0, &st.dynamics_t, &st.pf, 1.0);
+            st.mv.gemv(1.0, &st.dynamics_t, &st.pb, 1.0);
             nw.red.rank_x
         }
         None => 0,
@@ -454,12 +462,13 @@ fn backward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&StageWork>, pi
     st.me.copy_from(&st.m.columns(0, nx));
     st.me.gemm(1.0, &st.m.columns(nx, nu), k_gain, 1.0);
     st.p.copy_from(&st.me.rows(0, nx));
-    st.p.gemm_tr(1.0, k_gain, &st.me.rows(nx, nu), 1.0);
+    k_gain.transpose_to(&mut st.gain_t);
+    st.p.gemm(1.0, &st.gain_t, &st.me.rows(nx, nu), 1.0);
     // Me + m = M[:, u] k + m
     st.grad.copy_from(&st.mv);
     st.grad.gemv(1.0, &st.m.columns(nx, nu), k_ff, 1.0);
     st.pv.copy_from(&st.grad.rows(0, nx));
-    st.pv.gemv_tr(1.0, k_gain, &st.grad.rows(nx, nu), 1.0);
+    st.pv.gemv(1.0, &st.gain_t, &st.grad.rows(nx, nu), 1.0);
     for i in 0..nx {
         for j in 0..i {
             let a = 0.5 * (st.p[(i, j)] + st.p[(j, i)]);
@@ -472,13 +481,13 @@ fn backward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&StageWork>, pi
 
 /// Forward step of one stage: `du`, the multipliers of its rows, `lambda_{k+1}`; passes the
 /// multipliers of the next stage's state rows on to it.
-fn forward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&mut StageWork>, dx: &DVector<f64>, step: &mut StageStep) {
+fn forward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&mut StageWork>, step: &mut StageStep) {
     let d = st.dims;
     let (nx, nu) = (d.nx, d.nu);
-    step.dz.rows_mut(0, nx).copy_from(dx);
+    step.dz.rows_mut(0, nx).copy_from(&st.dx);
     let mut du = step.dz.rows_mut(nx, nu);
     du.copy_from(&st.policy.feedforward);
-    du.gemv(1.0, &st.policy.gain, dx, 1.0);
+    du.gemv(1.0, &st.policy.gain, &st.dx, 1.0);
     // Control gradient of the model at dz.
     st.grad.copy_from(&st.mv);
     st.grad.gemv(1.0, &st.m, &step.dz, 1.0);
@@ -493,10 +502,11 @@ fn forward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&mut StageWork>,
             nw.eta[i] = st.row_mult[d.ng + i];
         }
         // lambda' = P' dx' + p' + H'^T eta'
-        let dxn = &qp.dynamics * &step.dz + &qp.defect;
+        nw.dx.copy_from(&qp.defect);
+        nw.dx.gemv(1.0, &qp.dynamics, &step.dz, 1.0);
         let lam = &mut step.dynamics_multiplier;
         lam.copy_from(&nw.pv);
-        lam.gemv(1.0, &nw.p, &dxn, 1.0);
+        lam.gemv(1.0, &nw.p, &nw.dx, 1.0);
         let (ru, nun) = (nw.red.rank_u, nw.dims.nu);
         for i in 0..nrx {
             let e = nw.eta[i];

@@ -39,6 +39,9 @@ struct StageBuffers {
     ineq_residual: DVector<f64>,
     trial_primal: DVector<f64>,
     trial_slack: DVector<f64>,
+    /// Scratch: the condensed linear term per inequality row, a row's nonzero columns.
+    lin: DVector<f64>,
+    nonzeros: Vec<usize>,
 }
 
 /// A solver for the problems of one stage layout; allocates its workspace once.
@@ -93,6 +96,8 @@ impl Solver {
                 ineq_residual: DVector::zeros(d.nh),
                 trial_primal: DVector::zeros(d.nz()),
                 trial_slack: DVector::zeros(d.nh),
+                lin: DVector::zeros(d.nh),
+                nonzeros: Vec::with_capacity(d.nz()),
             })
             .collect();
         Ok(Self {
@@ -532,7 +537,6 @@ impl Solver {
                 }
             }
             self.qps[k].gradient.copy_from(&b.jac.cost_gradient);
-            let mut lin = DVector::zeros(d.nh);
             for i in 0..d.nh {
                 let s = it.slack[k][i];
                 let mut sigma = 0.0;
@@ -546,15 +550,26 @@ impl Solver {
                     c += mu / (up[i] - s);
                 }
                 b.sigma[i] = sigma;
-                lin[i] = sigma * b.ineq_residual[i] + c;
+                b.lin[i] = sigma * b.ineq_residual[i] + c;
             }
+            // J_h^T Sigma J_h and J_h^T lin row by row over each row's nonzeros (most rows
+            // are simple bounds with one).
             let jh = &b.jac.inequalities;
-            let mut sj = jh.clone();
+            let qp = &mut self.qps[k];
             for i in 0..d.nh {
-                sj.row_mut(i).scale_mut(b.sigma[i]);
+                b.nonzeros.clear();
+                b.nonzeros.extend((0..d.nz()).filter(|&j| jh[(i, j)] != 0.0));
+                let (sigma, lin) = (b.sigma[i], b.lin[i]);
+                for &a in &b.nonzeros {
+                    let ja = jh[(i, a)];
+                    qp.gradient[a] += ja * lin;
+                    if sigma != 0.0 {
+                        for &c in &b.nonzeros {
+                            qp.hessian[(c, a)] += sigma * ja * jh[(i, c)];
+                        }
+                    }
+                }
             }
-            self.qps[k].hessian.gemm_tr(1.0, jh, &sj, 1.0);
-            self.qps[k].gradient.gemv_tr(1.0, jh, &lin, 1.0);
             self.qps[k].dynamics.copy_from(&b.jac.dynamics);
             self.qps[k].equality_jacobian.copy_from(&b.jac.equalities);
         }

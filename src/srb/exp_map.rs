@@ -107,7 +107,7 @@ mod tests {
     #[test]
     fn exact_map_is_rodrigues_and_orthonormal() {
         let w = Vector3::new(0.3, -1.1, 2.0);
-        let t = w.norm();
+        let t: f64 = w.norm();
         let k = hat(&(w / t));
         let rodrigues = Matrix3::identity() + k * t.sin() + k * k * (1.0 - t.cos());
         let e = exp(ExpMap::Exact, &w);
@@ -117,7 +117,7 @@ mod tests {
 
     #[test]
     fn taylor4_is_the_polynomial() {
-        let w = Vector3::new(0.2, 0.1, -0.3);
+        let w: Vector3<f64> = Vector3::new(0.2, 0.1, -0.3);
         let a = hat(&w);
         let p = Matrix3::identity() + a + a * a / 2.0 + a * a * a / 6.0 + a * a * a * a / 24.0;
         assert!((exp(ExpMap::Taylor4, &w) - p).amax() < 1e-15);
@@ -126,7 +126,7 @@ mod tests {
     #[test]
     fn derivatives_match_finite_differences() {
         for map in [ExpMap::Exact, ExpMap::Taylor4] {
-            for w in [Vector3::new(0.4, -0.7, 0.25), Vector3::new(1e-9, 0.0, 0.0), Vector3::zeros()] {
+            for w in [Vector3::<f64>::new(0.4, -0.7, 0.25), Vector3::new(1e-9, 0.0, 0.0), Vector3::zeros()] {
                 let d = exp_derivatives(map, &w);
                 let h = 1e-6;
                 for j in 0..3 {
