@@ -39,7 +39,7 @@ fn main() -> anyhow::Result<()> {
     let settings = ContactTimingSettings { exp_map, ..Default::default() };
     let all = jumps();
     let selected: Vec<_> = if names.is_empty() { all.clone() } else { all.iter().filter(|j| names.iter().any(|n| n == j.name)).cloned().collect() };
-    println!("jump                 status      iters  cost          ref cost      rel.diff   T (10 ms)        ref T          viol      median s  (min s)  eval s  kkt s");
+    println!("jump                 status      iters  cost          ref cost      rel.diff   T (10 ms)        ref T          viol      median s  (min s)  eval s  kkt s  solves");
     for jump in &selected {
         let ct = ContactTimingProblem::new(jump, &params, &settings)?;
         let mut solver = ct.solver(Settings { verbose, ..Settings::default() })?;
@@ -61,7 +61,7 @@ fn main() -> anyhow::Result<()> {
             .map(|x| (x["runs"][0]["cost"].as_f64().unwrap_or(f64::NAN), format!("{:?}", x["T_opt_10ms"].as_array().map(|a| a.iter().filter_map(|v| v.as_f64()).collect::<Vec<_>>()).unwrap_or_default())))
             .unwrap_or((f64::NAN, String::new()));
         println!(
-            "{:20} {:11} {:5}  {:.10}  {:.10}  {:+.1e}  {:16} {:14} {:.1e}   {:.4}  ({:.4})  {:.4}  {:.4}",
+            "{:20} {:11} {:5}  {:.10}  {:.10}  {:+.1e}  {:16} {:14} {:.1e}   {:.4}  ({:.4})  {:.4}  {:.4}  {}",
             jump.name,
             format!("{:?}", r.status),
             r.iterations,
@@ -74,7 +74,8 @@ fn main() -> anyhow::Result<()> {
             median,
             times[0],
             r.timings.evaluation.as_secs_f64(),
-            r.timings.kkt.as_secs_f64()
+            r.timings.kkt.as_secs_f64(),
+            r.kkt_solves
         );
     }
     Ok(())

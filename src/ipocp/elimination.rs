@@ -67,7 +67,7 @@ impl RowReduction {
     pub fn begin(&mut self, rows: usize) {
         debug_assert!(rows <= self.max_rows);
         self.rows = rows;
-        self.w.fill(0.0);
+        self.w.rows_mut(0, rows).fill(0.0);
         let t = self.t_col();
         for i in 0..rows {
             self.w[(i, t + i)] = 1.0;

@@ -97,5 +97,8 @@ pub struct SolveResult {
     /// Times the Hessian needed regularization, and the last regularization used.
     pub regularizations: usize,
     pub last_regularization: f64,
+    /// Riccati solves of the search directions (inertia corrections included, second-order
+    /// corrections not).
+    pub kkt_solves: usize,
     pub timings: Timings,
 }

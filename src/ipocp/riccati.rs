@@ -292,6 +292,9 @@ struct StageWork {
     gain_t: DMatrix<f64>,
     /// This stage's `dx` in the forward sweep.
     dx: DVector<f64>,
+    /// The next stage's state rows `H'` and `H' F` (`nx_next x nx_next`, `nx_next x nz`).
+    h_next: DMatrix<f64>,
+    h_f: DMatrix<f64>,
 }
 
 /// The Riccati solver of a problem's KKT systems, allocated once for its stage sizes.
@@ -333,6 +336,8 @@ impl RiccatiSolver {
                     dynamics_t: DMatrix::zeros(d.nz(), d.nx_next),
                     gain_t: DMatrix::zeros(d.nx, d.nu),
                     dx: DVector::zeros(d.nx),
+                    h_next: DMatrix::zeros(d.nx_next, d.nx_next),
+                    h_f: DMatrix::zeros(d.nx_next, d.nz()),
                 }
             })
             .collect();
@@ -430,24 +435,19 @@ fn backward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&StageWork>, pi
     if let Some(nw) = next {
         let (ru, nun) = (nw.red.rank_u, nw.dims.nu);
         let nrhs = nw.red.rhs_col();
+        let mut h = st.h_next.rows_mut(0, next_rows);
+        h.copy_from(&nw.red.w.view((ru, nun), (next_rows, d.nx_next)));
+        let mut hf = st.h_f.rows_mut(0, next_rows);
+        hf.gemm(1.0, &st.h_next.rows(0, next_rows), &qp.dynamics, 0.0);
         for i in 0..next_rows {
-            let row = ru + i;
-            for j in 0..d.nz() {
-                let mut s = 0.0;
-                for l in 0..d.nx_next {
-                    s += nw.red.w[(row, nun + l)] * qp.dynamics[(l, j)];
-                }
-                if j < nx {
-                    st.red.w[(d.ng + i, nu + j)] = s;
-                } else {
-                    st.red.w[(d.ng + i, j - nx)] = s;
-                }
+            let row = d.ng + i;
+            for j in 0..nx {
+                st.red.w[(row, nu + j)] = st.h_f[(i, j)];
             }
-            let mut s = nw.red.w[(row, nrhs)];
-            for l in 0..d.nx_next {
-                s += nw.red.w[(row, nun + l)] * qp.defect[l];
+            for j in 0..nu {
+                st.red.w[(row, j)] = st.h_f[(i, nx + j)];
             }
-            st.red.w[(d.ng + i, rhs)] = s;
+            st.red.w[(row, rhs)] = nw.red.w[(ru + i, nrhs)] + st.h_next.row(i).dot(&qp.defect.transpose());
         }
     }
     st.red.reduce(pivot_tolerance);

@@ -130,6 +130,7 @@ impl Solver {
         let mut mu = s.mu_init;
         let mut regularization_last = 0.0;
         let mut regularizations = 0;
+        let mut kkt_solves = 0;
 
         let mut best = it.clone();
         let mut best_stats = (0usize, f64::INFINITY, f64::NAN, f64::NAN);
@@ -189,12 +190,14 @@ impl Solver {
             let t = Instant::now();
             let mut delta = 0.0;
             let mut attempts = 0;
+            self.assemble_qp(problem, &it, mu, 0.0, None);
             loop {
-                self.assemble_qp(problem, &it, mu, delta, None);
+                kkt_solves += 1;
                 match self.riccati.solve(&self.qps, &mut self.steps) {
                     Ok(()) => break,
                     Err(_) => {
                         attempts += 1;
+                        let previous = delta;
                         delta = if attempts == 1 {
                             if regularization_last == 0.0 {
                                 s.regularization_first
@@ -208,6 +211,12 @@ impl Solver {
                         };
                         if delta > s.regularization_max {
                             break;
+                        }
+                        // Only the diagonal changes: H + delta I.
+                        for qp in &mut self.qps {
+                            for i in 0..qp.hessian.nrows() {
+                                qp.hessian[(i, i)] += delta - previous;
+                            }
                         }
                     }
                 }
@@ -258,6 +267,7 @@ impl Solver {
             best_primal_infeasibility: best_stats.3,
             regularizations,
             last_regularization: regularization_last,
+            kkt_solves,
             timings,
         })
     }
