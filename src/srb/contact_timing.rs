@@ -106,6 +106,37 @@ impl Default for ContactTimingSettings {
     }
 }
 
+/// What is wrong with a contact-timing problem's inputs.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ContactTimingError {
+    #[error("contact-timing setting `{field}` = {value}: expected {expected}")]
+    Setting { field: &'static str, value: f64, expected: &'static str },
+    #[error("jump '{jump}': {problem}")]
+    Jump { jump: String, problem: &'static str },
+    #[error("the body's inertia is not invertible: {0:?}")]
+    SingularInertia(Matrix3<f64>),
+    #[error(transparent)]
+    Problem(#[from] ProblemError),
+}
+
+impl ContactTimingSettings {
+    /// Checks the ranges the formulation needs.
+    pub fn validate(&self) -> Result<(), ContactTimingError> {
+        let check = |field, value: f64, ok: bool, expected| if ok { Ok(()) } else { Err(ContactTimingError::Setting { field, value, expected }) };
+        check("knots_per_phase", self.knots_per_phase as f64, self.knots_per_phase >= 1, ">= 1")?;
+        check("mu", self.mu, self.mu > 0.0, "> 0")?;
+        check("f_min", self.f_min, self.f_min.is_finite() && self.f_min <= self.f_max, "finite and <= f_max")?;
+        check("f_max", self.f_max, self.f_max.is_finite(), "finite")?;
+        check("radius", self.radius, self.radius > 0.0, "> 0")?;
+        check("t_lo", self.t_lo, self.t_lo > 0.0 && self.t_lo <= self.t_hi, "> 0 and <= t_hi")?;
+        check("t_hi", self.t_hi, self.t_hi.is_finite(), "finite")?;
+        for (field, v) in [("eps_omega", self.eps_omega), ("eps_r", self.eps_r), ("eps_f", self.eps_f)] {
+            check(field, v, v >= 0.0 && v.is_finite(), ">= 0")?;
+        }
+        Ok(())
+    }
+}
+
 /// `exp(hat(axis * angle))`.
 fn rotation(axis: &Vector3<f64>, angle: f64) -> Matrix3<f64> {
     exp(ExpMap::Exact, &(axis * angle))
@@ -122,7 +153,19 @@ pub struct ContactTimingProblem {
 
 impl ContactTimingProblem {
     /// Builds the problem of `jump` for the body `params`.
-    pub fn new(jump: &JumpSpec, params: &SrbParams, s: &ContactTimingSettings) -> Result<Self, ProblemError> {
+    pub fn new(jump: &JumpSpec, params: &SrbParams, s: &ContactTimingSettings) -> Result<Self, ContactTimingError> {
+        s.validate()?;
+        let bad = |problem| ContactTimingError::Jump { jump: jump.name.to_string(), problem };
+        if jump.phases.len() < 2 || jump.phases.last() != Some(&NONE) || jump.phases[0] != ALL {
+            return Err(bad("phases must start with all four feet in contact and end with a flight phase"));
+        }
+        if jump.phases[..jump.phases.len() - 1].iter().any(|c| !c.iter().any(|&f| f)) {
+            return Err(bad("only the last phase may be a flight phase"));
+        }
+        if !(jump.total_time.0 <= jump.total_time.1) || !(jump.axis.norm() > 0.0) {
+            return Err(bad("total_time must be an interval (min <= max) and the axis nonzero"));
+        }
+        let inertia_inv = params.inertia.try_inverse().ok_or(ContactTimingError::SingularInertia(params.inertia))?;
         let np = jump.phases.len();
         let n = s.knots_per_phase;
         let nc = n * np;
@@ -137,7 +180,7 @@ impl ContactTimingProblem {
         let shared = Arc::new(Shared {
             mass: params.mass,
             inertia: params.inertia,
-            inertia_inv: params.inertia.try_inverse().unwrap_or_else(Matrix3::identity),
+            inertia_inv,
             pbar,
             radius: s.radius,
             mu: s.mu,

@@ -307,24 +307,24 @@ impl SrbStage {
     }
 
     /// Sphere row of foot `s` (2d): `d = R^T (p_f - p) - pbar`, value `|d|^2`; the sparse
-    /// Jacobian of `d` as (index, coefficient) lists per row.
-    fn sphere(&self, z: &[f64], q: &Point, s: usize) -> (Vector3<f64>, [Vec<(usize, f64)>; 3]) {
+    /// Jacobian of `d`: per row `a`, up to 9 (index, coefficient) pairs, `count` used.
+    fn sphere(&self, z: &[f64], q: &Point, s: usize) -> (Vector3<f64>, [[(usize, f64); 9]; 3], usize) {
         let pf = self.foot(z, s);
         let delta = pf - q.p;
         let d = q.r.transpose() * delta - self.shared.pbar[s];
         let variable = !self.last && !self.contact[s];
-        let rows = std::array::from_fn(|a| {
-            let mut l = Vec::with_capacity(9);
+        let mut rows = [[(0usize, 0.0f64); 9]; 3];
+        let count = if variable { 9 } else { 6 };
+        for (a, row) in rows.iter_mut().enumerate() {
             for c in 0..3 {
-                l.push((ridx(c, a), delta[c]));
-                l.push((P + c, -q.r[(c, a)]));
+                row[c] = (ridx(c, a), delta[c]);
+                row[3 + c] = (P + c, -q.r[(c, a)]);
                 if variable {
-                    l.push((self.u_index(s) + c, q.r[(c, a)]));
+                    row[6 + c] = (self.u_index(s) + c, q.r[(c, a)]);
                 }
             }
-            l
-        });
-        (d, rows)
+        }
+        (d, rows, count)
     }
 }
 
@@ -449,7 +449,7 @@ impl Stage for SrbStage {
             }
         }
         for s in 0..4 {
-            let (d, _) = self.sphere(z, &q, s);
+            let (d, _, _) = self.sphere(z, &q, s);
             h[row] = d.norm_squared(); // (2d)
             row += 1;
         }
@@ -491,7 +491,6 @@ impl Stage for SrbStage {
                 f[(P + j, V + j)] = q.dt;
                 f[(P + j, ti)] = q.v[j] * inv_n;
                 f[(V + j, V + j)] = 1.0;
-                f[(W + j, W + j)] = 1.0;
             }
             let g = Vector3::new(0.0, 0.0, -GRAVITY);
             let acc = q.force / sh.mass + g;
@@ -506,15 +505,18 @@ impl Stage for SrbStage {
                     }
                 }
             }
-            // Omega+ = Omega + dt I^-1 a
-            let mut ja = DMatrix::zeros(3, nz);
-            self.body_torque_jacobian(&q, &mut ja, 0, 1.0);
-            let ija = sh.inertia_inv * ja.fixed_rows::<3>(0);
+            // Omega+ = Omega + dt I^-1 a: da/dz into the (zero) rows, then dt I^-1 applied
+            // column by column, then the identity and the T column.
+            self.body_torque_jacobian(&q, f, W, 1.0);
+            for j in 0..nz {
+                let col = sh.inertia_inv * Vector3::new(f[(W, j)], f[(W + 1, j)], f[(W + 2, j)]) * q.dt;
+                for i in 0..3 {
+                    f[(W + i, j)] = col[i];
+                }
+            }
             let a = sh.inertia_inv * self.body_torque(&q);
             for i in 0..3 {
-                for j in 0..nz {
-                    f[(W + i, j)] += q.dt * ija[(i, j)];
-                }
+                f[(W + i, W + i)] += 1.0;
                 f[(W + i, ti)] += a[i] * inv_n;
             }
             // R+ = R E(dt Omega)
@@ -582,9 +584,9 @@ impl Stage for SrbStage {
             }
         }
         for s in 0..4 {
-            let (d, rows) = self.sphere(z, &q, s);
+            let (d, rows, count) = self.sphere(z, &q, s);
             for a in 0..3 {
-                for &(idx, c) in &rows[a] {
+                for &(idx, c) in &rows[a][..count] {
                     h[(row, idx)] += 2.0 * d[a] * c;
                 }
             }
@@ -642,11 +644,24 @@ impl Stage for SrbStage {
             }
         }
         if sh.cost_dt {
-            let mut gq = vec![0.0; z.len()];
-            self.cost_gradient_q(z, &q, &mut gq);
-            for (j, g) in gq.iter().enumerate() {
-                if *g != 0.0 {
-                    add_pair(out, ti, j, m.cost * inv_n * g);
+            // (1/N)(e_T grad q^T + grad q e_T^T), grad q as in `cost_gradient_q`.
+            let c = m.cost * inv_n;
+            for j in 0..3 {
+                add_pair(out, ti, W + j, c * 2.0 * sh.eps_omega * q.w[j]);
+            }
+            let r9 = nalgebra::SVector::<f64, 9>::from_column_slice(&z[R..R + 9]);
+            let gr = self.rot_err.transpose() * (self.rot_err * r9) * (2.0 * sh.eps_r);
+            for j in 0..9 {
+                add_pair(out, ti, R + j, c * gr[j]);
+            }
+            if !self.last {
+                for s in 0..4 {
+                    if self.contact[s] {
+                        let u = self.u_index(s);
+                        for j in 0..3 {
+                            add_pair(out, ti, u + j, c * 2.0 * sh.eps_f * z[u + j]);
+                        }
+                    }
                 }
             }
         }
@@ -708,10 +723,10 @@ impl Stage for SrbStage {
             if ys == 0.0 {
                 continue;
             }
-            let (d, rows) = self.sphere(z, &q, s);
+            let (d, rows, count) = self.sphere(z, &q, s);
             for a in 0..3 {
-                for &(i, ci) in &rows[a] {
-                    for &(j, cj) in &rows[a] {
+                for &(i, ci) in &rows[a][..count] {
+                    for &(j, cj) in &rows[a][..count] {
                         out[(i, j)] += 2.0 * ys * ci * cj;
                     }
                 }
