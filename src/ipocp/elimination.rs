@@ -33,8 +33,9 @@ pub(crate) struct RowReduction {
     pub perm_u: Vec<usize>,
     pub rank_u: usize,
     pub rank_x: usize,
-    /// Scratch: state columns already used as pivots.
+    /// Scratch: state columns already used as pivots, elimination factors.
     x_used: Vec<bool>,
+    factor: Vec<f64>,
 }
 
 impl RowReduction {
@@ -49,6 +50,7 @@ impl RowReduction {
             rank_u: 0,
             rank_x: 0,
             x_used: vec![false; nx],
+            factor: vec![0.0; max_rows],
         }
     }
 
@@ -153,17 +155,25 @@ impl RowReduction {
 
     fn eliminate_below(&mut self, row: usize, col: usize) {
         let pivot = self.w[(row, col)];
-        let ncols = self.w.ncols();
-        let used = self.t_col() + self.rows;
-        for i in row + 1..self.rows {
-            let factor = self.w[(i, col)] / pivot;
-            if factor == 0.0 {
+        let rows = self.rows;
+        for i in row + 1..rows {
+            self.factor[i] = self.w[(i, col)] / pivot;
+        }
+        // Column by column (contiguous in the column-major storage).
+        let used = self.t_col() + rows;
+        let ld = self.w.nrows();
+        let data = self.w.as_mut_slice();
+        for j in 0..used {
+            let c = &mut data[j * ld..j * ld + rows];
+            let v = c[row];
+            if v == 0.0 {
                 continue;
             }
-            for j in 0..used.min(ncols) {
-                let v = self.w[(row, j)];
-                self.w[(i, j)] -= factor * v;
+            for (ci, f) in c[row + 1..].iter_mut().zip(&self.factor[row + 1..rows]) {
+                *ci -= f * v;
             }
+        }
+        for i in row + 1..rows {
             self.w[(i, col)] = 0.0;
         }
     }

@@ -191,10 +191,14 @@ impl ConstrainedPolicy {
                 return false;
             }
             // w = -(Z^T R Z)^{-1} [cross | lin]; K -= Z (.), k -= Z (.)
-            for j in 0..nx {
-                cholesky_solve(&self.reduced, nf, self.reduced_cross.column_mut(j).as_mut_slice());
-            }
-            cholesky_solve(&self.reduced, nf, self.reduced_linear.as_mut_slice());
+            let l = self.reduced.view((0, 0), (nf, nf));
+            let mut cross = self.reduced_cross.rows_mut(0, nf);
+            let mut lin = self.reduced_linear.rows_mut(0, nf);
+            // L L^T x = b: the factor is in the lower triangle (the upper one is stale).
+            l.solve_lower_triangular_mut(&mut cross);
+            l.tr_solve_lower_triangular_mut(&mut cross);
+            l.solve_lower_triangular_mut(&mut lin);
+            l.tr_solve_lower_triangular_mut(&mut lin);
             let z = self.null_basis.columns(0, nf);
             self.gain.gemm(-1.0, &z, &self.reduced_cross.rows(0, nf), 1.0);
             self.feedforward.gemv(-1.0, &z, &self.reduced_linear.rows(0, nf), 1.0);
@@ -224,24 +228,6 @@ fn cholesky_in_place(a: &mut DMatrix<f64>, n: usize) -> bool {
         }
     }
     true
-}
-
-/// `x <- (L L^T)^{-1} x` with `L` the leading `n x n` lower triangle of `l`.
-fn cholesky_solve(l: &DMatrix<f64>, n: usize, x: &mut [f64]) {
-    for i in 0..n {
-        let mut s = x[i];
-        for k in 0..i {
-            s -= l[(i, k)] * x[k];
-        }
-        x[i] = s / l[(i, i)];
-    }
-    for i in (0..n).rev() {
-        let mut s = x[i];
-        for k in i + 1..n {
-            s -= l[(k, i)] * x[k];
-        }
-        x[i] = s / l[(i, i)];
-    }
 }
 
 /// Multipliers of the rows of `red` from the control gradient `g_u = (M dz + m)_u`
