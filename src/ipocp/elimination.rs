@@ -17,6 +17,9 @@
 //! The `C_u` columns are swapped physically (so `U_11` is triangular in place), the `C_x`
 //! columns are not (the state rows keep their meaning).
 
+// Index loops over rows and columns read like the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
 use nalgebra::DMatrix;
 
 /// Workspace and result of one row reduction.

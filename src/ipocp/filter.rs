@@ -40,7 +40,7 @@ mod tests {
         assert!(!f.acceptable(1.5, 5.5));
         assert!(!f.acceptable(11.0, 0.0));
         f.add(0.5, 4.0); // dominates (1, 5)
-        assert!(f.acceptable(0.9, 4.5) == false);
+        assert!(!f.acceptable(0.9, 4.5));
         assert_eq!(f.entries.len(), 1);
     }
 }

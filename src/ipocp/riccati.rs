@@ -28,6 +28,9 @@
 //! stationarity of the controls (`U_11^T mu_1 = -(M dz + m)_u`, FATROP's eq. for the
 //! eliminated constraints) and `lambda' = P' dx' + p' + H'^T eta'`.
 
+// Index loops over rows and columns read like the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
 use super::elimination::RowReduction;
 use super::stage::StageDims;
 use nalgebra::{DMatrix, DVector};
@@ -214,7 +217,7 @@ fn cholesky_in_place(a: &mut DMatrix<f64>, n: usize) -> bool {
         for k in 0..j {
             d -= a[(j, k)] * a[(j, k)];
         }
-        if !(d > 0.0) || !d.is_finite() {
+        if !d.is_finite() || d <= 0.0 {
             return false;
         }
         let d = d.sqrt();
@@ -557,8 +560,11 @@ mod tests {
             .collect()
     }
 
+    /// KKT matrix, right-hand side, and the offsets of each stage's `dz`, `lambda`, `nu`.
+    type DenseKkt = (DMatrix<f64>, DVector<f64>, Vec<usize>, Vec<usize>, Vec<usize>);
+
     /// The dense KKT matrix and right-hand side; unknowns `[dz_0..dz_N, lambda_0.., nu_0..]`.
-    fn dense_kkt(dims: &[StageDims], qps: &[StageQp]) -> (DMatrix<f64>, DVector<f64>, Vec<usize>, Vec<usize>, Vec<usize>) {
+    fn dense_kkt(dims: &[StageDims], qps: &[StageQp]) -> DenseKkt {
         let n: usize = dims.iter().map(|d| d.nz()).sum();
         let m: usize = dims.iter().map(|d| d.nx_next + d.ng).sum();
         let mut kkt = DMatrix::zeros(n + m, n + m);

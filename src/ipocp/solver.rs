@@ -14,6 +14,9 @@
 //!    (eq. 15);
 //! 4. the filter line search with second-order corrections (sec. 2.3-2.4).
 
+// Index loops over rows and columns read like the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
 use super::filter::Filter;
 use super::iterate::{Duals, Iterate, SolveResult, Status, Timings};
 use super::problem::{Problem, ProblemError};
@@ -403,7 +406,7 @@ impl Solver {
             it.dynamics_multiplier[k].copy_from(&self.steps[k].dynamics_multiplier);
             it.equality_multiplier[k].copy_from(&self.steps[k].equality_multiplier);
         }
-        if !(largest <= self.settings.multiplier_init_max) {
+        if largest.is_nan() || largest > self.settings.multiplier_init_max {
             for k in 0..self.buffers.len() {
                 it.inequality_multiplier[k].fill(0.0);
                 it.dynamics_multiplier[k].fill(0.0);
@@ -827,7 +830,7 @@ impl Solver {
 /// decrease of `theta` or `phi`, `None` if rejected.
 #[allow(clippy::too_many_arguments)]
 fn acceptance(filter: &Filter, s: &Settings, theta: f64, phi: f64, dphi: f64, alpha: f64, theta_t: f64, phi_t: f64, theta_min: f64, switching: bool) -> Option<bool> {
-    if !(theta_t.is_finite() && phi_t.is_finite()) || !filter.acceptable(theta_t, phi_t) {
+    if !(theta_t.is_finite() && phi_t.is_finite() && filter.acceptable(theta_t, phi_t)) {
         return None;
     }
     if theta <= theta_min && switching {

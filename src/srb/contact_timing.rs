@@ -8,6 +8,9 @@
 //! torque at the first knot, every otherwise free variable bounded by `+-1e3` and the
 //! rotation entries by `+-1.5`, the targets of the jumps the paper does not give.
 
+// Index loops over rows and columns read like the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
 use super::exp_map::{exp, ExpMap};
 use super::params::SrbParams;
 use super::stage::{rotation_error_map, Shared, SrbStage, BIG, P, R, T, V, W};
@@ -162,7 +165,8 @@ impl ContactTimingProblem {
         if jump.phases[..jump.phases.len() - 1].iter().any(|c| !c.iter().any(|&f| f)) {
             return Err(bad("only the last phase may be a flight phase"));
         }
-        if !(jump.total_time.0 <= jump.total_time.1) || !(jump.axis.norm() > 0.0) {
+        let (t_min, t_max) = jump.total_time;
+        if t_min.is_nan() || t_max.is_nan() || t_min > t_max || jump.axis.norm().is_nan() || jump.axis.norm() == 0.0 {
             return Err(bad("total_time must be an interval (min <= max) and the axis nonzero"));
         }
         let inertia_inv = params.inertia.try_inverse().ok_or(ContactTimingError::SingularInertia(params.inertia))?;

@@ -7,6 +7,9 @@
 //! (order LF, RF, LH, RH): its ground force while it is in contact, its position while it
 //! swings. The last knot has no control.
 
+// Index loops over rows and columns read like the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
 use super::exp_map::{exp_derivatives, hat, ExpMap};
 use crate::ipocp::{Stage, StageDims, StageJacobians, StageMultipliers, StageValues};
 use nalgebra::{DMatrix, Matrix3, Vector3};
@@ -98,6 +101,9 @@ pub(crate) fn rotation_error_map(r_ref: &Matrix3<f64>) -> nalgebra::SMatrix<f64,
     add(2, 0, 1, -1.0);
     l
 }
+
+/// Per row of `d`, up to 9 (index, coefficient) pairs of its Jacobian.
+type SphereJacobian = [[(usize, f64); 9]; 3];
 
 /// Quantities of a knot at `z` used by values and derivatives.
 struct Point {
@@ -217,7 +223,7 @@ impl SrbStage {
             }
         }
         for s in 0..4 {
-            if !(self.contact[s] && !self.last) {
+            if !self.contact[s] || self.last {
                 continue;
             }
             let u = self.u_index(s);
@@ -308,7 +314,7 @@ impl SrbStage {
 
     /// Sphere row of foot `s` (2d): `d = R^T (p_f - p) - pbar`, value `|d|^2`; the sparse
     /// Jacobian of `d`: per row `a`, up to 9 (index, coefficient) pairs, `count` used.
-    fn sphere(&self, z: &[f64], q: &Point, s: usize) -> (Vector3<f64>, [[(usize, f64); 9]; 3], usize) {
+    fn sphere(&self, z: &[f64], q: &Point, s: usize) -> (Vector3<f64>, SphereJacobian, usize) {
         let pf = self.foot(z, s);
         let delta = pf - q.p;
         let d = q.r.transpose() * delta - self.shared.pbar[s];
@@ -716,10 +722,9 @@ impl Stage for SrbStage {
         }
         // Sphere rows: Hess |d|^2 = 2 (J_d^T J_d + sum_a d_a Hess d_a).
         let y = m.inequalities;
-        let mut row = if self.last { 0 } else { 4 * self.contact.iter().filter(|&&c| c).count() };
+        let first_row = if self.last { 0 } else { 4 * self.contact.iter().filter(|&&c| c).count() };
         for s in 0..4 {
-            let ys = y[row];
-            row += 1;
+            let ys = y[first_row + s];
             if ys == 0.0 {
                 continue;
             }
