@@ -26,6 +26,26 @@ pub struct Iterate {
     pub upper_bound_multiplier: Vec<DVector<f64>>,
 }
 
+impl Iterate {
+    /// Copies `other` (of the same sizes) into `self` without allocating.
+    pub fn copy_from(&mut self, other: &Iterate) {
+        let pairs = [
+            (&mut self.primal, &other.primal),
+            (&mut self.slack, &other.slack),
+            (&mut self.dynamics_multiplier, &other.dynamics_multiplier),
+            (&mut self.equality_multiplier, &other.equality_multiplier),
+            (&mut self.inequality_multiplier, &other.inequality_multiplier),
+            (&mut self.lower_bound_multiplier, &other.lower_bound_multiplier),
+            (&mut self.upper_bound_multiplier, &other.upper_bound_multiplier),
+        ];
+        for (dst, src) in pairs {
+            for (d, s) in dst.iter_mut().zip(src) {
+                d.copy_from(s);
+            }
+        }
+    }
+}
+
 /// Dual values for a warm start (sizes as in [`Iterate`]); slacks are taken from `h(z)`
 /// pushed into the interior when absent.
 #[derive(Clone, Debug, PartialEq)]

@@ -45,6 +45,8 @@ struct StageBuffers {
     /// Scratch: the condensed linear term per inequality row, a row's nonzero columns.
     lin: DVector<f64>,
     nonzeros: Vec<usize>,
+    /// Scratch: the stage's part of the Lagrangian gradient.
+    lagrangian_gradient: DVector<f64>,
 }
 
 /// A solver for the problems of one stage layout; allocates its workspace once.
@@ -101,6 +103,7 @@ impl Solver {
                 trial_slack: DVector::zeros(d.nh),
                 lin: DVector::zeros(d.nh),
                 nonzeros: Vec::with_capacity(d.nz()),
+                lagrangian_gradient: DVector::zeros(d.nz()),
             })
             .collect();
         Ok(Self {
@@ -156,7 +159,7 @@ impl Solver {
                 break;
             }
             if errors.error_0 < best_stats.1 {
-                best = it.clone();
+                best.copy_from(&it);
                 best_stats = (iteration, errors.error_0, errors.objective, errors.primal);
             }
             if s.verbose {
@@ -249,7 +252,7 @@ impl Solver {
             iteration += 1;
         }
         if status == Status::Solved {
-            best = it.clone();
+            best.copy_from(&it);
             best_stats = (iteration, errors.error_0, errors.objective, errors.primal);
         }
         timings.total = start.elapsed();
@@ -446,11 +449,11 @@ impl Solver {
     }
 
     /// Optimality errors (eq. 5) from the values and derivatives in the buffers.
-    fn errors(&self, problem: &Problem, it: &Iterate, mu: f64) -> Errors {
+    fn errors(&mut self, problem: &Problem, it: &Iterate, mu: f64) -> Errors {
         let dims = problem.dims();
         let (mut objective, mut primal, mut dual, mut compl_0, mut compl_mu) = (0.0, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
         let (mut sum_mult, mut n_mult, mut sum_bound, mut n_bound) = (0.0, 0usize, 0.0, 0usize);
-        for (k, b) in self.buffers.iter().enumerate() {
+        for (k, b) in self.buffers.iter_mut().enumerate() {
             let d = dims[k];
             let (lo, up) = problem.bounds(k);
             objective += b.values.cost;
@@ -463,7 +466,8 @@ impl Solver {
                 primal = primal.max((b.values.inequalities[i] - it.slack[k][i]).abs());
             }
             // Dual: grad l + F^T lambda + G^T nu + J_h^T y - [lambda_{k-1}; 0], and -y - zl + zu.
-            let mut g = b.jac.cost_gradient.clone();
+            let g = &mut b.lagrangian_gradient;
+            g.copy_from(&b.jac.cost_gradient);
             g.gemv_tr(1.0, &b.jac.dynamics, &it.dynamics_multiplier[k], 1.0);
             g.gemv_tr(1.0, &b.jac.equalities, &it.equality_multiplier[k], 1.0);
             g.gemv_tr(1.0, &b.jac.inequalities, &it.inequality_multiplier[k], 1.0);
