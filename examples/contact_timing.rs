@@ -1,0 +1,82 @@
+//! Nguyen 2022's contact-timing optimization (sec. II-B) of the seven jumps with ipocp,
+//! timed, and compared with the reference script's optima when its results file is given.
+//!
+//! ```text
+//! cargo run --release --example contact_timing -- [--exp taylor4|exact] [--repeats 5]
+//!     [--reference ../shared/anchors/nguyen2022/results_srb_costdt.json] [jump ...]
+//! ```
+
+use legwork::ipocp::Settings;
+use legwork::srb::{jumps, ContactTimingProblem, ContactTimingSettings, ExpMap, SrbParams};
+use std::time::Instant;
+
+fn main() -> anyhow::Result<()> {
+    let mut args = std::env::args().skip(1);
+    let mut exp_map = ExpMap::Taylor4;
+    let mut repeats = 5;
+    let mut reference: Option<serde_json::Value> = None;
+    let mut names = Vec::new();
+    let mut verbose = false;
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--exp" => {
+                exp_map = match args.next().as_deref() {
+                    Some("exact") => ExpMap::Exact,
+                    Some("taylor4") => ExpMap::Taylor4,
+                    other => anyhow::bail!("--exp: expected exact or taylor4, got {other:?}"),
+                }
+            }
+            "--repeats" => repeats = args.next().ok_or_else(|| anyhow::anyhow!("--repeats: a number"))?.parse()?,
+            "--reference" => {
+                let path = args.next().ok_or_else(|| anyhow::anyhow!("--reference: a path"))?;
+                reference = Some(serde_json::from_str(&std::fs::read_to_string(&path).map_err(|e| anyhow::anyhow!("{path}: {e}"))?)?);
+            }
+            "--verbose" => verbose = true,
+            _ => names.push(a),
+        }
+    }
+    let params = SrbParams::a1()?;
+    let settings = ContactTimingSettings { exp_map, ..Default::default() };
+    let all = jumps();
+    let selected: Vec<_> = if names.is_empty() { all.clone() } else { all.iter().filter(|j| names.iter().any(|n| n == j.name)).cloned().collect() };
+    println!("jump                 status      iters  cost          ref cost      rel.diff   T (10 ms)        ref T          viol      median s  (min s)  eval s  kkt s  solves");
+    for jump in &selected {
+        let ct = ContactTimingProblem::new(jump, &params, &settings)?;
+        let mut solver = ct.solver(Settings { verbose, ..Settings::default() })?;
+        let mut times = Vec::new();
+        let mut result = None;
+        for _ in 0..repeats.max(1) {
+            let t = Instant::now();
+            let r = ct.solve(&mut solver)?;
+            times.push(t.elapsed().as_secs_f64());
+            result = Some(r);
+        }
+        let r = result.expect("at least one solve");
+        times.sort_by(f64::total_cmp);
+        let median = times[times.len() / 2];
+        let t = ct.durations(&r.last.primal);
+        let (ref_cost, ref_t) = reference
+            .as_ref()
+            .and_then(|v| v["results"].as_array()?.iter().find(|x| x["jump"] == jump.name).cloned())
+            .map(|x| (x["runs"][0]["cost"].as_f64().unwrap_or(f64::NAN), format!("{:?}", x["T_opt_10ms"].as_array().map(|a| a.iter().filter_map(|v| v.as_f64()).collect::<Vec<_>>()).unwrap_or_default())))
+            .unwrap_or((f64::NAN, String::new()));
+        println!(
+            "{:20} {:11} {:5}  {:.10}  {:.10}  {:+.1e}  {:16} {:14} {:.1e}   {:.4}  ({:.4})  {:.4}  {:.4}  {}",
+            jump.name,
+            format!("{:?}", r.status),
+            r.iterations,
+            r.objective,
+            ref_cost,
+            (r.objective - ref_cost) / ref_cost,
+            format!("{:?}", t.iter().map(|x| (x * 1000.0).round() / 10.0).collect::<Vec<_>>()),
+            ref_t,
+            r.primal_infeasibility,
+            median,
+            times[0],
+            r.timings.evaluation.as_secs_f64(),
+            r.timings.kkt.as_secs_f64(),
+            r.kkt_solves
+        );
+    }
+    Ok(())
+}

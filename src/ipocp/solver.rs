@@ -1,0 +1,906 @@
+//! The primal-dual interior-point loop (Wächter & Biegler 2006, Algorithm A), with the
+//! KKT systems solved by the Riccati recursion of [`super::riccati`].
+//!
+//! Inequalities `lower <= h(z) <= upper` become `h(z) - s = 0` with bounded slacks `s` and
+//! the barrier `-mu sum ln(s - lower) + ln(upper - s)`. One iteration:
+//!
+//! 1. optimality error `E_mu` (eq. 5); the monotone (Fiacco-McCormick) barrier update while
+//!    `E_mu <= kappa_epsilon mu` (eq. 7);
+//! 2. the primal-dual step: slacks and bound multipliers condensed out (eq. 13 with
+//!    `Sigma = Z_L / (s - l) + Z_U / (u - s)`), the remaining equality-constrained QP solved
+//!    by the Riccati recursion, with the Hessian regularized until its inertia is right
+//!    (sec. 3.1);
+//! 3. fraction-to-the-boundary step sizes for the slacks and for the bound multipliers
+//!    (eq. 15);
+//! 4. the filter line search with second-order corrections (sec. 2.3-2.4).
+
+// Index loops over rows and columns read like the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
+use super::filter::Filter;
+use super::iterate::{Duals, Iterate, SolveResult, Status, Timings};
+use super::problem::{Problem, ProblemError};
+use super::riccati::{RiccatiSolver, StageQp, StageStep};
+use super::settings::{Settings, SettingsError};
+use super::stage::{StageJacobians, StageMultipliers, StageValues};
+use nalgebra::{DMatrix, DVector};
+use std::time::Instant;
+
+/// Per-stage evaluation buffers.
+struct StageBuffers {
+    values: StageValues,
+    trial: StageValues,
+    jac: StageJacobians,
+    hess: DMatrix<f64>,
+    /// Slack step, new inequality multipliers, bound-multiplier steps, `Sigma`.
+    ds: DVector<f64>,
+    y_new: DVector<f64>,
+    dzl: DVector<f64>,
+    dzu: DVector<f64>,
+    sigma: DVector<f64>,
+    /// `h - s` (or its second-order-correction replacement) used by the last QP.
+    ineq_residual: DVector<f64>,
+    trial_primal: DVector<f64>,
+    trial_slack: DVector<f64>,
+    /// Scratch: the condensed linear term per inequality row, a row's nonzero columns.
+    lin: DVector<f64>,
+    nonzeros: Vec<usize>,
+    /// Scratch: the stage's part of the Lagrangian gradient.
+    lagrangian_gradient: DVector<f64>,
+}
+
+/// A solver for the problems of one stage layout; allocates its workspace once.
+pub struct Solver {
+    settings: Settings,
+    riccati: RiccatiSolver,
+    buffers: Vec<StageBuffers>,
+    qps: Vec<StageQp>,
+    steps: Vec<StageStep>,
+    filter: Filter,
+}
+
+/// What can go wrong before the iterations start.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SolveError {
+    #[error(transparent)]
+    Problem(#[from] ProblemError),
+    #[error(transparent)]
+    Settings(#[from] SettingsError),
+    #[error("the solver was built for stage sizes that differ from this problem's")]
+    LayoutMismatch,
+}
+
+/// Measures of the current iterate.
+#[derive(Clone, Copy, Debug, Default)]
+struct Errors {
+    objective: f64,
+    primal: f64,
+    dual: f64,
+    complementarity_0: f64,
+    error_0: f64,
+    error_mu: f64,
+}
+
+impl Solver {
+    /// A solver for problems with the stage sizes of `problem`.
+    pub fn new(problem: &Problem, settings: Settings) -> Result<Self, SettingsError> {
+        settings.validate()?;
+        let buffers = problem
+            .dims()
+            .iter()
+            .map(|&d| StageBuffers {
+                values: StageValues::zeros(d),
+                trial: StageValues::zeros(d),
+                jac: StageJacobians::zeros(d),
+                hess: DMatrix::zeros(d.nz(), d.nz()),
+                ds: DVector::zeros(d.nh),
+                y_new: DVector::zeros(d.nh),
+                dzl: DVector::zeros(d.nh),
+                dzu: DVector::zeros(d.nh),
+                sigma: DVector::zeros(d.nh),
+                ineq_residual: DVector::zeros(d.nh),
+                trial_primal: DVector::zeros(d.nz()),
+                trial_slack: DVector::zeros(d.nh),
+                lin: DVector::zeros(d.nh),
+                nonzeros: Vec::with_capacity(d.nz()),
+                lagrangian_gradient: DVector::zeros(d.nz()),
+            })
+            .collect();
+        Ok(Self {
+            riccati: RiccatiSolver::new(problem.dims(), settings.pivot_tolerance),
+            qps: problem.dims().iter().map(|&d| StageQp::zeros(d)).collect(),
+            steps: problem.dims().iter().map(|&d| StageStep::zeros(d)).collect(),
+            settings,
+            buffers,
+            filter: Filter::default(),
+        })
+    }
+
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// Solves from the primal guess `primal` (`z_k = [x_k; u_k]` per stage).
+    pub fn solve(&mut self, problem: &Problem, primal: &[DVector<f64>]) -> Result<SolveResult, SolveError> {
+        self.solve_warm(problem, primal, None)
+    }
+
+    /// Solves from a primal guess and, optionally, dual values (a warm start; set a small
+    /// `mu_init` in the settings when the guess is close to the optimum).
+    pub fn solve_warm(&mut self, problem: &Problem, primal: &[DVector<f64>], duals: Option<&Duals>) -> Result<SolveResult, SolveError> {
+        let start = Instant::now();
+        self.check_layout(problem, primal, duals)?;
+        let s = self.settings.clone();
+        let mut timings = Timings::default();
+        let mut it = self.initial_iterate(problem, primal, duals, &mut timings);
+        let mut mu = s.mu_init;
+        let mut regularization_last = 0.0;
+        let mut regularizations = 0;
+        let mut kkt_solves = 0;
+
+        let mut best = it.clone();
+        let mut best_stats = (0usize, f64::INFINITY, f64::NAN, f64::NAN);
+        let status;
+        let mut iteration = 0;
+        let mut errors;
+        // Filter initialization (sec. 2.3).
+        let theta0 = self.evaluate_values_at(problem, &it, &mut timings);
+        self.filter.reset();
+        self.filter.theta_max = 1e4 * theta0.max(1.0);
+        let theta_min = 1e-4 * theta0.max(1.0);
+        loop {
+            // Derivatives at the current iterate (values were left there by the line search).
+            let t = Instant::now();
+            self.evaluate_derivatives(problem, &it);
+            timings.evaluation += t.elapsed();
+            errors = self.errors(problem, &it, mu);
+            if !errors.error_0.is_finite() {
+                status = Status::NumericalFailure(format!("non-finite optimality error at iteration {iteration}"));
+                break;
+            }
+            if errors.error_0 < best_stats.1 {
+                best.copy_from(&it);
+                best_stats = (iteration, errors.error_0, errors.objective, errors.primal);
+            }
+            if s.verbose {
+                eprintln!(
+                    "ipocp {iteration:4} obj {:+.8e} inf_pr {:.2e} inf_du {:.2e} lg(mu) {:5.2} reg {:.1e}",
+                    errors.objective,
+                    errors.primal,
+                    errors.dual,
+                    mu.log10(),
+                    regularization_last
+                );
+            }
+            if errors.error_0 <= s.tolerance
+                && errors.dual <= s.dual_infeasibility_tolerance
+                && errors.primal <= s.constraint_violation_tolerance
+                && errors.complementarity_0 <= s.complementarity_tolerance
+            {
+                status = Status::Solved;
+                break;
+            }
+            if iteration >= s.max_iterations {
+                status = Status::MaxIterations;
+                break;
+            }
+            // 1. Monotone barrier update (eq. 7), possibly several times.
+            let mu_min = s.tolerance / 10.0;
+            while errors.error_mu <= s.kappa_epsilon * mu && mu > mu_min {
+                mu = mu_min.max((s.kappa_mu * mu).min(mu.powf(s.theta_mu)));
+                self.filter.reset();
+                errors = self.errors(problem, &it, mu);
+            }
+            let tau = s.tau_min.max(1.0 - mu);
+            // 2. Primal-dual step with inertia correction.
+            let t = Instant::now();
+            let mut delta = 0.0;
+            let mut attempts = 0;
+            self.assemble_qp(problem, &it, mu, 0.0, None);
+            loop {
+                kkt_solves += 1;
+                match self.riccati.solve(&self.qps, &mut self.steps) {
+                    Ok(()) => break,
+                    Err(_) => {
+                        attempts += 1;
+                        let previous = delta;
+                        delta = if attempts == 1 {
+                            if regularization_last == 0.0 {
+                                s.regularization_first
+                            } else {
+                                s.regularization_min.max(s.regularization_decrease * regularization_last)
+                            }
+                        } else if regularization_last == 0.0 {
+                            delta * s.regularization_increase_first
+                        } else {
+                            delta * s.regularization_increase
+                        };
+                        if delta > s.regularization_max {
+                            break;
+                        }
+                        // Only the diagonal changes: H + delta I.
+                        for qp in &mut self.qps {
+                            for i in 0..qp.hessian.nrows() {
+                                qp.hessian[(i, i)] += delta - previous;
+                            }
+                        }
+                    }
+                }
+            }
+            timings.kkt += t.elapsed();
+            if delta > s.regularization_max {
+                status = Status::NumericalFailure("the Hessian regularization exceeded `regularization_max`".into());
+                break;
+            }
+            if delta > 0.0 {
+                regularization_last = delta;
+                regularizations += 1;
+            }
+            self.gather_step(problem, &it, mu);
+            // 3. Fraction to the boundary (eq. 15).
+            let alpha_max = self.max_primal_step(problem, &it, tau);
+            let alpha_z = self.max_dual_step(&it, tau);
+            // 4. Filter line search.
+            match self.line_search(problem, &mut it, mu, tau, alpha_max, alpha_z, theta_min, delta, &mut timings) {
+                Ok(()) => {}
+                Err(theta) => {
+                    status = if theta > s.constraint_violation_tolerance { Status::LocallyInfeasible } else { Status::LineSearchFailed };
+                    break;
+                }
+            }
+            self.reset_bound_multipliers(problem, &mut it, mu);
+            iteration += 1;
+        }
+        if status == Status::Solved {
+            best.copy_from(&it);
+            best_stats = (iteration, errors.error_0, errors.objective, errors.primal);
+        }
+        timings.total = start.elapsed();
+        Ok(SolveResult {
+            status,
+            iterations: iteration,
+            objective: errors.objective,
+            primal_infeasibility: errors.primal,
+            dual_infeasibility: errors.dual,
+            complementarity: errors.complementarity_0,
+            optimality_error: errors.error_0,
+            mu,
+            last: it,
+            best,
+            best_iteration: best_stats.0,
+            best_optimality_error: best_stats.1,
+            best_objective: best_stats.2,
+            best_primal_infeasibility: best_stats.3,
+            regularizations,
+            last_regularization: regularization_last,
+            kkt_solves,
+            timings,
+        })
+    }
+
+    fn check_layout(&self, problem: &Problem, primal: &[DVector<f64>], duals: Option<&Duals>) -> Result<(), SolveError> {
+        let dims = problem.dims();
+        if dims.len() != self.buffers.len() || dims.iter().zip(&self.buffers).any(|(d, b)| b.hess.nrows() != d.nz() || b.ds.len() != d.nh || b.values.equalities.len() != d.ng) {
+            return Err(SolveError::LayoutMismatch);
+        }
+        if primal.len() != dims.len() {
+            return Err(ProblemError::GuessStages { got: primal.len(), expected: dims.len() }.into());
+        }
+        for (k, (z, d)) in primal.iter().zip(dims).enumerate() {
+            if z.len() != d.nz() {
+                return Err(ProblemError::GuessSize { stage: k, got: z.len(), expected: d.nz() }.into());
+            }
+            if z.iter().any(|v| !v.is_finite()) {
+                return Err(ProblemError::GuessNotFinite { stage: k }.into());
+            }
+        }
+        if let Some(du) = duals {
+            for (k, d) in dims.iter().enumerate() {
+                let checks: [(&'static str, &Vec<DVector<f64>>, usize); 5] = [
+                    ("dynamics_multiplier", &du.dynamics_multiplier, d.nx_next),
+                    ("equality_multiplier", &du.equality_multiplier, d.ng),
+                    ("inequality_multiplier", &du.inequality_multiplier, d.nh),
+                    ("lower_bound_multiplier", &du.lower_bound_multiplier, d.nh),
+                    ("upper_bound_multiplier", &du.upper_bound_multiplier, d.nh),
+                ];
+                for (what, v, n) in checks {
+                    let got = v.get(k).map_or(0, |x| x.len());
+                    if v.len() != dims.len() || got != n {
+                        return Err(ProblemError::DualSize { stage: k, what, got, expected: n }.into());
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The starting point: slacks pushed into the interior, bound multipliers at their
+    /// initial value, equality multipliers by least squares (sec. 3.6).
+    fn initial_iterate(&mut self, problem: &Problem, primal: &[DVector<f64>], duals: Option<&Duals>, timings: &mut Timings) -> Iterate {
+        let s = &self.settings;
+        let dims = problem.dims();
+        let t = Instant::now();
+        for (k, b) in self.buffers.iter_mut().enumerate() {
+            problem.stage(k).evaluate(primal[k].as_slice(), &mut b.values);
+        }
+        timings.evaluation += t.elapsed();
+        let mut it = Iterate {
+            primal: primal.to_vec(),
+            slack: Vec::new(),
+            dynamics_multiplier: dims.iter().map(|d| DVector::zeros(d.nx_next)).collect(),
+            equality_multiplier: dims.iter().map(|d| DVector::zeros(d.ng)).collect(),
+            inequality_multiplier: dims.iter().map(|d| DVector::zeros(d.nh)).collect(),
+            lower_bound_multiplier: Vec::new(),
+            upper_bound_multiplier: Vec::new(),
+        };
+        for k in 0..dims.len() {
+            let (lo, up) = problem.bounds(k);
+            let h = &self.buffers[k].values.inequalities;
+            let mut slack = DVector::zeros(dims[k].nh);
+            let mut zl = DVector::zeros(dims[k].nh);
+            let mut zu = DVector::zeros(dims[k].nh);
+            for i in 0..dims[k].nh {
+                slack[i] = push_into_interior(h[i], lo[i], up[i], s.bound_push, s.bound_frac);
+                if lo[i].is_finite() {
+                    zl[i] = s.bound_multiplier_init;
+                }
+                if up[i].is_finite() {
+                    zu[i] = s.bound_multiplier_init;
+                }
+            }
+            it.slack.push(slack);
+            it.lower_bound_multiplier.push(zl);
+            it.upper_bound_multiplier.push(zu);
+        }
+        if let Some(du) = duals {
+            it.dynamics_multiplier = du.dynamics_multiplier.clone();
+            it.equality_multiplier = du.equality_multiplier.clone();
+            it.inequality_multiplier = du.inequality_multiplier.clone();
+            for k in 0..dims.len() {
+                let (lo, up) = problem.bounds(k);
+                for i in 0..dims[k].nh {
+                    // Keep the given bound multipliers positive where a bound exists.
+                    it.lower_bound_multiplier[k][i] = if lo[i].is_finite() { du.lower_bound_multiplier[k][i].max(s.tolerance) } else { 0.0 };
+                    it.upper_bound_multiplier[k][i] = if up[i].is_finite() { du.upper_bound_multiplier[k][i].max(s.tolerance) } else { 0.0 };
+                }
+            }
+        } else if s.least_squares_multipliers {
+            self.least_squares_multipliers(problem, &mut it, timings);
+        }
+        it
+    }
+
+    /// IPOPT's least-squares multipliers: the multipliers of
+    /// `min 1/2 |dz|^2 + 1/2 |ds|^2 + grad l^T dz + (zu - zl)^T ds` on the null space of the
+    /// constraint Jacobian, discarded if larger than `multiplier_init_max`.
+    fn least_squares_multipliers(&mut self, problem: &Problem, it: &mut Iterate, timings: &mut Timings) {
+        let t = Instant::now();
+        for (k, b) in self.buffers.iter_mut().enumerate() {
+            problem.stage(k).jacobians(it.primal[k].as_slice(), &mut b.jac);
+        }
+        timings.evaluation += t.elapsed();
+        let t = Instant::now();
+        for (k, b) in self.buffers.iter_mut().enumerate() {
+            let jh = &b.jac.inequalities;
+            let nz = b.hess.nrows();
+            self.qps[k].hessian.fill(0.0);
+            self.qps[k].hessian.fill_diagonal(1.0);
+            self.qps[k].hessian.gemm_tr(1.0, jh, jh, 1.0);
+            let c = &it.upper_bound_multiplier[k] - &it.lower_bound_multiplier[k];
+            self.qps[k].gradient.copy_from(&b.jac.cost_gradient);
+            self.qps[k].gradient.gemv_tr(1.0, jh, &c, 1.0);
+            self.qps[k].dynamics.copy_from(&b.jac.dynamics);
+            self.qps[k].defect.fill(0.0);
+            self.qps[k].equality_jacobian.copy_from(&b.jac.equalities);
+            self.qps[k].equality_residual.fill(0.0);
+            debug_assert_eq!(nz, self.qps[k].gradient.len());
+        }
+        let ok = self.riccati.solve(&self.qps, &mut self.steps).is_ok();
+        timings.kkt += t.elapsed();
+        if !ok {
+            return;
+        }
+        let mut largest: f64 = 0.0;
+        for (k, b) in self.buffers.iter().enumerate() {
+            let c = &it.upper_bound_multiplier[k] - &it.lower_bound_multiplier[k];
+            let y = &b.jac.inequalities * &self.steps[k].dz + c;
+            largest = largest.max(y.amax()).max(self.steps[k].dynamics_multiplier.amax()).max(self.steps[k].equality_multiplier.amax());
+            it.inequality_multiplier[k] = y;
+            it.dynamics_multiplier[k].copy_from(&self.steps[k].dynamics_multiplier);
+            it.equality_multiplier[k].copy_from(&self.steps[k].equality_multiplier);
+        }
+        if largest.is_nan() || largest > self.settings.multiplier_init_max {
+            for k in 0..self.buffers.len() {
+                it.inequality_multiplier[k].fill(0.0);
+                it.dynamics_multiplier[k].fill(0.0);
+                it.equality_multiplier[k].fill(0.0);
+            }
+        }
+    }
+
+    /// Evaluates values at `it` into `values` and returns the violation `theta`.
+    fn evaluate_values_at(&mut self, problem: &Problem, it: &Iterate, timings: &mut Timings) -> f64 {
+        let t = Instant::now();
+        for (k, b) in self.buffers.iter_mut().enumerate() {
+            problem.stage(k).evaluate(it.primal[k].as_slice(), &mut b.values);
+        }
+        timings.evaluation += t.elapsed();
+        let n = self.buffers.len();
+        let mut theta = 0.0;
+        for k in 0..n {
+            theta += violation_1(&self.buffers[k].values, it.primal.get(k + 1), problem.dims()[k].nx_next, &it.slack[k]);
+        }
+        theta
+    }
+
+    fn evaluate_derivatives(&mut self, problem: &Problem, it: &Iterate) {
+        for (k, b) in self.buffers.iter_mut().enumerate() {
+            let stage = problem.stage(k);
+            let z = it.primal[k].as_slice();
+            stage.jacobians(z, &mut b.jac);
+            let m = StageMultipliers {
+                cost: 1.0,
+                dynamics: it.dynamics_multiplier[k].as_slice(),
+                equalities: it.equality_multiplier[k].as_slice(),
+                inequalities: it.inequality_multiplier[k].as_slice(),
+            };
+            stage.lagrangian_hessian(z, m, &mut b.hess);
+        }
+    }
+
+    /// Optimality errors (eq. 5) from the values and derivatives in the buffers.
+    fn errors(&mut self, problem: &Problem, it: &Iterate, mu: f64) -> Errors {
+        let dims = problem.dims();
+        let (mut objective, mut primal, mut dual, mut compl_0, mut compl_mu) = (0.0, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        let (mut sum_mult, mut n_mult, mut sum_bound, mut n_bound) = (0.0, 0usize, 0.0, 0usize);
+        for (k, b) in self.buffers.iter_mut().enumerate() {
+            let d = dims[k];
+            let (lo, up) = problem.bounds(k);
+            objective += b.values.cost;
+            // Primal: dynamics defects, equalities, h - s.
+            for i in 0..d.nx_next {
+                primal = primal.max((b.values.dynamics[i] - it.primal[k + 1][i]).abs());
+            }
+            primal = primal.max(b.values.equalities.amax());
+            for i in 0..d.nh {
+                primal = primal.max((b.values.inequalities[i] - it.slack[k][i]).abs());
+            }
+            // Dual: grad l + F^T lambda + G^T nu + J_h^T y - [lambda_{k-1}; 0], and -y - zl + zu.
+            let g = &mut b.lagrangian_gradient;
+            g.copy_from(&b.jac.cost_gradient);
+            g.gemv_tr(1.0, &b.jac.dynamics, &it.dynamics_multiplier[k], 1.0);
+            g.gemv_tr(1.0, &b.jac.equalities, &it.equality_multiplier[k], 1.0);
+            g.gemv_tr(1.0, &b.jac.inequalities, &it.inequality_multiplier[k], 1.0);
+            if k > 0 {
+                for i in 0..d.nx {
+                    g[i] -= it.dynamics_multiplier[k - 1][i];
+                }
+            }
+            dual = dual.max(g.amax());
+            for i in 0..d.nh {
+                let (zl, zu, y, s) = (it.lower_bound_multiplier[k][i], it.upper_bound_multiplier[k][i], it.inequality_multiplier[k][i], it.slack[k][i]);
+                dual = dual.max((-y - zl + zu).abs());
+                if lo[i].is_finite() {
+                    let c = (s - lo[i]) * zl;
+                    compl_0 = compl_0.max(c.abs());
+                    compl_mu = compl_mu.max((c - mu).abs());
+                    sum_bound += zl.abs();
+                    n_bound += 1;
+                }
+                if up[i].is_finite() {
+                    let c = (up[i] - s) * zu;
+                    compl_0 = compl_0.max(c.abs());
+                    compl_mu = compl_mu.max((c - mu).abs());
+                    sum_bound += zu.abs();
+                    n_bound += 1;
+                }
+            }
+            sum_mult += it.dynamics_multiplier[k].lp_norm(1) + it.equality_multiplier[k].lp_norm(1) + it.inequality_multiplier[k].lp_norm(1);
+            n_mult += d.nx_next + d.ng + d.nh;
+        }
+        let smax = self.settings.s_max;
+        let s_d = smax.max((sum_mult + sum_bound) / ((n_mult + n_bound).max(1) as f64)) / smax;
+        let s_c = smax.max(sum_bound / (n_bound.max(1) as f64)) / smax;
+        Errors {
+            objective,
+            primal,
+            dual,
+            complementarity_0: compl_0,
+            error_0: (dual / s_d).max(primal).max(compl_0 / s_c),
+            error_mu: (dual / s_d).max(primal).max(compl_mu / s_c),
+        }
+    }
+
+    /// Fills the stage QPs: `H = hess + J_h^T Sigma J_h + delta I`,
+    /// `q = grad l + J_h^T (Sigma r_h + mu/(u - s) - mu/(s - l))` with `r_h = h - s`
+    /// (eq. 13 condensed). `soc`: replace the constraint residuals by those of a
+    /// second-order correction (`Some(alpha)`: `alpha c(current) + c(trial)`, the trial values
+    /// in `trial`).
+    fn assemble_qp(&mut self, problem: &Problem, it: &Iterate, mu: f64, delta: f64, soc: Option<f64>) {
+        let n = self.buffers.len();
+        for k in 0..n {
+            let (lo, up) = problem.bounds(k);
+            let d = problem.dims()[k];
+            let next_x: Option<DVector<f64>> = if soc.is_some() && k + 1 < n { Some(self.buffers[k + 1].trial_primal.rows(0, d.nx_next).clone_owned()) } else { None };
+            let b = &mut self.buffers[k];
+            match soc {
+                None => {
+                    for i in 0..d.nh {
+                        b.ineq_residual[i] = b.values.inequalities[i] - it.slack[k][i];
+                    }
+                    for i in 0..d.nx_next {
+                        self.qps[k].defect[i] = b.values.dynamics[i] - it.primal[k + 1][i];
+                    }
+                    self.qps[k].equality_residual.copy_from(&b.values.equalities);
+                }
+                Some(alpha) => {
+                    // c_soc = alpha c(z) + c(z_trial) (eq. 27); c(z) is what the last QP used.
+                    for i in 0..d.nh {
+                        b.ineq_residual[i] = alpha * b.ineq_residual[i] + (b.trial.inequalities[i] - b.trial_slack[i]);
+                    }
+                    let xn = next_x.as_ref();
+                    for i in 0..d.nx_next {
+                        self.qps[k].defect[i] = alpha * self.qps[k].defect[i] + (b.trial.dynamics[i] - xn.map_or(0.0, |x| x[i]));
+                    }
+                    for i in 0..d.ng {
+                        self.qps[k].equality_residual[i] = alpha * self.qps[k].equality_residual[i] + b.trial.equalities[i];
+                    }
+                }
+            }
+            self.qps[k].hessian.copy_from(&b.hess);
+            if delta > 0.0 {
+                for i in 0..d.nz() {
+                    self.qps[k].hessian[(i, i)] += delta;
+                }
+            }
+            self.qps[k].gradient.copy_from(&b.jac.cost_gradient);
+            for i in 0..d.nh {
+                let s = it.slack[k][i];
+                let mut sigma = 0.0;
+                let mut c = 0.0;
+                if lo[i].is_finite() {
+                    sigma += it.lower_bound_multiplier[k][i] / (s - lo[i]);
+                    c -= mu / (s - lo[i]);
+                }
+                if up[i].is_finite() {
+                    sigma += it.upper_bound_multiplier[k][i] / (up[i] - s);
+                    c += mu / (up[i] - s);
+                }
+                b.sigma[i] = sigma;
+                b.lin[i] = sigma * b.ineq_residual[i] + c;
+            }
+            // J_h^T Sigma J_h and J_h^T lin row by row over each row's nonzeros (most rows
+            // are simple bounds with one).
+            let jh = &b.jac.inequalities;
+            let qp = &mut self.qps[k];
+            for i in 0..d.nh {
+                b.nonzeros.clear();
+                b.nonzeros.extend((0..d.nz()).filter(|&j| jh[(i, j)] != 0.0));
+                let (sigma, lin) = (b.sigma[i], b.lin[i]);
+                for &a in &b.nonzeros {
+                    let ja = jh[(i, a)];
+                    qp.gradient[a] += ja * lin;
+                    if sigma != 0.0 {
+                        for &c in &b.nonzeros {
+                            qp.hessian[(c, a)] += sigma * ja * jh[(i, c)];
+                        }
+                    }
+                }
+            }
+            self.qps[k].dynamics.copy_from(&b.jac.dynamics);
+            self.qps[k].equality_jacobian.copy_from(&b.jac.equalities);
+        }
+    }
+
+    /// Slack and bound-multiplier steps from the Riccati solution (eq. 13 expanded).
+    fn gather_step(&mut self, problem: &Problem, it: &Iterate, mu: f64) {
+        for (k, b) in self.buffers.iter_mut().enumerate() {
+            let (lo, up) = problem.bounds(k);
+            let nh = b.ds.len();
+            b.ds.copy_from(&b.ineq_residual);
+            b.ds.gemv(1.0, &b.jac.inequalities, &self.steps[k].dz, 1.0);
+            for i in 0..nh {
+                let s = it.slack[k][i];
+                let ds = b.ds[i];
+                let mut y = b.sigma[i] * ds;
+                b.dzl[i] = 0.0;
+                b.dzu[i] = 0.0;
+                if lo[i].is_finite() {
+                    let dl = s - lo[i];
+                    let zl = it.lower_bound_multiplier[k][i];
+                    b.dzl[i] = mu / dl - zl - zl / dl * ds;
+                    y -= mu / dl;
+                }
+                if up[i].is_finite() {
+                    let du = up[i] - s;
+                    let zu = it.upper_bound_multiplier[k][i];
+                    b.dzu[i] = mu / du - zu + zu / du * ds;
+                    y += mu / du;
+                }
+                b.y_new[i] = y;
+            }
+        }
+    }
+
+    fn max_primal_step(&self, problem: &Problem, it: &Iterate, tau: f64) -> f64 {
+        let mut alpha: f64 = 1.0;
+        for (k, b) in self.buffers.iter().enumerate() {
+            let (lo, up) = problem.bounds(k);
+            for i in 0..b.ds.len() {
+                let (s, ds) = (it.slack[k][i], b.ds[i]);
+                if lo[i].is_finite() && ds < 0.0 {
+                    alpha = alpha.min(-tau * (s - lo[i]) / ds);
+                }
+                if up[i].is_finite() && ds > 0.0 {
+                    alpha = alpha.min(tau * (up[i] - s) / ds);
+                }
+            }
+        }
+        alpha
+    }
+
+    fn max_dual_step(&self, it: &Iterate, tau: f64) -> f64 {
+        let mut alpha: f64 = 1.0;
+        for (k, b) in self.buffers.iter().enumerate() {
+            for i in 0..b.ds.len() {
+                let (zl, zu) = (it.lower_bound_multiplier[k][i], it.upper_bound_multiplier[k][i]);
+                if zl > 0.0 && b.dzl[i] < 0.0 {
+                    alpha = alpha.min(-tau * zl / b.dzl[i]);
+                }
+                if zu > 0.0 && b.dzu[i] < 0.0 {
+                    alpha = alpha.min(-tau * zu / b.dzu[i]);
+                }
+            }
+        }
+        alpha
+    }
+
+    /// Barrier objective `phi` of the trial point in `trial`, and its violation `theta`.
+    fn measure_trial(&mut self, problem: &Problem, mu: f64, timings: &mut Timings) -> (f64, f64) {
+        let t = Instant::now();
+        for (k, b) in self.buffers.iter_mut().enumerate() {
+            problem.stage(k).evaluate(b.trial_primal.as_slice(), &mut b.trial);
+        }
+        timings.evaluation += t.elapsed();
+        let n = self.buffers.len();
+        let (mut theta, mut phi) = (0.0, 0.0);
+        for k in 0..n {
+            let (lo, up) = problem.bounds(k);
+            let b = &self.buffers[k];
+            phi += b.trial.cost;
+            phi += barrier(&b.trial_slack, lo, up, mu);
+            let next = if k + 1 < n { Some(&self.buffers[k + 1].trial_primal) } else { None };
+            theta += violation_1(&b.trial, next, problem.dims()[k].nx_next, &b.trial_slack);
+        }
+        (theta, phi)
+    }
+
+    fn set_trial(&mut self, it: &Iterate, alpha: f64) {
+        for (k, b) in self.buffers.iter_mut().enumerate() {
+            b.trial_primal.copy_from(&it.primal[k]);
+            b.trial_primal.axpy(alpha, &self.steps[k].dz, 1.0);
+            b.trial_slack.copy_from(&it.slack[k]);
+            b.trial_slack.axpy(alpha, &b.ds, 1.0);
+        }
+    }
+
+    /// The filter line search (Algorithm A, steps ). `Err(theta)` if the step
+    /// size fell below `alpha_min`.
+    #[allow(clippy::too_many_arguments)]
+    fn line_search(&mut self, problem: &Problem, it: &mut Iterate, mu: f64, tau: f64, alpha_max: f64, alpha_z: f64, theta_min: f64, delta: f64, timings: &mut Timings) -> Result<(), f64> {
+        let s = self.settings.clone();
+        // theta and phi at the current point (values are those of `it`).
+        let n = self.buffers.len();
+        let (mut theta, mut phi, mut dphi) = (0.0, 0.0, 0.0);
+        for k in 0..n {
+            let (lo, up) = problem.bounds(k);
+            let b = &self.buffers[k];
+            theta += violation_1(&b.values, it.primal.get(k + 1), problem.dims()[k].nx_next, &it.slack[k]);
+            phi += b.values.cost + barrier(&it.slack[k], lo, up, mu);
+            dphi += b.jac.cost_gradient.dot(&self.steps[k].dz);
+            for i in 0..b.ds.len() {
+                let sl = it.slack[k][i];
+                if lo[i].is_finite() {
+                    dphi -= mu * b.ds[i] / (sl - lo[i]);
+                }
+                if up[i].is_finite() {
+                    dphi += mu * b.ds[i] / (up[i] - sl);
+                }
+            }
+        }
+        // Tiny step: accept it whole (IPOPT's heuristic; sec. 3.9).
+        let tiny = self.buffers.iter().enumerate().all(|(k, _)| {
+            self.steps[k].dz.iter().zip(it.primal[k].iter()).all(|(d, z)| d.abs() <= 10.0 * f64::EPSILON * (1.0 + z.abs()))
+        });
+        let alpha_min = {
+            let g = s.gamma_theta;
+            if dphi < 0.0 {
+                let a = g.min(s.gamma_phi * theta / (-dphi));
+                if theta <= theta_min { s.gamma_alpha * a.min(s.switching_delta * theta.powf(s.s_theta) / (-dphi).powf(s.s_phi)) } else { s.gamma_alpha * a }
+            } else {
+                s.gamma_alpha * g
+            }
+        };
+        let mut alpha = alpha_max;
+        let mut first = true;
+        loop {
+            if !tiny && alpha < alpha_min {
+                return Err(theta);
+            }
+            self.set_trial(it, alpha);
+            let (theta_t, phi_t) = self.measure_trial(problem, mu, timings);
+            let switching = dphi < 0.0 && alpha * (-dphi).powf(s.s_phi) > s.switching_delta * theta.powf(s.s_theta);
+            let mut verdict = acceptance(&self.filter, &s, theta, phi, dphi, alpha, theta_t, phi_t, theta_min, switching);
+            if tiny && !(theta_t.is_finite() && phi_t.is_finite()) {
+                verdict = None;
+            } else if tiny {
+                verdict = Some(false);
+            }
+            // Second-order corrections when the first trial is rejected and worsens theta.
+            if verdict.is_none() && first && s.max_second_order_corrections > 0 && theta_t >= theta && theta_t.is_finite() {
+                let mut theta_soc_old = theta;
+                let mut theta_trial = theta_t;
+                let mut alpha_soc = alpha;
+                for _ in 0..s.max_second_order_corrections {
+                    if theta_trial > s.kappa_soc * theta_soc_old && theta_soc_old != theta {
+                        break;
+                    }
+                    theta_soc_old = theta_trial;
+                    let t = Instant::now();
+                    self.assemble_qp(problem, it, mu, delta, Some(alpha_soc));
+                    let ok = self.riccati.solve(&self.qps, &mut self.steps).is_ok();
+                    timings.kkt += t.elapsed();
+                    if !ok {
+                        break;
+                    }
+                    self.gather_step(problem, it, mu);
+                    alpha_soc = self.max_primal_step(problem, it, tau);
+                    self.set_trial(it, alpha_soc);
+                    let (th, ph) = self.measure_trial(problem, mu, timings);
+                    theta_trial = th;
+                    let v = acceptance(&self.filter, &s, theta, phi, dphi, alpha, th, ph, theta_min, switching);
+                    if let Some(f_type) = v {
+                        if !f_type {
+                            self.filter.add((1.0 - s.gamma_theta) * theta, phi - s.gamma_phi * theta);
+                        }
+                        let az = self.max_dual_step(it, tau);
+                        self.accept(it, alpha_soc, az);
+                        return Ok(());
+                    }
+                }
+                // Restore the original direction for further backtracking.
+                let t = Instant::now();
+                self.assemble_qp(problem, it, mu, delta, None);
+                let _ = self.riccati.solve(&self.qps, &mut self.steps);
+                timings.kkt += t.elapsed();
+                self.gather_step(problem, it, mu);
+            }
+            first = false;
+            if let Some(f_type) = verdict {
+                if !f_type {
+                    self.filter.add((1.0 - s.gamma_theta) * theta, phi - s.gamma_phi * theta);
+                }
+                self.accept(it, alpha, alpha_z);
+                return Ok(());
+            }
+            alpha *= s.backtracking_factor;
+        }
+    }
+
+    /// Takes the trial point in the buffers and the multiplier steps.
+    fn accept(&mut self, it: &mut Iterate, alpha: f64, alpha_z: f64) {
+        for (k, b) in self.buffers.iter_mut().enumerate() {
+            it.primal[k].copy_from(&b.trial_primal);
+            it.slack[k].copy_from(&b.trial_slack);
+            std::mem::swap(&mut b.values, &mut b.trial);
+            let lam = &mut it.dynamics_multiplier[k];
+            *lam *= 1.0 - alpha;
+            lam.axpy(alpha, &self.steps[k].dynamics_multiplier, 1.0);
+            let nu = &mut it.equality_multiplier[k];
+            *nu *= 1.0 - alpha;
+            nu.axpy(alpha, &self.steps[k].equality_multiplier, 1.0);
+            let y = &mut it.inequality_multiplier[k];
+            *y *= 1.0 - alpha;
+            y.axpy(alpha, &b.y_new, 1.0);
+            it.lower_bound_multiplier[k].axpy(alpha_z, &b.dzl, 1.0);
+            it.upper_bound_multiplier[k].axpy(alpha_z, &b.dzu, 1.0);
+        }
+    }
+
+    /// Keeps `zl (s - l)` within `[mu / kappa_sigma, kappa_sigma mu]` (eq. 16).
+    fn reset_bound_multipliers(&self, problem: &Problem, it: &mut Iterate, mu: f64) {
+        let ks = self.settings.kappa_sigma;
+        for k in 0..it.slack.len() {
+            let (lo, up) = problem.bounds(k);
+            for i in 0..it.slack[k].len() {
+                let s = it.slack[k][i];
+                if lo[i].is_finite() {
+                    let d = s - lo[i];
+                    let z = &mut it.lower_bound_multiplier[k][i];
+                    *z = z.min(ks * mu / d).max(mu / (ks * d));
+                }
+                if up[i].is_finite() {
+                    let d = up[i] - s;
+                    let z = &mut it.upper_bound_multiplier[k][i];
+                    *z = z.min(ks * mu / d).max(mu / (ks * d));
+                }
+            }
+        }
+    }
+}
+
+/// Filter acceptance of a trial: `Some(true)` for an f-type step (Armijo
+/// on `phi`, the filter is not augmented), `Some(false)` for a step accepted by sufficient
+/// decrease of `theta` or `phi`, `None` if rejected.
+#[allow(clippy::too_many_arguments)]
+fn acceptance(filter: &Filter, s: &Settings, theta: f64, phi: f64, dphi: f64, alpha: f64, theta_t: f64, phi_t: f64, theta_min: f64, switching: bool) -> Option<bool> {
+    if !(theta_t.is_finite() && phi_t.is_finite() && filter.acceptable(theta_t, phi_t)) {
+        return None;
+    }
+    if theta <= theta_min && switching {
+        if phi_t <= phi + s.eta_phi * alpha * dphi {
+            return Some(true);
+        }
+        return None;
+    }
+    if theta_t <= (1.0 - s.gamma_theta) * theta || phi_t <= phi - s.gamma_phi * theta {
+        return Some(false);
+    }
+    None
+}
+
+/// `-mu sum ln(s - l) + ln(u - s)`; `+inf` outside the interior.
+fn barrier(slack: &DVector<f64>, lo: &[f64], up: &[f64], mu: f64) -> f64 {
+    let mut b = 0.0;
+    for i in 0..slack.len() {
+        let s = slack[i];
+        if lo[i].is_finite() {
+            let d = s - lo[i];
+            if d <= 0.0 {
+                return f64::INFINITY;
+            }
+            b -= mu * d.ln();
+        }
+        if up[i].is_finite() {
+            let d = up[i] - s;
+            if d <= 0.0 {
+                return f64::INFINITY;
+            }
+            b -= mu * d.ln();
+        }
+    }
+    b
+}
+
+/// `|f - x_next|_1 + |g|_1 + |h - s|_1` of one stage.
+fn violation_1(v: &StageValues, next_primal: Option<&DVector<f64>>, nx_next: usize, slack: &DVector<f64>) -> f64 {
+    let mut t = 0.0;
+    if let Some(xn) = next_primal {
+        for i in 0..nx_next {
+            t += (v.dynamics[i] - xn[i]).abs();
+        }
+    }
+    t += v.equalities.lp_norm(1);
+    for i in 0..slack.len() {
+        t += (v.inequalities[i] - slack[i]).abs();
+    }
+    t
+}
+
+/// IPOPT's initial slack (sec. 3.6): `h` projected into `[l + p_l, u - p_u]`.
+fn push_into_interior(h: f64, lo: f64, up: f64, push: f64, frac: f64) -> f64 {
+    let mut pl = push * lo.abs().max(1.0);
+    let mut pu = push * up.abs().max(1.0);
+    if lo.is_finite() && up.is_finite() {
+        pl = pl.min(frac * (up - lo));
+        pu = pu.min(frac * (up - lo));
+    }
+    let mut s = h;
+    if lo.is_finite() {
+        s = s.max(lo + pl);
+    }
+    if up.is_finite() {
+        s = s.min(up - pu);
+    }
+    s
+}

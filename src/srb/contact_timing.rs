@@ -1,0 +1,304 @@
+//! Nguyen 2022's contact-timing optimization (sec. II-B, eq. (2)) on the single rigid
+//! body, formulated as `../shared/anchors/nguyen2022/contact_timing.py` formulates it (the
+//! oracle legwork is checked against), and solved with [`crate::ipocp`].
+//!
+//! Choices the paper leaves open follow the script (see its README): Lee's rotation error,
+//! `R_ref` rotating linearly over the knot index, the final rotation as
+//! `skew(R_g^T R_N) = 0` with `tr(R_g^T R_N) >= 2.9`, `Omegadot_0 = 0` as zero net body
+//! torque at the first knot, every otherwise free variable bounded by `+-1e3` and the
+//! rotation entries by `+-1.5`, the targets of the jumps the paper does not give.
+
+// Index loops over rows and columns read like the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
+use super::exp_map::{exp, ExpMap};
+use super::params::SrbParams;
+use super::stage::{rotation_error_map, Shared, SrbStage, BIG, P, R, T, V, W};
+use crate::ipocp::{Problem, ProblemError, Settings, SolveError, SolveResult, Solver, Stage};
+use nalgebra::{DVector, Matrix3, Vector3};
+use std::f64::consts::PI;
+use std::sync::Arc;
+
+/// Feet in contact per phase, order LF, RF, LH, RH.
+pub type Contacts = [bool; 4];
+
+const ALL: Contacts = [true; 4];
+const NONE: Contacts = [false; 4];
+const RIGHT: Contacts = [false, true, false, true];
+const REAR: Contacts = [false, false, true, true];
+
+/// A jump of the paper's Table I.
+#[derive(Clone, Debug, PartialEq)]
+pub struct JumpSpec {
+    pub name: &'static str,
+    /// CoM displacement goal (world).
+    pub displacement: Vector3<f64>,
+    /// Goal rotation as axis and angle.
+    pub axis: Vector3<f64>,
+    pub angle: f64,
+    /// Height of the start box above the landing ground.
+    pub box_height: f64,
+    pub phases: Vec<Contacts>,
+    /// `[T_min, T_max]` of (2j).
+    pub total_time: (f64, f64),
+}
+
+/// The seven jumps, as `contact_timing.py` defines them.
+pub fn jumps() -> Vec<JumpSpec> {
+    let j = |name, d: [f64; 3], axis: [f64; 3], angle, box_height, phases: Vec<Contacts>, total_time| JumpSpec {
+        name,
+        displacement: Vector3::from(d),
+        axis: Vector3::from(axis),
+        angle,
+        box_height,
+        phases,
+        total_time,
+    };
+    vec![
+        j("lateral30", [0.0, 0.3, 0.0], [0.0, 0.0, 1.0], 0.0, 0.0, vec![ALL, NONE], (0.5, 1.5)),
+        j("lateral_down", [0.0, 0.3, -0.3], [0.0, 0.0, 1.0], 0.0, 0.3, vec![ALL, NONE], (0.5, 1.5)),
+        j("spin90", [0.0, 0.0, 0.0], [0.0, 0.0, 1.0], PI / 2.0, 0.0, vec![ALL, NONE], (0.5, 1.5)),
+        j("diagonal", [0.4, -0.3, 0.0], [0.0, 0.0, 1.0], PI / 4.0, 0.0, vec![ALL, REAR, NONE], (1.0, 2.0)),
+        j("barrel_roll", [0.0, 0.2, -0.4], [1.0, 0.0, 0.0], -2.0 * PI, 0.4, vec![ALL, RIGHT, NONE], (1.0, 2.0)),
+        j("double_barrel_roll", [0.0, 0.3, -0.9], [1.0, 0.0, 0.0], -4.0 * PI, 0.9, vec![ALL, RIGHT, NONE], (1.0, 2.0)),
+        j("double_backflip", [-0.3, 0.0, -2.0], [0.0, 1.0, 0.0], -4.0 * PI, 2.0, vec![ALL, REAR, NONE], (1.0, 2.0)),
+    ]
+}
+
+/// Settings of the formulation (defaults: the script's, in parentheses).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ContactTimingSettings {
+    /// Knots per phase `N_i` (30).
+    pub knots_per_phase: usize,
+    /// Friction coefficient (0.6), vertical force bounds per foot (0, 200 N), sphere radius
+    /// of (2d) (0.14 m).
+    pub mu: f64,
+    pub f_min: f64,
+    pub f_max: f64,
+    pub radius: f64,
+    /// Bounds of each `T_i` (0.1, 1.0 s).
+    pub t_lo: f64,
+    pub t_hi: f64,
+    /// Cost weights `eps_Omega`, `eps_R`, `eps_f` (1, 10, 1e-4).
+    pub eps_omega: f64,
+    pub eps_r: f64,
+    pub eps_f: f64,
+    /// Weight each knot's cost by its interval `T_i / N_i` (the script's `--cost-dt`; true).
+    /// False: the cost summed per knot, as eq. (2) is printed.
+    pub cost_dt: bool,
+    /// The SO(3) step's exponential (`Exact`; `Taylor4` is the paper's and the script's).
+    pub exp_map: ExpMap,
+}
+
+impl Default for ContactTimingSettings {
+    fn default() -> Self {
+        Self {
+            knots_per_phase: 30,
+            mu: 0.6,
+            f_min: 0.0,
+            f_max: 200.0,
+            radius: 0.14,
+            t_lo: 0.1,
+            t_hi: 1.0,
+            eps_omega: 1.0,
+            eps_r: 10.0,
+            eps_f: 1e-4,
+            cost_dt: true,
+            exp_map: ExpMap::Exact,
+        }
+    }
+}
+
+/// What is wrong with a contact-timing problem's inputs.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ContactTimingError {
+    #[error("contact-timing setting `{field}` = {value}: expected {expected}")]
+    Setting { field: &'static str, value: f64, expected: &'static str },
+    #[error("jump '{jump}': {problem}")]
+    Jump { jump: String, problem: &'static str },
+    #[error("the body's inertia is not invertible: {0:?}")]
+    SingularInertia(Matrix3<f64>),
+    #[error(transparent)]
+    Problem(#[from] ProblemError),
+}
+
+impl ContactTimingSettings {
+    /// Checks the ranges the formulation needs.
+    pub fn validate(&self) -> Result<(), ContactTimingError> {
+        let check = |field, value: f64, ok: bool, expected| if ok { Ok(()) } else { Err(ContactTimingError::Setting { field, value, expected }) };
+        check("knots_per_phase", self.knots_per_phase as f64, self.knots_per_phase >= 1, ">= 1")?;
+        check("mu", self.mu, self.mu > 0.0, "> 0")?;
+        check("f_min", self.f_min, self.f_min.is_finite() && self.f_min <= self.f_max, "finite and <= f_max")?;
+        check("f_max", self.f_max, self.f_max.is_finite(), "finite")?;
+        check("radius", self.radius, self.radius > 0.0, "> 0")?;
+        check("t_lo", self.t_lo, self.t_lo > 0.0 && self.t_lo <= self.t_hi, "> 0 and <= t_hi")?;
+        check("t_hi", self.t_hi, self.t_hi.is_finite(), "finite")?;
+        for (field, v) in [("eps_omega", self.eps_omega), ("eps_r", self.eps_r), ("eps_f", self.eps_f)] {
+            check(field, v, v >= 0.0 && v.is_finite(), ">= 0")?;
+        }
+        Ok(())
+    }
+}
+
+/// `exp(hat(axis * angle))`.
+fn rotation(axis: &Vector3<f64>, angle: f64) -> Matrix3<f64> {
+    exp(ExpMap::Exact, &(axis * angle))
+}
+
+/// The contact-timing problem of one jump: stages, initial guess and the numbers to read
+/// the solution with.
+pub struct ContactTimingProblem {
+    pub problem: Problem,
+    pub guess: Vec<DVector<f64>>,
+    pub phases: usize,
+    pub knots: usize,
+}
+
+impl ContactTimingProblem {
+    /// Builds the problem of `jump` for the body `params`.
+    pub fn new(jump: &JumpSpec, params: &SrbParams, s: &ContactTimingSettings) -> Result<Self, ContactTimingError> {
+        s.validate()?;
+        let bad = |problem| ContactTimingError::Jump { jump: jump.name.to_string(), problem };
+        if jump.phases.len() < 2 || jump.phases.last() != Some(&NONE) || jump.phases[0] != ALL {
+            return Err(bad("phases must start with all four feet in contact and end with a flight phase"));
+        }
+        if jump.phases[..jump.phases.len() - 1].iter().any(|c| !c.iter().any(|&f| f)) {
+            return Err(bad("only the last phase may be a flight phase"));
+        }
+        let (t_min, t_max) = jump.total_time;
+        if t_min.is_nan() || t_max.is_nan() || t_min > t_max || jump.axis.norm().is_nan() || jump.axis.norm() == 0.0 {
+            return Err(bad("total_time must be an interval (min <= max) and the axis nonzero"));
+        }
+        let inertia_inv = params.inertia.try_inverse().ok_or(ContactTimingError::SingularInertia(params.inertia))?;
+        let np = jump.phases.len();
+        let n = s.knots_per_phase;
+        let nc = n * np;
+        // Sphere centres: the standing feet, put exactly on the ground plane (mean height).
+        let h0 = -params.foot_rel_com.iter().map(|f| f[2]).sum::<f64>() / 4.0;
+        let pbar: [Vector3<f64>; 4] = std::array::from_fn(|f| Vector3::new(params.foot_rel_com[f][0], params.foot_rel_com[f][1], -h0));
+        let p0 = Vector3::new(0.0, 0.0, jump.box_height + h0);
+        let pg = p0 + jump.displacement;
+        let rg = rotation(&jump.axis, jump.angle);
+        let feet_start = std::array::from_fn(|f| p0 + pbar[f]);
+        let feet_goal = std::array::from_fn(|f| pg + rg * pbar[f]);
+        let shared = Arc::new(Shared {
+            mass: params.mass,
+            inertia: params.inertia,
+            inertia_inv,
+            pbar,
+            radius: s.radius,
+            mu: s.mu,
+            eps_omega: s.eps_omega,
+            eps_r: s.eps_r,
+            eps_f: s.eps_f,
+            cost_dt: s.cost_dt,
+            exp_map: s.exp_map,
+            knots_per_phase: vec![n; np],
+            phases: np,
+            t_sum: jump.total_time,
+            height: (0.5 * h0, h0 + 0.15),
+            ground: jump.box_height,
+            p0,
+            pg,
+            rg,
+            feet_start,
+            feet_goal,
+        });
+        let phase_of = |k: usize| k.min(nc - 1) / n;
+        let k_flight = n * (np - 1);
+        let nx = T + np;
+        // Initial guess of the script: an even split of the mid total time, a straight CoM
+        // line, no rotation in stance and a constant rate in flight, feet interpolated.
+        let t_guess = 0.5 * (jump.total_time.0 + jump.total_time.1) / np as f64;
+        let t_total = t_guess * np as f64;
+        let mut stages: Vec<Box<dyn Stage>> = Vec::with_capacity(nc + 1);
+        let mut guess = Vec::with_capacity(nc + 1);
+        for k in 0..=nc {
+            let last = k == nc;
+            let phase = phase_of(k);
+            let contact = if last { NONE } else { jump.phases[phase] };
+            let ang_ref = jump.angle * k as f64 / nc as f64;
+            let rot_err = rotation_error_map(&rotation(&jump.axis, ang_ref));
+            let mut bounds = Vec::new();
+            for j in 0..9 {
+                bounds.push((P + j, -BIG, BIG)); // p, pdot, Omega
+            }
+            for j in 0..9 {
+                bounds.push((R + j, -1.5, 1.5));
+            }
+            if k == 0 {
+                for i in 0..np {
+                    bounds.push((T + i, s.t_lo, s.t_hi));
+                }
+            }
+            if !last {
+                for f in 0..4 {
+                    let u = nx + 3 * f;
+                    if contact[f] {
+                        bounds.push((u, -BIG, BIG));
+                        bounds.push((u + 1, -BIG, BIG));
+                        bounds.push((u + 2, s.f_min, s.f_max));
+                    } else {
+                        for j in 0..3 {
+                            bounds.push((u + j, -BIG, BIG));
+                        }
+                    }
+                }
+            }
+            let ncontact = contact.iter().filter(|&&c| c).count();
+            let n_general = if last { 4 + 1 } else { 4 * ncontact + 4 + usize::from(ncontact > 0) + usize::from(k == 0) };
+            stages.push(Box::new(SrbStage { shared: shared.clone(), knot: k, phase, last, contact, rot_err, bounds, n_general }));
+            // Guess.
+            let frac = k as f64 / nc as f64;
+            let mut z = DVector::zeros(if last { nx } else { nx + 12 });
+            let p = p0 * (1.0 - frac) + pg * frac;
+            let v = (pg - p0) / t_total;
+            let w = if k >= k_flight && k < nc { jump.axis * (jump.angle / t_guess) } else { Vector3::zeros() };
+            let ang = jump.angle * (k.saturating_sub(k_flight)) as f64 / (nc - k_flight) as f64;
+            let rguess = rotation(&jump.axis, ang);
+            for j in 0..3 {
+                z[P + j] = p[j];
+                z[V + j] = v[j];
+                z[W + j] = w[j];
+            }
+            for a in 0..3 {
+                for b in 0..3 {
+                    z[R + a + 3 * b] = rguess[(a, b)];
+                }
+            }
+            for i in 0..np {
+                z[T + i] = t_guess;
+            }
+            if !last {
+                for f in 0..4 {
+                    let u = nx + 3 * f;
+                    if contact[f] {
+                        z[u + 2] = params.mass * 9.81 / ncontact as f64;
+                    } else {
+                        let pf = feet_start[f] * (1.0 - frac) + feet_goal[f] * frac;
+                        for j in 0..3 {
+                            z[u + j] = pf[j];
+                        }
+                    }
+                }
+            }
+            guess.push(z);
+        }
+        Ok(Self { problem: Problem::new(stages)?, guess, phases: np, knots: nc })
+    }
+
+    /// A solver for this problem.
+    pub fn solver(&self, settings: Settings) -> Result<Solver, SolveError> {
+        Ok(Solver::new(&self.problem, settings)?)
+    }
+
+    /// Solves from the script's initial guess.
+    pub fn solve(&self, solver: &mut Solver) -> Result<SolveResult, SolveError> {
+        solver.solve(&self.problem, &self.guess)
+    }
+
+    /// The phase durations `T_i` of an iterate.
+    pub fn durations(&self, primal: &[DVector<f64>]) -> Vec<f64> {
+        (0..self.phases).map(|i| primal[0][T + i]).collect()
+    }
+}

@@ -1,0 +1,125 @@
+//! Nguyen 2022's contact-timing optimization on the single rigid body: the A1's parameters
+//! against the reference script's, the stages' derivatives against finite differences,
+//! and the lateral jump's optimum against `results_srb_costdt.json`.
+
+use legwork::ipocp::{Settings, Stage, StageJacobians, StageMultipliers, StageValues, Status};
+use legwork::srb::{jumps, ContactTimingProblem, ContactTimingSettings, ExpMap, SrbParams};
+use nalgebra::{DMatrix, DVector};
+
+fn anchor(file: &str) -> serde_json::Value {
+    let path = format!("{}/../shared/anchors/nguyen2022/{file}", env!("CARGO_MANIFEST_DIR"));
+    serde_json::from_str(&std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"))).unwrap()
+}
+
+#[test]
+fn a1_parameters_match_the_reference_script() {
+    let p = SrbParams::a1().unwrap();
+    let j = anchor("a1_srb_params.json");
+    assert!((p.mass - j["mass"].as_f64().unwrap()).abs() < 1e-9, "mass {}", p.mass);
+    for a in 0..3 {
+        for b in 0..3 {
+            let e = j["inertia_composite_at_com"][a][b].as_f64().unwrap();
+            assert!((p.inertia[(a, b)] - e).abs() < 1e-9, "I[{a}{b}] {} vs {e}", p.inertia[(a, b)]);
+        }
+        assert!((p.com_in_base[a] - j["com_in_base"][a].as_f64().unwrap()).abs() < 1e-9);
+    }
+    for f in 0..4 {
+        for a in 0..3 {
+            let e = j["foot_rel_com"][f][a].as_f64().unwrap();
+            assert!((p.foot_rel_com[f][a] - e).abs() < 1e-9, "foot {f} {a}: {} vs {e}", p.foot_rel_com[f][a]);
+        }
+    }
+}
+
+/// Deterministic pseudo-random numbers in [-1, 1).
+struct Lcg(u64);
+impl Lcg {
+    fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((self.0 >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    }
+}
+
+/// Jacobians by central differences of `evaluate`, Hessian by central differences of the
+/// Lagrangian's gradient, at a perturbed guess with random multipliers.
+fn check_stage(stage: &dyn Stage, z0: &DVector<f64>, rng: &mut Lcg) {
+    let d = stage.dims();
+    let nz = d.nz();
+    let z = DVector::from_fn(nz, |i, _| z0[i] + 0.05 * rng.next());
+    let lam = DVector::from_fn(d.nx_next, |_, _| rng.next());
+    let nu = DVector::from_fn(d.ng, |_, _| rng.next());
+    let y = DVector::from_fn(d.nh, |_, _| rng.next());
+    let mut jac = StageJacobians::zeros(d);
+    stage.jacobians(z.as_slice(), &mut jac);
+    let lagrangian_gradient = |zz: &DVector<f64>| {
+        let mut j = StageJacobians::zeros(d);
+        stage.jacobians(zz.as_slice(), &mut j);
+        &j.cost_gradient + j.dynamics.transpose() * &lam + j.equalities.transpose() * &nu + j.inequalities.transpose() * &y
+    };
+    let mut hess = DMatrix::zeros(nz, nz);
+    let m = StageMultipliers { cost: 1.0, dynamics: lam.as_slice(), equalities: nu.as_slice(), inequalities: y.as_slice() };
+    stage.lagrangian_hessian(z.as_slice(), m, &mut hess);
+    let h = 1e-6;
+    for i in 0..nz {
+        let (mut zp, mut zm) = (z.clone(), z.clone());
+        zp[i] += h;
+        zm[i] -= h;
+        let (mut vp, mut vm) = (StageValues::zeros(d), StageValues::zeros(d));
+        stage.evaluate(zp.as_slice(), &mut vp);
+        stage.evaluate(zm.as_slice(), &mut vm);
+        let fd = |a: &DVector<f64>, b: &DVector<f64>| (a - b) / (2.0 * h);
+        let close = |fd: f64, an: f64, what: &str| assert!((fd - an).abs() < 1e-6 * (1.0 + an.abs()), "{what} column {i}: fd {fd} analytic {an}");
+        close((vp.cost - vm.cost) / (2.0 * h), jac.cost_gradient[i], "cost gradient");
+        for (r, v) in fd(&vp.dynamics, &vm.dynamics).iter().enumerate() {
+            close(*v, jac.dynamics[(r, i)], &format!("dynamics row {r}"));
+        }
+        for (r, v) in fd(&vp.equalities, &vm.equalities).iter().enumerate() {
+            close(*v, jac.equalities[(r, i)], &format!("equality row {r}"));
+        }
+        for (r, v) in fd(&vp.inequalities, &vm.inequalities).iter().enumerate() {
+            close(*v, jac.inequalities[(r, i)], &format!("inequality row {r}"));
+        }
+        let gcol = fd(&lagrangian_gradient(&zp), &lagrangian_gradient(&zm));
+        for r in 0..nz {
+            close(gcol[r], hess[(r, i)], &format!("Hessian row {r}"));
+        }
+    }
+    assert!((&hess - hess.transpose()).amax() < 1e-12, "Hessian not symmetric");
+}
+
+#[test]
+fn stage_derivatives_match_finite_differences() {
+    let params = SrbParams::a1().unwrap();
+    let mut rng = Lcg(5);
+    for (name, exp_map) in [("lateral30", ExpMap::Taylor4), ("barrel_roll", ExpMap::Exact), ("double_backflip", ExpMap::Taylor4)] {
+        let jump = jumps().into_iter().find(|j| j.name == name).unwrap();
+        let settings = ContactTimingSettings { exp_map, knots_per_phase: 4, ..Default::default() };
+        let ct = ContactTimingProblem::new(&jump, &params, &settings).unwrap();
+        for k in 0..ct.problem.len() {
+            check_stage(ct.problem.stage(k), &ct.guess[k], &mut rng);
+        }
+    }
+}
+
+#[test]
+fn lateral_jump_reaches_the_reference_optimum() {
+    let reference = anchor("results_srb_costdt.json");
+    assert_eq!(reference["args"]["cost_dt"], true);
+    let r0 = reference["results"].as_array().unwrap().iter().find(|r| r["jump"] == "lateral30").unwrap();
+    let cost_ref = r0["runs"][0]["cost"].as_f64().unwrap();
+    let t_ref: Vec<f64> = r0["T_opt_s"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let params = SrbParams::a1().unwrap();
+    let jump = jumps().into_iter().find(|j| j.name == "lateral30").unwrap();
+    // The script's exponential is the paper's 4th-order Taylor polynomial.
+    let settings = ContactTimingSettings { exp_map: ExpMap::Taylor4, ..Default::default() };
+    let ct = ContactTimingProblem::new(&jump, &params, &settings).unwrap();
+    let mut solver = ct.solver(Settings::default()).unwrap();
+    let r = ct.solve(&mut solver).unwrap();
+    assert_eq!(r.status, Status::Solved, "after {} iterations", r.iterations);
+    assert!((r.objective - cost_ref).abs() < 1e-4 * cost_ref, "cost {} vs {cost_ref}", r.objective);
+    assert!(r.primal_infeasibility < 1e-6, "constraint violation {}", r.primal_infeasibility);
+    let t = ct.durations(&r.last.primal);
+    for (a, b) in t.iter().zip(&t_ref) {
+        assert!((a - b).abs() < 1e-4, "T {t:?} vs {t_ref:?}");
+    }
+}
