@@ -88,7 +88,7 @@ fn extended_linearization_matches_central_differences_through_the_anchor_update(
     x.anchors[1] = x.anchors[1].map(|a| a - nalgebra::Vector3::new(0.05, 0.0, 0.0));
     let mut sticking = settled.clone();
     sticking.anchors[3] = sticking.anchors[3].map(|a| a - nalgebra::Vector3::new(0.001, 0.0, 0.0));
-    let mut ws_contacts = ContactModelWorkspace::new(&model, &ground, model.contact);
+    let mut ws_contacts = ContactModelWorkspace::new(&model, &ground);
     ws_contacts.evaluate_contacts(&x.q, &x.v, &x.anchors);
     assert!(ws_contacts.feet()[1].contact.slipping, "foot 1 slips");
     assert!(ws_contacts.feet()[0].contact.penetration > 0.0, "foot 0 touches down");

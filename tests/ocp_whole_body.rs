@@ -83,7 +83,7 @@ fn hyq_shifts_its_base_forward() {
     assert!((last.q[0] - target[0]).abs() < 0.01, "final x {} vs {}", last.q[0], target[0]);
     // Still standing on four feet at the end (the height kept, every foot down).
     assert!((last.q[2] - start.q[2]).abs() < 0.02);
-    let mut ws = ContactModelWorkspace::new(&model, &ground, model.contact);
+    let mut ws = ContactModelWorkspace::new(&model, &ground);
     ws.evaluate_contacts(&last.q, &last.v, &last.anchors);
     assert!(ws.feet().iter().all(|f| f.contact.normal_force > 0.0));
 
@@ -248,7 +248,7 @@ fn substepped_knot_is_the_simulators_steps_and_its_linearization_matches_finite_
     let mut next = x.clone();
     problem.step_with_derivatives(&mut ws, 0, &x, &u, &mut next, &mut d);
     // Four simulator steps of 0.5 ms with the same torques.
-    let mut sim_ws = ContactModelWorkspace::new(&model, &ground, model.contact);
+    let mut sim_ws = ContactModelWorkspace::new(&model, &ground);
     let (mut q, mut v, mut anchors) = (x.q.clone(), x.v.clone(), x.anchors.clone());
     let mut tau = DVector::zeros(nv);
     tau.rows_mut(6, nu).copy_from(&u);

@@ -42,7 +42,7 @@ fn step(ws: &mut ContactModelWorkspace<'_>, s: &State, q: &DVector<f64>, v: &DVe
 fn check(model: &Model, terrain: &dyn Terrain, s: &State, what: &str) {
     let dt = 0.0005;
     let nv = model.nv;
-    let mut ws = ContactModelWorkspace::new(model, terrain, model.contact).with_joint_limits(Some(Default::default()));
+    let mut ws = ContactModelWorkspace::new(model, terrain).with_joint_limits(Some(Default::default()));
     let mut deriv = StepDerivatives::new(model);
     let (mut q1, mut v1, mut anchors) = (s.q.clone(), s.v.clone(), s.anchors.clone());
     deriv.step(&mut ws, &mut q1, &mut v1, &mut anchors, &s.tau, dt);
@@ -110,7 +110,7 @@ fn landing_on_an_incline_with_one_foot_in_the_air() {
     let model = embedded::load("a1").unwrap();
     let slope = Plane::new(0.0, Vector3::new(-0.1, 0.05, 1.0)).unwrap();
     let s = state(&model, &slope, 0.05, 0.105, 0.3);
-    let mut ws = ContactModelWorkspace::new(&model, &slope, model.contact);
+    let mut ws = ContactModelWorkspace::new(&model, &slope);
     ws.evaluate_contacts(&s.q, &s.v, &s.anchors);
     let touching = ws.feet().iter().filter(|f| f.contact.normal_force > 0.0).count();
     assert!((1..4).contains(&touching), "wanted a partial contact, got {touching} feet down");
@@ -154,7 +154,7 @@ fn standing_with_joints_past_their_stops() {
     let model = with_stops_past(&hyq, &s.q, &[("lf_kfe_joint", true, 0.03), ("rh_kfe_joint", false, 0.01), ("lh_hfe_joint", false, 0.05), ("rf_haa_joint", true, 0.01)]);
     let rf_haa = model.joints[model.joint_id("rf_haa_joint").unwrap()].idx_v;
     s.v[rf_haa] = -10.0;
-    let ws = ContactModelWorkspace::new(&model, &ground, model.contact).with_joint_limits(Some(Default::default()));
+    let ws = ContactModelWorkspace::new(&model, &ground).with_joint_limits(Some(Default::default()));
     let mut tau = DVector::zeros(model.nv);
     ws.joint_stops().add_torques(&s.q, &s.v, &mut tau);
     assert_eq!(tau.iter().filter(|t| **t != 0.0).count(), 3, "three stops push, the fourth is clamped: {tau}");

@@ -295,7 +295,7 @@ impl WholeBodyProblem<'_> {
     /// `f(k, q, v, anchors, feet)` at every knot state `x_0 .. x_{N-1}` of `states` (the
     /// constrained ones), with the contacts evaluated there.
     fn for_each_knot_contact(&self, states: &[RobotState], mut f: impl FnMut(usize, &RobotState, &crate::contact::ContactParams, &[crate::sim::FootState])) {
-        let mut ws = ContactModelWorkspace::new(self.model, self.terrain, self.model.contact).with_joint_limits(self.joint_limits);
+        let mut ws = ContactModelWorkspace::new(self.model, self.terrain).with_joint_limits(self.joint_limits);
         for (k, x) in states.iter().enumerate().take(self.knots) {
             ws.evaluate_contacts(&x.q, &x.v, &x.anchors);
             f(k, x, ws.params(), ws.feet());
@@ -336,7 +336,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
     fn workspace(&self) -> WholeBodyWorkspace<'a> {
         let (model, nv) = (self.model, self.model.nv);
         WholeBodyWorkspace {
-            dynamics: ContactModelWorkspace::new(model, self.terrain, model.contact).with_joint_limits(self.joint_limits),
+            dynamics: ContactModelWorkspace::new(model, self.terrain).with_joint_limits(self.joint_limits),
             derivatives: StepDerivatives::new(model),
             anchor_derivatives: AnchorStepDerivatives::new(nv),
             deviation: StateDeviation::new(model),

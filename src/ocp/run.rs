@@ -127,7 +127,7 @@ pub fn solution_trajectory(problem: &WholeBodyProblem<'_>, solution: &SlqSolutio
     let mut traj = Trajectory::new(model, scenario, problem.dt, problem.terrain.spec());
     traj.metadata.initial_anchors = Some(problem.initial.anchors.iter().map(|a| a.map(Into::into)).collect());
     traj.metadata.joint_stops = problem.joint_limits;
-    let mut ws = crate::sim::ContactModelWorkspace::new(model, problem.terrain, model.contact).with_joint_limits(problem.joint_limits);
+    let mut ws = crate::sim::ContactModelWorkspace::new(model, problem.terrain).with_joint_limits(problem.joint_limits);
     let n = solution.inputs.len();
     let mut gain_ws = super::PhysicalGainWorkspace::new(model);
     let mut gain = DMatrix::zeros(model.nv - 6, 2 * model.nv);

@@ -300,7 +300,7 @@ impl<'a> Simulator<'a> {
         model.check_configuration(&q0).map_err(|e| SimError::InitialState(e.to_string()))?;
         let v0 = v0.unwrap_or_else(|| DVector::zeros(model.nv));
         model.check_tangent("initial velocity", &v0).map_err(|e| SimError::InitialState(e.to_string()))?;
-        let workspace = ContactModelWorkspace::new(model, terrain, model.contact).with_joint_limits(config.joint_limits);
+        let workspace = ContactModelWorkspace::new(model, terrain).with_joint_limits(config.joint_limits);
         Ok(Self {
             model,
             state: SimState { t: 0.0, q: q0, v: v0, anchors: vec![None; model.feet.len()] },

@@ -45,9 +45,11 @@ pub struct ContactModelWorkspace<'a> {
 }
 
 impl<'a> ContactModelWorkspace<'a> {
-    /// A workspace without joint stops (as [`super::SimConfig`]'s default);
+    /// A workspace in the robot's contact model ([`Model::contact`]: the simulator and the
+    /// optimizer share it), without joint stops (as [`super::SimConfig`]'s default);
     /// [`Self::with_joint_limits`] adds them.
-    pub fn new(model: &'a Model, terrain: &'a dyn Terrain, params: ContactParams) -> Self {
+    pub fn new(model: &'a Model, terrain: &'a dyn Terrain) -> Self {
+        let params = model.contact;
         let nv = model.nv;
         let z = || DVector::zeros(nv);
         let no_contact = FootState {
