@@ -11,7 +11,8 @@
 //! interpolated between knots (`q* = q_k (+) s (q_k+1 (-) q_k)`, `v*` linearly), so that a
 //! controller faster than the knots does not pull the robot back to the interval's start.
 
-use crate::dynamics::{difference, integrate};
+use super::interpolation::interpolate_state;
+use crate::dynamics::difference;
 use crate::io::Trajectory;
 use crate::model::Model;
 use crate::sim::{ControlError, Controller, SimState};
@@ -72,11 +73,7 @@ impl Controller for FeedbackPolicy {
         let s = if k + 1 < n { (position - k as f64).clamp(0.0, 1.0) } else { 0.0 };
         // The reference between knots k and k + 1.
         let next = (k + 1).min(n - 1);
-        difference(model, &self.q[k], &self.q[next], &mut self.dq);
-        self.dq *= s;
-        integrate(model, &self.q[k], &self.dq, &mut self.q_ref);
-        self.v_ref.copy_from(&self.v[k]);
-        self.v_ref.axpy(s, &self.v[next], 1.0 - s);
+        interpolate_state(model, (&self.q[k], &self.v[k]), (&self.q[next], &self.v[next]), s, &mut self.dq, &mut self.q_ref, &mut self.v_ref);
         // dx = [q (-) q*; v - v*], u = tau_k + K_k dx.
         let nv = model.nv;
         difference(model, &self.q_ref, &state.q, &mut self.dq);

@@ -3,11 +3,13 @@
 //! motion, and the feedback policy exported with a plan.
 
 mod feedback_policy;
+mod interpolation;
 mod joint_pd;
 mod tracking;
 pub mod whole_body;
 
 pub use feedback_policy::FeedbackPolicy;
+pub use interpolation::interpolate_state;
 pub use joint_pd::{JointPd, PdGains};
 pub use tracking::{BaseGains, TrackingController};
 pub use whole_body::{

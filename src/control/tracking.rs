@@ -3,8 +3,9 @@
 //! base pose (eq. 12) whose wrench is distributed to the stance feet of the planned contact
 //! schedule and mapped to joint torques by `J_c^T`.
 
+use super::interpolation::interpolate_state;
 use super::joint_pd::PdGains;
-use crate::dynamics::{base_orientation, compute_joint_jacobians, crba, difference, frame_jacobian, frame_position, integrate, Data, ReferenceFrame};
+use crate::dynamics::{base_orientation, compute_joint_jacobians, crba, frame_jacobian, frame_position, Data, ReferenceFrame};
 use crate::io::Trajectory;
 use crate::model::Model;
 use crate::sim::{ControlError, Controller, SimState};
@@ -145,11 +146,7 @@ impl TrackingController {
             return;
         }
         let s = ((t - r.t[k]) / (r.t[k + 1] - r.t[k])).clamp(0.0, 1.0);
-        difference(model, &r.q[k], &r.q[k + 1], &mut self.dq);
-        self.dq *= s;
-        integrate(model, &r.q[k], &self.dq, &mut self.q_ref);
-        self.v_ref.copy_from(&r.v[k]);
-        self.v_ref.axpy(s, &r.v[k + 1], 1.0 - s);
+        interpolate_state(model, (&r.q[k], &r.v[k]), (&r.q[k + 1], &r.v[k + 1]), s, &mut self.dq, &mut self.q_ref, &mut self.v_ref);
         self.tau_ff.copy_from(&r.tau[k]);
         self.tau_ff.axpy(s, &r.tau[k + 1], 1.0 - s);
         self.stance.copy_from_slice(&r.stance[if s < 0.5 { k } else { k + 1 }]);
