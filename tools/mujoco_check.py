@@ -355,7 +355,9 @@ def write_json(path, value):
         json.dump(value, f)
 
 
-def run(args):
+def setup(args):
+    """The MuJoCo model and data, the reference's metadata, the robot's index maps, the
+    reference and the controller that `args` name (shared by `run` and `torques`)."""
     model = mujoco.MjModel.from_xml_path(args.mjcf)
     data = mujoco.MjData(model)
     traj = load_json(args.reference)
@@ -369,6 +371,11 @@ def run(args):
         controller = Policy(robot, reference, meta["dt"])
     else:
         controller = Stand(robot, settings)
+    return model, data, meta, robot, reference, controller
+
+
+def run(args):
+    model, data, meta, robot, reference, controller = setup(args)
     dt = model.opt.timestep
     t0 = reference.t[0]
     duration = args.duration if args.duration is not None else reference.t[-1] - t0
@@ -480,14 +487,7 @@ def inspect(args):
 
 def torques(args):
     """The controller's torques (before the effort clip) at given states {t, q, v}."""
-    model = mujoco.MjModel.from_xml_path(args.mjcf)
-    data = mujoco.MjData(model)
-    traj = load_json(args.reference)
-    meta = traj["metadata"]
-    robot = Robot(model, meta["joint_names"], meta["foot_names"])
-    reference = Reference(traj, robot.nj)
-    settings = load_json(args.settings) if args.settings else {}
-    controller = {"track": lambda: Tracking(robot, reference, settings), "policy": lambda: Policy(robot, reference, meta["dt"]), "stand": lambda: Stand(robot, settings)}[args.controller]()
+    model, data, _, robot, reference, controller = setup(args)
     out = []
     for s in load_json(args.input)["states"]:
         robot.set_state(data, s["q"], s["v"])
