@@ -82,9 +82,11 @@ fn initial_guess_legs_reach_their_contact_points() {
             }
         }
         // The base carries the nominal CoM offset: the CoM is the SRB's up to the legs' motion
-        // and the base's shift towards feet the SRB puts out of reach (2.3 cm at most here).
+        // and the base's shift towards feet the SRB puts out of the legs' reach near lift-off
+        // (5.5 cm at most here; none while standing at the start).
         let com = center_of_mass(&model, &mut data, &q);
-        assert!((com - srb.knots[k].com).norm() < 0.03, "knot {k}: CoM {com} vs {}", srb.knots[k].com);
+        let bound = if k == 0 { 5e-3 } else { 0.06 };
+        assert!((com - srb.knots[k].com).norm() < bound, "knot {k}: CoM {com} vs {}", srb.knots[k].com);
         // Pre-landing: the same joint angles over the last 8 knots and the last.
         if k >= nk - 9 {
             assert_eq!(knot.q[7..], guess.knots[nk - 1].q[7..]);

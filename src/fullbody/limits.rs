@@ -3,6 +3,9 @@
 //! pyramid and the minimum normal force of the stance feet, the trunk clearance and the legs
 //! apart, the box clearance, and how far stance feet drift from their first contact point.
 
+// Index loops over legs and joints read like the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
 use super::kinematics::{foot_position, knee_position, legs};
 use super::settings::{BoxObstacle, FullBodySettings};
 use crate::dynamics::{forward_kinematics, Data};

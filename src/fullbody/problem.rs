@@ -2,6 +2,9 @@
 //! resampled SRB trajectory, started from the initial guess, solved by ipocp, and read back
 //! as a plan.
 
+// Index loops over legs and joints read like the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
 use super::kinematics::legs;
 use super::limits::{check_limits, LimitReport};
 use super::settings::{BoxObstacle, FullBodySettings};
@@ -241,7 +244,7 @@ impl FullBodyProblem {
             let mut values = StageValues::zeros(d);
             stage.evaluate(z.as_slice(), &mut values);
             if k + 1 < primal.len() {
-                put("dynamics", (&values.dynamics - &primal[k + 1].rows(0, 2 * nv)).amax());
+                put("dynamics", (&values.dynamics - primal[k + 1].rows(0, 2 * nv)).amax());
             }
             let spec = &self.specs[k];
             let g = &values.equalities;
