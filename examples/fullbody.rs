@@ -3,7 +3,8 @@
 //! guess, the full-body solve with ipocp, every limit checked at every knot.
 //!
 //! ```text
-//! cargo run --release --example fullbody -- [--repeats 3] [--no-box] [--verbose] [--limits] [jump ...]
+//! cargo run --release --example fullbody -- [--repeats 3] [--no-box] [--overhang 0.01]
+//!     [--pre-landing 10] [--verbose] [--limits] [jump ...]
 //! ```
 //!
 //! The box of a jump from a platform is the start feet's footprint grown by `--overhang`
@@ -21,12 +22,14 @@ fn main() -> anyhow::Result<()> {
     let mut verbose = false;
     let mut show_limits = false;
     let mut overhang = 0.01;
+    let mut pre_landing = None;
     let mut names = Vec::new();
     while let Some(a) = args.next() {
         match a.as_str() {
             "--repeats" => repeats = args.next().ok_or_else(|| anyhow::anyhow!("--repeats: a number"))?.parse()?,
             "--overhang" => overhang = args.next().ok_or_else(|| anyhow::anyhow!("--overhang: metres"))?.parse()?,
             "--no-box" => with_box = false,
+            "--pre-landing" => pre_landing = Some(args.next().ok_or_else(|| anyhow::anyhow!("--pre-landing: knots"))?.parse()?),
             "--verbose" => verbose = true,
             "--limits" => show_limits = true,
             _ => names.push(a),
@@ -34,10 +37,15 @@ fn main() -> anyhow::Result<()> {
     }
     let model = embedded::load("a1")?;
     let params = SrbParams::a1()?;
-    let settings = FullBodySettings { solver: Settings { verbose, ..FullBodySettings::default().solver }, ..FullBodySettings::default() };
+    let defaults = FullBodySettings::default();
+    let settings = FullBodySettings {
+        solver: Settings { verbose, ..defaults.solver.clone() },
+        pre_landing_knots: pre_landing.unwrap_or(defaults.pre_landing_knots),
+        ..defaults
+    };
     let all = jumps();
     let selected: Vec<_> = if names.is_empty() { all.clone() } else { all.iter().filter(|j| names.iter().any(|n| n == j.name)).cloned().collect() };
-    println!("jump                 T (10 ms)     box     status             iters  median s   (min s)   viol      limits  binding");
+    println!("jump                 T (10 ms)     box     status             iters  median s   (min s)  eval s  kkt s   viol      limits  binding");
     for jump in &selected {
         let ct = ContactTimingProblem::new(jump, &params, &ContactTimingSettings::default())?;
         let mut solver = ct.solver(Settings::default())?;
@@ -62,7 +70,7 @@ fn main() -> anyhow::Result<()> {
         times.sort_by(f64::total_cmp);
         let rep = &plan.report;
         println!(
-            "{:20} {:13} {:7} {:18} {:5}  {:.4}    ({:.4})  {:.1e}   {:7} {}",
+            "{:20} {:13} {:7} {:18} {:5}  {:.4}    ({:.4})  {:.3}   {:.3}   {:.1e}   {:7} {}",
             jump.name,
             format!("{:?}", srb.phase_knots),
             obstacle.map_or("-".to_string(), |b| format!("{:.2} m", b.top)),
@@ -70,6 +78,8 @@ fn main() -> anyhow::Result<()> {
             rep.iterations,
             times[times.len() / 2],
             times[0],
+            rep.evaluation_time.as_secs_f64(),
+            rep.kkt_time.as_secs_f64(),
             rep.primal_infeasibility,
             if plan.limits.all_met(1e-6) { "met" } else { "VIOLATED" },
             plan.limits.binding(1e-3).join(", ")

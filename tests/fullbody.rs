@@ -190,3 +190,39 @@ fn lateral_jump_solves_end_to_end_within_every_limit() {
     assert_eq!(r.status, Status::Solved);
     assert!(plan.limits.all_met(1e-6), "{}", plan.limits);
 }
+
+#[test]
+fn box_signed_distance_is_the_euclidean_distance_outside_and_the_nearest_face_inside() {
+    let b = BoxObstacle { top: 0.4, x: [-0.3, 0.3], y: [-0.2, 0.2] };
+    let (d, g) = b.signed_distance(&nalgebra::Vector3::new(0.6, 0.6, 0.8));
+    assert!((d - (0.09f64 + 0.16 + 0.16).sqrt()).abs() < 1e-12);
+    assert!((g - nalgebra::Vector3::new(0.3, 0.4, 0.4) / d).norm() < 1e-12);
+    let (d, g) = b.signed_distance(&nalgebra::Vector3::new(0.0, 0.15, 0.1));
+    assert!((d + 0.05).abs() < 1e-12, "nearest face y = 0.2: {d}");
+    assert_eq!(g, nalgebra::Vector3::new(0.0, 1.0, 0.0));
+    let (d, _) = b.signed_distance(&nalgebra::Vector3::new(0.0, 0.0, 0.45));
+    assert!((d - 0.05).abs() < 1e-12);
+}
+
+#[test]
+fn full_body_problem_rejects_bad_input() {
+    let model = embedded::load("a1").unwrap();
+    let srb = srb_solution("lateral30").resample(0.01).unwrap();
+    let settings = FullBodySettings::default();
+    let guess = initial_guess(&model, &srb, settings.pre_landing_knots).unwrap();
+    let new = |s: &FullBodySettings, b: Option<BoxObstacle>, g: &legwork::io::Trajectory| FullBodyProblem::new(&model, &srb, g, s, b).err().unwrap();
+    let e = new(&FullBodySettings { w_torque: 0.0, ..settings.clone() }, None, &guess);
+    assert_eq!(e, FullBodyError::Setting { field: "w_torque", value: 0.0, expected: "> 0" });
+    let e = new(&FullBodySettings { dt: 0.02, ..settings.clone() }, None, &guess);
+    assert!(matches!(e, FullBodyError::Guess(ref m) if m.contains("dt = 0.02")), "{e}");
+    let e = new(&settings, Some(BoxObstacle { top: 0.3, x: [0.2, -0.2], y: [-0.1, 0.1] }), &guess);
+    assert!(matches!(e, FullBodyError::Setting { field: "box", .. }), "{e}");
+    let e = new(&FullBodySettings { pre_landing_knots: 30, ..settings.clone() }, None, &guess);
+    assert!(matches!(e, FullBodyError::Setting { field: "pre_landing_knots", .. }), "{e}");
+    let mut short = guess.clone();
+    short.knots.pop();
+    assert!(matches!(new(&settings, None, &short), FullBodyError::Guess(_)));
+    let mut nan = guess.clone();
+    nan.knots[3].tau[0] = f64::NAN;
+    assert!(matches!(new(&settings, None, &nan), FullBodyError::Guess(ref m) if m.contains("knot 3")));
+}

@@ -14,6 +14,10 @@ use crate::model::Model;
 use nalgebra::{DVector, Vector3};
 use std::fmt;
 
+/// The row of the stance feet's drift from their first contact point (an equality: its
+/// margin is minus the drift).
+pub const STANCE_DRIFT: &str = "stance foot drift";
+
 /// The tightest knot of one kind of limit.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LimitRow {
@@ -37,9 +41,10 @@ impl LimitReport {
         self.rows.iter().all(|r| r.margin >= -tolerance)
     }
 
-    /// The kinds whose margin is within `band` of the limit (they bind).
+    /// The inequality kinds whose margin is within `band` of the limit (they bind; the
+    /// stance feet's drift, an equality, is never listed).
     pub fn binding(&self, band: f64) -> Vec<&'static str> {
-        self.rows.iter().filter(|r| r.margin < band).map(|r| r.kind).collect()
+        self.rows.iter().filter(|r| r.margin < band && r.kind != STANCE_DRIFT).map(|r| r.kind).collect()
     }
 }
 
@@ -47,7 +52,13 @@ impl fmt::Display for LimitReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(f, "{:20} {:>12}  {:6} knot", "limit", "margin", "unit")?;
         for r in &self.rows {
-            let state = if r.margin < -1e-6 { "VIOLATED" } else if r.margin < 1e-3 { "binds" } else { "" };
+            let state = if r.margin < -1e-6 {
+                "VIOLATED"
+            } else if r.margin < 1e-3 && r.kind != STANCE_DRIFT {
+                "binds"
+            } else {
+                ""
+            };
             writeln!(f, "{:20} {:>12.3e}  {:6} {:4} {state}", r.kind, r.margin, r.unit, r.knot)?;
         }
         Ok(())
@@ -106,7 +117,7 @@ pub fn check_limits(model: &Model, plan: &Trajectory, settings: &FullBodySetting
                 t.put("min normal force", "N", fz - s.min_normal_force, k);
                 let anchor = *first_contact[f].get_or_insert(feet[f]);
                 // The first stance knot is the start (at rest); later stance knots stay put.
-                t.put("stance foot drift", "m", -(feet[f] - anchor).norm(), k);
+                t.put(STANCE_DRIFT, "m", -(feet[f] - anchor).norm(), k);
             }
             for p in [&knees[f], &feet[f]] {
                 t.put("trunk clearance", "m", -(s.trunk_half_extents.z + s.clearance) - in_base(p).z, k);
@@ -119,7 +130,7 @@ pub fn check_limits(model: &Model, plan: &Trajectory, settings: &FullBodySetting
             }
         }
         if let Some(b) = obstacle {
-            let dist = |p: &Vector3<f64>| b.squared_distance(p).0.sqrt();
+            let dist = |p: &Vector3<f64>| b.signed_distance(p).0;
             for p in &knees {
                 t.put("box clearance", "m", dist(p) - s.clearance, k);
             }

@@ -18,7 +18,7 @@ mod settings;
 mod stage;
 
 pub use initial_guess::{initial_guess, pre_landing_configuration, IK_TOLERANCE, NOMINAL_POSE};
-pub use limits::{check_limits, LimitReport, LimitRow};
+pub use limits::{check_limits, LimitReport, LimitRow, STANCE_DRIFT};
 pub use problem::{FullBodyPlan, FullBodyProblem, SolveReport};
 pub use settings::{BoxObstacle, FullBodySettings};
 pub use stage::ConstraintKind;

@@ -36,7 +36,10 @@ pub struct FullBodyProblem {
 pub struct SolveReport {
     pub status: Status,
     pub iterations: usize,
+    /// Wall time of the solve, and its parts in function evaluations and KKT solves.
     pub time: Duration,
+    pub evaluation_time: Duration,
+    pub kkt_time: Duration,
     pub objective: f64,
     /// Largest violation of the optimizer's constraints (dynamics, equalities, inequalities).
     pub primal_infeasibility: f64,
@@ -186,6 +189,8 @@ impl FullBodyProblem {
                 status: result.status.clone(),
                 iterations: result.iterations,
                 time,
+                evaluation_time: result.timings.evaluation,
+                kkt_time: result.timings.kkt,
                 objective: result.objective,
                 primal_infeasibility: result.primal_infeasibility,
                 max_violation: self.violations(primal),

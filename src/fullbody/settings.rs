@@ -17,26 +17,24 @@ pub struct BoxObstacle {
 }
 
 impl BoxObstacle {
-    /// Squared distance of `p` from the box, `sum_a max(0, |p_a - c_a| - h_a)^2` over x and
-    /// y and `max(0, p_z - top)^2` (zero inside), and its gradient; continuously
-    /// differentiable.
-    pub fn squared_distance(&self, p: &Vector3<f64>) -> (f64, Vector3<f64>) {
-        let mut d = 0.0;
+    /// Signed distance of `p` from the box (negative inside) and its gradient: outside, the
+    /// Euclidean distance to the box (differentiable everywhere outside); inside, minus the
+    /// distance to the nearest face (top, or a side), whose gradient still points out, so a
+    /// point the guess put inside the box is pushed out.
+    pub fn signed_distance(&self, p: &Vector3<f64>) -> (f64, Vector3<f64>) {
+        let cx = 0.5 * (self.x[0] + self.x[1]);
+        let cy = 0.5 * (self.y[0] + self.y[1]);
+        let e = Vector3::new((p.x - cx).abs() - 0.5 * (self.x[1] - self.x[0]), (p.y - cy).abs() - 0.5 * (self.y[1] - self.y[0]), p.z - self.top);
+        let sign = Vector3::new(if p.x >= cx { 1.0 } else { -1.0 }, if p.y >= cy { 1.0 } else { -1.0 }, 1.0);
+        let out = e.map(|v| v.max(0.0));
+        let d = out.norm();
+        if d > 0.0 {
+            return (d, out.component_mul(&sign) / d);
+        }
+        let axis = e.imax();
         let mut g = Vector3::zeros();
-        for (a, [lo, hi]) in [(0, self.x), (1, self.y)] {
-            let (c, h) = (0.5 * (lo + hi), 0.5 * (hi - lo));
-            let e = (p[a] - c).abs() - h;
-            if e > 0.0 {
-                d += e * e;
-                g[a] = 2.0 * e * (p[a] - c).signum();
-            }
-        }
-        let e = p.z - self.top;
-        if e > 0.0 {
-            d += e * e;
-            g.z = 2.0 * e;
-        }
-        (d, g)
+        g[axis] = sign[axis];
+        (e[axis], g)
     }
 
     fn validate(&self) -> Result<(), FullBodyError> {

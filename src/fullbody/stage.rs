@@ -14,7 +14,8 @@
 //! follows from the dynamics), the final base pose. Inequalities: joint angle, velocity and
 //! torque limits, the friction pyramid and minimum normal force, knees and feet below the
 //! trunk's bottom face (a half-space inside the "outside the trunk's box" region, smooth),
-//! the legs apart, and knees, trunk corners and airborne feet clear of the box.
+//! the legs apart, and knees, trunk corners and airborne feet clear of the box (signed
+//! distance at least the clearance, the foot's radius for a foot).
 //!
 //! Derivatives: exact first derivatives of the dynamics (ABA derivatives of Carpentier &
 //! Mansard 2018 plus the contact forces' `d (J^T lambda) / dq`) and of every constraint;
@@ -262,12 +263,12 @@ impl Stage for FullBodyStage {
         }
         if sh.obstacle.is_some() {
             for _ in 0..12 {
-                (lower[r], upper[r]) = (s.clearance * s.clearance, f64::INFINITY);
+                (lower[r], upper[r]) = (s.clearance, f64::INFINITY);
                 r += 1;
             }
             for f in 0..4 {
                 if self.spec.airborne[f] {
-                    (lower[r], upper[r]) = (sh.foot_radius * sh.foot_radius, f64::INFINITY);
+                    (lower[r], upper[r]) = (sh.foot_radius, f64::INFINITY);
                     r += 1;
                 }
             }
@@ -396,17 +397,17 @@ impl Stage for FullBodyStage {
         r += 8;
         if let Some(b) = &sh.obstacle {
             for f in 0..4 {
-                h[r] = b.squared_distance(&knees[f]).0;
+                h[r] = b.signed_distance(&knees[f]).0;
                 r += 1;
             }
             for c in TRUNK_CORNERS {
                 let p = base.act_point(&s.trunk_half_extents.component_mul(&Vector3::from(c)));
-                h[r] = b.squared_distance(&p).0;
+                h[r] = b.signed_distance(&p).0;
                 r += 1;
             }
             for f in 0..4 {
                 if spec.airborne[f] {
-                    h[r] = b.squared_distance(&feet[f]).0;
+                    h[r] = b.signed_distance(&feet[f]).0;
                     r += 1;
                 }
             }
@@ -629,7 +630,7 @@ impl Stage for FullBodyStage {
         r += 8;
         if let Some(b) = &sh.obstacle {
             let row_of = |h: &mut DMatrix<f64>, r: usize, p: &Vector3<f64>, jac: &Matrix3xX<f64>| {
-                let grad = b.squared_distance(p).1;
+                let grad = b.signed_distance(p).1;
                 let m = grad.transpose() * jac * &ws.jd;
                 h.view_mut((r, 0), (1, nv)).copy_from(&m);
             };
