@@ -9,8 +9,10 @@
 //! * [`controller`]: both as one [`crate::sim::Controller`], with the swing legs held at the
 //!   pre-landing configuration (Remark 2) and extended along the impact velocity for fast
 //!   rotations (Remark 3);
+//! * [`check_references`]: a standing and a dropped A1, references that need no optimizer;
 //! * [`run`]: a whole jump in the simulator, [`run_jump`], and what it measured, [`JumpRun`].
 
+pub mod check_references;
 pub mod controller;
 pub mod feet;
 pub mod landing_qp;

@@ -2,10 +2,9 @@
 //! and both controllers holding a standing A1 in the simulator.
 
 use super::*;
-use crate::control::JointPd;
 use crate::io::Trajectory;
 use crate::model::embedded;
-use crate::sim::{standing_on_ground, SimConfig, Simulator};
+use crate::sim::{SimConfig, Simulator};
 use crate::terrain::{Plane, Terrain};
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Vector3};
 
@@ -137,16 +136,7 @@ fn a_foot_in_the_air_carries_nothing_and_the_others_the_weight() {
 fn a1_standing_reference() -> (crate::model::Model, Plane, Trajectory) {
     let model = embedded::load("a1").unwrap();
     let ground = Plane::flat(0.0);
-    let q0 = standing_on_ground(&model, &ground, 0.0).unwrap();
-    let mut sim = Simulator::new(&model, &ground, SimConfig::default(), q0, None).unwrap();
-    let mut stand = JointPd::standing(&model, 0.001).unwrap();
-    sim.run(1.0, &mut stand, |_| {}).unwrap();
-    let mut knot = sim.knot();
-    knot.v.iter_mut().for_each(|x| *x = 0.0);
-    let mut reference = Trajectory::new(&model, "standing", 0.01, ground.spec());
-    for k in 0..=100 {
-        reference.knots.push(crate::io::Knot { t: 0.01 * k as f64, ..knot.clone() });
-    }
+    let reference = check_references::standing_reference(&model, &ground, 1.0).unwrap();
     (model, ground, reference)
 }
 
@@ -247,4 +237,25 @@ fn the_landing_controller_holds_a_standing_robot_with_its_qp() {
     // The QP carries the robot: its forces add up to the weight.
     let total: Vector3<f64> = controller.commanded_forces().iter().sum();
     assert!((total.z - model.total_mass() * G).abs() < 0.05 * model.total_mass() * G, "{total}");
+}
+
+#[test]
+fn a_sideways_drop_lands_upright_near_its_target() {
+    let model = embedded::load("a1").unwrap();
+    let ground = Plane::flat(0.0);
+    let reference = check_references::drop_reference(&model, &ground, 0.15, 0.6).unwrap();
+    let settings = JumpSettings::default();
+    let run = run_jump(&model, &ground, &reference, &settings).unwrap();
+    assert!(run.failure.is_none() && !run.fell, "{:?}", run.failure);
+    // Falling from the first step, touching down after about sqrt(2 h / g) = 0.175 s.
+    assert!(run.lift_off.is_some_and(|t| t < 0.01), "{:?}", run.lift_off);
+    let td = run.touch_down.unwrap();
+    assert!((td - 0.175).abs() < 0.03, "touch-down at {td}");
+    assert!(run.switch.is_some_and(|t| (t - td).abs() < 2e-3), "{:?} vs {td}", run.switch);
+    assert!(run.roll < 2f64.to_radians() && run.pitch < 2f64.to_radians(), "roll {} pitch {}", run.roll, run.pitch);
+    assert!(run.position_error < 0.05, "{} m from the target", run.position_error);
+    assert!(run.yaw_error.abs() < 2f64.to_radians());
+    assert_eq!(run.controller.qp_failures, 0);
+    let duration = run.trajectory.knots.last().unwrap().t;
+    assert!((duration - (td + 1.0)).abs() < 0.011, "{duration}");
 }
