@@ -152,6 +152,13 @@ pub struct ContactTimingProblem {
     pub guess: Vec<DVector<f64>>,
     pub phases: usize,
     pub knots: usize,
+    /// Knots per phase `N_i` (the same for every phase).
+    pub knots_per_phase: usize,
+    /// Feet in contact per phase (the jump's contact sequence).
+    pub phase_contacts: Vec<Contacts>,
+    /// Feet at the start (where stance feet stay) and at the goal (world, order LF, RF, LH, RH).
+    pub feet_start: [Vector3<f64>; 4],
+    pub feet_goal: [Vector3<f64>; 4],
 }
 
 impl ContactTimingProblem {
@@ -284,7 +291,16 @@ impl ContactTimingProblem {
             }
             guess.push(z);
         }
-        Ok(Self { problem: Problem::new(stages)?, guess, phases: np, knots: nc })
+        Ok(Self {
+            problem: Problem::new(stages)?,
+            guess,
+            phases: np,
+            knots: nc,
+            knots_per_phase: n,
+            phase_contacts: jump.phases.clone(),
+            feet_start,
+            feet_goal,
+        })
     }
 
     /// A solver for this problem.
