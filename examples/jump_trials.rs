@@ -5,11 +5,13 @@
 //! ```text
 //! cargo run --release --example jump_trials -- REFERENCE.json [TRIALS]
 //! cargo run --release --example jump_trials -- drop:HEIGHT:VY [TRIALS]
+//! cargo run --release --example jump_trials -- guess:JUMP [TRIALS]
 //! ```
 //!
 //! `REFERENCE.json` is a trajectory file (`io::Trajectory`, 10 ms knots) of the full-body
 //! optimization; `drop:0.15:0.6` is the built-in ballistic reference
-//! ([`legwork::jump::control::check_references::drop_reference`]).
+//! ([`legwork::jump::control::check_references::drop_reference`]); `guess:lateral30` the
+//! full-body optimizer's initial guess of a jump (`fullbody::initial_guess`).
 
 use anyhow::{bail, Context};
 use legwork::io::Trajectory;
@@ -42,6 +44,19 @@ fn row(name: &str, run: &JumpRun, success: Option<bool>) {
     }
 }
 
+/// The full-body optimizer's initial guess of jump `name` (contact timing solved, legs by
+/// IK, torques `-J^T f`): a reference before the full-body optimization has run.
+fn initial_guess_reference(model: &legwork::model::Model, name: &str) -> anyhow::Result<Trajectory> {
+    use legwork::srb::{jumps, ContactTimingProblem, ContactTimingSettings, SrbParams, SrbTrajectory};
+    let params = SrbParams::a1()?;
+    let jump = jumps().into_iter().find(|j| j.name == name).with_context(|| format!("no jump named '{name}'"))?;
+    let problem = ContactTimingProblem::new(&jump, &params, &ContactTimingSettings::default())?;
+    let mut solver = problem.solver(legwork::ipocp::Settings::default())?;
+    let result = problem.solve(&mut solver)?;
+    let srb = SrbTrajectory::from_solution(&problem, &result.last.primal)?.resample(0.01)?;
+    Ok(legwork::fullbody::initial_guess(model, &srb, 8)?)
+}
+
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let Some(source) = args.first() else { bail!("usage: jump_trials REFERENCE.json|drop:HEIGHT:VY [TRIALS]") };
@@ -54,10 +69,15 @@ fn main() -> anyhow::Result<()> {
             bail!("drop:HEIGHT:VY takes two numbers, got '{spec}'");
         }
         check_references::drop_reference(&model, &ground, parts[0], parts[1])?
+    } else if let Some(name) = source.strip_prefix("guess:") {
+        initial_guess_reference(&model, name)?
     } else {
         Trajectory::load_file(source)?
     };
     let settings = JumpSettings::default();
+    if let Ok(path) = std::env::var("JUMP_REFERENCE_OUT") {
+        reference.save_file(&path)?;
+    }
     let start = std::time::Instant::now();
     let nominal = run_jump(&model, &ground, &reference, &settings)?;
     println!("reference {source}: {} knots, {:.2} s; target ({:.3}, {:.3}) m, yaw {:.1} deg", reference.knots.len(), reference.duration(), nominal.target.position.x, nominal.target.position.y, nominal.target.yaw.to_degrees());

@@ -2,7 +2,7 @@
 //!
 //! * before the switch ([`LandingSwitch`]): eq. (5) on every leg, tracking the reference;
 //!   from `T_posing` on, with the pre-landing configuration extended along the impact
-//!   velocity when the jump rotates fast (Remark 3, [`LegExtension`]);
+//!   velocity (Remark 3, [`LegExtension`]);
 //! * after it: the landing QP ([`LandingQp`]) on the feet in contact, `tau = -J^T f + joint
 //!   PD` (the leg pushes the ground with `-f`), and eq. (5) towards the pre-landing
 //!   configuration, with no feed-forward, on the legs still in the air (Remark 2).
@@ -45,23 +45,22 @@ impl Default for LandingSettings {
     }
 }
 
-/// Remark 3: the pre-landing feet moved by `time` times the reference's horizontal base
-/// velocity at impact (at most `max_offset`), when its angular speed there is at least
-/// `min_angular_speed`.
+/// Remark 3: the pre-landing feet moved along the reference's horizontal base velocity at
+/// impact by `time` times that velocity (at most `max_offset`), so that the ground's
+/// braking force at the feet, which are then ahead of the CoM, points closer to it. The
+/// paper applies it to its fast jumps; the offset vanishes with the horizontal velocity, so
+/// it is on for every jump here (`time = 0` turns it off).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LegExtension {
-    /// (s). Default 0.05 s: a barrel roll's 1.5 m/s moves the feet 7.5 cm, clipped to 5.
+    /// (s). Default 0.05 s (measured: see `docs/experiments/jump-control.md`).
     pub time: f64,
-    /// (m). Default 0.05 m.
+    /// (m). Default 0.08 m, what the A1's legs reach from its standing pose.
     pub max_offset: f64,
-    /// (rad/s). Default 4 rad/s: the barrel rolls and flips; the lateral, spinning and
-    /// diagonal jumps land with less and keep the pre-landing configuration.
-    pub min_angular_speed: f64,
 }
 
 impl Default for LegExtension {
     fn default() -> Self {
-        Self { time: 0.05, max_offset: 0.05, min_angular_speed: 4.0 }
+        Self { time: 0.05, max_offset: 0.08 }
     }
 }
 
@@ -115,8 +114,8 @@ impl JumpController {
         if !(landing.contact_threshold.is_finite() && landing.contact_threshold > 0.0) {
             return Err(JumpControlError::Setting { field: "landing.contact_threshold", expected: "a positive force (N)".into() });
         }
-        if !(gain_ok(extension.time) && gain_ok(extension.max_offset) && gain_ok(extension.min_angular_speed)) {
-            return Err(JumpControlError::Setting { field: "extension", expected: "finite, non-negative time, offset and angular speed".into() });
+        if !(gain_ok(extension.time) && gain_ok(extension.max_offset)) {
+            return Err(JumpControlError::Setting { field: "extension", expected: "a finite, non-negative time and offset".into() });
         }
         let srb = SrbParams::from_model(model, "standing").map_err(|e| JumpControlError::Robot(e.to_string()))?;
         let legs = leg_chains(model).map_err(|e| JumpControlError::Robot(e.to_string()))?;
@@ -262,8 +261,7 @@ impl Controller for JumpController {
 }
 
 /// The pre-landing configuration as a reference sample (zero velocity, no feed-forward),
-/// its feet moved along the impact velocity by Remark 3 when the jump lands rotating at
-/// least `extension.min_angular_speed`; and whether they were.
+/// its feet moved along the horizontal impact velocity by Remark 3; and whether they were.
 fn landing_pose(model: &Model, reference: &JumpReference, legs: &[LegChain], extension: &LegExtension) -> Result<(ReferenceSample, bool), JumpControlError> {
     let mut pose = ReferenceSample::new(model);
     let mut q = reference.pre_landing().clone();
@@ -274,11 +272,11 @@ fn landing_pose(model: &Model, reference: &JumpReference, legs: &[LegChain], ext
     for leg in legs {
         feet[leg.foot] = foot_position(&data, leg);
     }
-    let (velocity, angular) = reference.impact_velocity();
-    let extended = angular.norm() >= extension.min_angular_speed && extension.time > 0.0 && extension.max_offset > 0.0;
+    let (velocity, _) = reference.impact_velocity();
+    let horizontal = Vector3::new(velocity.x, velocity.y, 0.0) * extension.time;
+    let extended = horizontal.norm() > 1e-4 && extension.max_offset > 0.0;
     if extended {
         let rotation = base_orientation(reference.pre_landing().as_slice());
-        let horizontal = Vector3::new(velocity.x, velocity.y, 0.0) * extension.time;
         let offset = rotation.inverse() * horizontal.cap_magnitude(extension.max_offset);
         for p in feet.iter_mut() {
             *p += offset;
