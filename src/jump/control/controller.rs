@@ -20,7 +20,7 @@ use crate::dynamics::{base_orientation, compute_joint_jacobians, Data};
 use crate::model::Model;
 use crate::sim::{ControlError, Controller, FootState, SimState};
 use crate::srb::SrbParams;
-use nalgebra::{DVector, Vector3};
+use nalgebra::{DVector, Matrix3, Vector3};
 
 /// The landing controller's settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -91,6 +91,8 @@ pub struct JumpController {
     qp: LandingQp,
     target: SrbTarget,
     legs: Vec<LegChain>,
+    /// Per leg (order of `legs`): the motors' effort limits (N m).
+    torque_limits: Vec<Vector3<f64>>,
     data: Data,
     sensed_force: Vec<f64>,
     sensed_normal: Vec<Vector3<f64>>,
@@ -126,6 +128,11 @@ impl JumpController {
         let rotation = base_orientation(last.as_slice()).to_rotation_matrix().into_inner();
         let target = SrbTarget { com: Vector3::new(last[0], last[1], last[2]) + rotation * srb.com_in_base, rotation };
         let feet = model.feet.len();
+        let effort = |iv: usize| model.joints[model.joint_of_dof[iv]].limits.effort[0];
+        let torque_limits: Vec<Vector3<f64>> = legs.iter().map(|leg| Vector3::new(effort(leg.v_index[0]), effort(leg.v_index[1]), effort(leg.v_index[2]))).collect();
+        if torque_limits.iter().any(|t| t.iter().any(|x| !(*x > 0.0))) {
+            return Err(JumpControlError::Robot(format!("robot '{}': every leg joint needs a positive effort limit for the landing QP", model.name)));
+        }
         Ok(Self {
             switch: LandingSwitch::new(landing.contact_threshold, reference.t_posing(), feet),
             sample: ReferenceSample::new(model),
@@ -142,7 +149,8 @@ impl JumpController {
             data: Data::new(model),
             sensed_force: vec![0.0; feet],
             sensed_normal: vec![Vector3::z(); feet],
-            qp_feet: vec![QpFoot { position: Vector3::zeros(), normal: Vector3::z(), in_contact: false }; feet],
+            qp_feet: vec![QpFoot { position: Vector3::zeros(), normal: Vector3::z(), in_contact: false, leg_jacobian: Matrix3::zeros(), torque_limit: Vector3::zeros() }; feet],
+            torque_limits,
             forces: vec![Vector3::zeros(); feet],
             all_legs: vec![true; feet],
             swing_legs: vec![true; feet],
@@ -203,8 +211,10 @@ impl JumpController {
             return;
         }
         compute_joint_jacobians(model, &mut self.data, q);
-        for leg in &self.legs {
-            self.qp_feet[leg.foot] = QpFoot { position: foot_position(&self.data, leg), normal: self.sensed_normal[leg.foot], in_contact: !self.swing_legs[leg.foot] };
+        for (leg, limit) in self.legs.iter().zip(&self.torque_limits) {
+            let p = foot_position(&self.data, leg);
+            self.qp_feet[leg.foot] =
+                QpFoot { position: p, normal: self.sensed_normal[leg.foot], in_contact: !self.swing_legs[leg.foot], leg_jacobian: leg_jacobian(&self.data, leg, &p), torque_limit: *limit };
         }
         let state = self.srb_state(q, v);
         self.stats.qp_solves += 1;

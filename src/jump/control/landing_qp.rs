@@ -12,7 +12,13 @@
 //! min_f  1/2 (A f - b)^T S (A f - b) + alpha/2 |f|^2
 //! s.t.   |t_k . f_s| <= mu n . f_s   (k = 1, 2)                  friction pyramid
 //!        f_min <= n . f_s <= f_max                               feet in contact
+//!        |J_s^T f_s| <= tau_max                                  the leg's motors
 //! ```
+//!
+//! The last row is the motors' limit on the force: the leg pushes the ground with `-f_s`
+//! by `tau = -J_s^T f_s` (`J_s` the 3 x 3 leg Jacobian, world axes), so a force the knee
+//! cannot give is not asked for (the simulator would clip the torque and the wrench would
+//! be lost where the QP did not choose it).
 //!
 //! A foot not in contact (Remark 2: zero normal force until it touches) keeps its three
 //! variables, but its columns of `A` are zero and its bounds `0 <= n . f <= f_max`: the
@@ -27,8 +33,9 @@ use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettings, DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
 use nalgebra::{Matrix3, Vector3, Vector6};
 
-/// Constraint rows per foot: four friction faces, the two normal force bounds.
-const ROWS_PER_FOOT: usize = 6;
+/// Constraint rows per foot: four friction faces, the two normal force bounds, the upper
+/// and lower limit of each of the leg's three motors.
+const ROWS_PER_FOOT: usize = 12;
 
 /// Gains, weights and limits of the landing QP.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -108,6 +115,10 @@ pub struct QpFoot {
     /// Unit surface normal under the foot.
     pub normal: Vector3<f64>,
     pub in_contact: bool,
+    /// The leg Jacobian `d p_foot / d q_leg` (world axes, hip to knee columns).
+    pub leg_jacobian: Matrix3<f64>,
+    /// The leg's motor limits (N m), hip to knee.
+    pub torque_limit: Vector3<f64>,
 }
 
 /// What one solve did.
@@ -169,7 +180,8 @@ impl LandingQp {
         let a_values = vec![0.0; rowval.len()];
         let mut a = CscMatrix::new(m, n, colptr, rowval, a_values.clone());
         let mut b = vec![0.0; m];
-        fill_constraints(&settings, &vec![QpFoot { position: Vector3::zeros(), normal: Vector3::z(), in_contact: true }; feet], &mut a.nzval, &mut b);
+        let standing = QpFoot { position: Vector3::zeros(), normal: Vector3::z(), in_contact: true, leg_jacobian: Matrix3::identity(), torque_limit: Vector3::repeat(1.0) };
+        fill_constraints(&settings, &vec![standing; feet], &mut a.nzval, &mut b);
         let cones = [SupportedConeT::NonnegativeConeT(m)];
         let solver = DefaultSolver::new(&p, &vec![0.0; n], &a, &b, &cones, solver_settings()?).map_err(|e| JumpControlError::Qp(format!("setup: {e}")))?;
         if !solver.is_data_update_allowed() {
@@ -262,14 +274,16 @@ impl LandingQp {
     }
 }
 
-/// The friction pyramid and normal bounds of every foot, `A_c f <= b_c`, into the values of
-/// the constraint matrix (column-major 6 x 3 blocks) and `b`.
+/// The friction pyramid, normal bounds and motor limits of every foot, `A_c f <= b_c`, into
+/// the values of the constraint matrix (column-major 12 x 3 blocks) and `b`.
 fn fill_constraints(s: &LandingQpSettings, feet: &[QpFoot], a_values: &mut [f64], b: &mut [f64]) {
     let mu = s.friction_coefficient;
     for (f, foot) in feet.iter().enumerate() {
         let n = foot.normal;
         let (t1, t2) = tangents(&n);
-        let rows = [t1 - mu * n, -t1 - mu * n, t2 - mu * n, -t2 - mu * n, -n, n];
+        let j = &foot.leg_jacobian;
+        let (j0, j1, j2) = (j.column(0).into_owned(), j.column(1).into_owned(), j.column(2).into_owned());
+        let rows = [t1 - mu * n, -t1 - mu * n, t2 - mu * n, -t2 - mu * n, -n, n, j0, -j0, j1, -j1, j2, -j2];
         for c in 0..3 {
             for (r, row) in rows.iter().enumerate() {
                 a_values[(3 * f + c) * ROWS_PER_FOOT + r] = row[c];
@@ -279,6 +293,10 @@ fn fill_constraints(s: &LandingQpSettings, feet: &[QpFoot], a_values: &mut [f64]
         b[r0..r0 + 4].fill(0.0);
         b[r0 + 4] = if foot.in_contact { -s.normal_force_min } else { 0.0 };
         b[r0 + 5] = s.normal_force_max;
+        for k in 0..3 {
+            b[r0 + 6 + 2 * k] = foot.torque_limit[k];
+            b[r0 + 7 + 2 * k] = foot.torque_limit[k];
+        }
     }
 }
 

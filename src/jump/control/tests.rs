@@ -19,8 +19,13 @@ fn inertia() -> Matrix3<f64> {
 fn symmetric_feet(com: &Vector3<f64>) -> Vec<QpFoot> {
     [(0.18, 0.13), (0.18, -0.13), (-0.18, 0.13), (-0.18, -0.13)]
         .iter()
-        .map(|&(x, y)| QpFoot { position: com + Vector3::new(x, y, -0.25), normal: Vector3::z(), in_contact: true })
+        .map(|&(x, y)| QpFoot { position: com + Vector3::new(x, y, -0.25), normal: Vector3::z(), in_contact: true, leg_jacobian: leg_jacobian(), torque_limit: Vector3::repeat(33.5) })
         .collect()
+}
+
+/// A leg Jacobian of the A1's size (0.2 m links), roughly its standing one.
+fn leg_jacobian() -> Matrix3<f64> {
+    Matrix3::new(0.0, -0.25, -0.1, 0.25, 0.0, 0.0, 0.05, 0.0, 0.15)
 }
 
 fn qp() -> LandingQp {
@@ -109,6 +114,29 @@ fn a_tilted_target_stays_inside_the_friction_pyramid_and_the_force_bounds() {
         })
         .collect();
     assert!(objective(forces) < objective(&clipped));
+}
+
+#[test]
+fn the_motors_limit_the_forces() {
+    let mut qp = qp();
+    let com = Vector3::new(0.0, 0.0, 0.3);
+    // A hard stop: 2 m/s downwards asks for 40 m/s^2 (over 500 N per foot).
+    let state = SrbState { com, rotation: Matrix3::identity(), com_velocity: Vector3::new(0.0, 0.0, -2.0), angular_velocity: Vector3::zeros() };
+    let target = SrbTarget { com, rotation: Matrix3::identity() };
+    let mut feet = symmetric_feet(&com);
+    for foot in feet.iter_mut() {
+        foot.torque_limit = Vector3::new(33.5, 33.5, 10.0);
+    }
+    let (forces, _) = qp.solve(&state, &target, &feet).unwrap();
+    let mut binding = false;
+    for (f, foot) in forces.iter().zip(&feet) {
+        let tau = foot.leg_jacobian.transpose() * f;
+        for k in 0..3 {
+            assert!(tau[k].abs() <= foot.torque_limit[k] + 1e-6, "{tau} over {}", foot.torque_limit);
+        }
+        binding |= (tau[2].abs() - 10.0).abs() < 1e-3;
+    }
+    assert!(binding, "the knee limit must bind: {forces:?}");
 }
 
 #[test]
