@@ -134,7 +134,8 @@ impl SrbTrajectory {
             com_velocity: lerp(&a.com_velocity, &b.com_velocity),
             rotation,
             omega: lerp(&a.omega, &b.omega),
-            feet: std::array::from_fn(|f| lerp(&a.feet[f], &b.feet[f])),
+            // A foot pushing over the interval stays at its contact point.
+            feet: std::array::from_fn(|f| if a.contacts[f] { a.feet[f] } else { lerp(&a.feet[f], &b.feet[f]) }),
             forces: a.forces,
             contacts: a.contacts,
         }
