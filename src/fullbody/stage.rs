@@ -104,6 +104,8 @@ impl ConstraintKind {
 /// Buffers of one stage's evaluations.
 struct Workspace {
     data: Data,
+    dq: DVector<f64>,
+    v: DVector<f64>,
     q: DVector<f64>,
     q_next: DVector<f64>,
     v_next: DVector<f64>,
@@ -118,10 +120,16 @@ struct Workspace {
     scratch: DMatrix<f64>,
     /// `d qdd / dq` (tangent), `d v' / dz`, `d dq' / dz`.
     dqdd_dq: DMatrix<f64>,
+    dgen_dq: DMatrix<f64>,
     dv_dz: DMatrix<f64>,
+    dq_next_dz: DMatrix<f64>,
     point_jac: Matrix3xX<f64>,
+    force_map: Matrix3xX<f64>,
     feet_jac: [Matrix3xX<f64>; 4],
+    knee_jac: [Matrix3xX<f64>; 4],
+    corner_jac: [Matrix3xX<f64>; 8],
     com_jac: Matrix3xX<f64>,
+    row: DVector<f64>,
 }
 
 pub(crate) struct FullBodyStage {
@@ -155,6 +163,8 @@ impl FullBodyStage {
         let model = &shared.model;
         let ws = Workspace {
             data: Data::new(model),
+            dq: DVector::zeros(nv),
+            v: DVector::zeros(nv),
             q: DVector::zeros(model.nq),
             q_next: DVector::zeros(model.nq),
             v_next: DVector::zeros(nv),
@@ -167,10 +177,16 @@ impl FullBodyStage {
             jl: DMatrix::zeros(nv, nv),
             scratch: DMatrix::zeros(nv, nv),
             dqdd_dq: DMatrix::zeros(nv, nv),
+            dgen_dq: DMatrix::zeros(nv, nv),
             dv_dz: DMatrix::zeros(nv, 2 * nv + nu),
+            dq_next_dz: DMatrix::zeros(nv, 2 * nv + nu),
             point_jac: Matrix3xX::zeros(nv),
+            force_map: Matrix3xX::zeros(nv),
             feet_jac: std::array::from_fn(|_| Matrix3xX::zeros(nv)),
+            knee_jac: std::array::from_fn(|_| Matrix3xX::zeros(nv)),
+            corner_jac: std::array::from_fn(|_| Matrix3xX::zeros(nv)),
             com_jac: Matrix3xX::zeros(nv),
+            row: DVector::zeros(nv),
         };
         Self { dims: StageDims { nx: 2 * nv, nu, nx_next, ng, nh }, shared, spec, ws: Mutex::new(ws) }
     }
@@ -284,8 +300,8 @@ impl Stage for FullBodyStage {
         let spec = &self.spec;
         let mut guard = self.ws.lock().unwrap_or_else(|e| e.into_inner());
         let ws = &mut *guard;
-        let dq = DVector::from_column_slice(&z[..nv]);
-        integrate(model, &spec.qbar, &dq, &mut ws.q);
+        ws.dq.copy_from_slice(&z[..nv]);
+        integrate(model, &spec.qbar, &ws.dq, &mut ws.q);
         let v = &z[nv..2 * nv];
         let com = center_of_mass(model, &mut ws.data, &ws.q);
         // Cost (eq. 4, with the references of sec. II-C2).
@@ -319,10 +335,12 @@ impl Stage for FullBodyStage {
                     ws.tau.gemv_tr(1.0, &ws.point_jac, &l, 1.0);
                 }
             }
-            let vv = DVector::from_column_slice(v);
-            let a = aba(model, &mut ws.data, &ws.q, &vv, &ws.tau);
-            ws.v_next.copy_from(&(&vv + a * s.dt));
-            ws.step.copy_from(&(&ws.v_next * s.dt));
+            ws.v.copy_from_slice(v);
+            aba(model, &mut ws.data, &ws.q, &ws.v, &ws.tau);
+            ws.v_next.copy_from(&ws.v);
+            ws.v_next.axpy(s.dt, &ws.data.ddq, 1.0);
+            ws.step.copy_from(&ws.v_next);
+            ws.step *= s.dt;
             integrate(model, &ws.q, &ws.step, &mut ws.q_next);
             difference(model, spec.qbar_next.as_ref().expect("a stage with dynamics has a next knot"), &ws.q_next, &mut ws.dq_next);
             out.dynamics.rows_mut(0, nv).copy_from(&ws.dq_next);
@@ -424,18 +442,18 @@ impl Stage for FullBodyStage {
         let spec = &self.spec;
         let mut guard = self.ws.lock().unwrap_or_else(|e| e.into_inner());
         let ws = &mut *guard;
-        let dq = DVector::from_column_slice(&z[..nv]);
-        integrate(model, &spec.qbar, &dq, &mut ws.q);
+        ws.dq.copy_from_slice(&z[..nv]);
+        integrate(model, &spec.qbar, &ws.dq, &mut ws.q);
         // d q / d dq: Jr(dq) on the base, identity on the joints.
-        integrate_jacobians(model, &dq, &mut ws.scratch, &mut ws.jd);
-        let v = DVector::from_column_slice(&z[nv..2 * nv]);
+        integrate_jacobians(model, &ws.dq, &mut ws.scratch, &mut ws.jd);
+        ws.v.copy_from_slice(&z[nv..2 * nv]);
         out.dynamics.fill(0.0);
         out.equalities.fill(0.0);
         out.inequalities.fill(0.0);
         out.cost_gradient.fill(0.0);
         // Kinematics at q_k: world Jacobians, CoM and its Jacobian, the feet's Jacobians.
-        let jc = com_jacobian(model, &mut ws.data, &ws.q).clone() * &ws.jd;
-        ws.com_jac.copy_from(&jc);
+        let jc = com_jacobian(model, &mut ws.data, &ws.q);
+        ws.com_jac.gemm(1.0, jc, &ws.jd, 0.0);
         let com = ws.data.com;
         let feet: [Vector3<f64>; 4] = std::array::from_fn(|f| foot_position(model, &ws.data, &sh.legs[f]));
         let knees: [Vector3<f64>; 4] = std::array::from_fn(|f| knee_position(&ws.data, &sh.legs[f]));
@@ -445,20 +463,19 @@ impl Stage for FullBodyStage {
             ws.feet_jac[f].copy_from(&ws.point_jac);
         }
         // (Before the dynamics' derivatives, which reuse the world Jacobians' buffer.)
-        let mut knee_jac: [Matrix3xX<f64>; 4] = std::array::from_fn(|_| Matrix3xX::zeros(nv));
         for f in 0..4 {
-            point_jacobian(model, &ws.data, sh.legs[f].knee_joint, &knees[f], &mut knee_jac[f]);
+            point_jacobian(model, &ws.data, sh.legs[f].knee_joint, &knees[f], &mut ws.knee_jac[f]);
         }
         let corners: [Vector3<f64>; 8] = std::array::from_fn(|c| base.act_point(&s.trunk_half_extents.component_mul(&Vector3::from(TRUNK_CORNERS[c]))));
-        let mut corner_jac: [Matrix3xX<f64>; 8] = std::array::from_fn(|_| Matrix3xX::zeros(nv));
         if sh.obstacle.is_some() {
             for c in 0..8 {
-                point_jacobian(model, &ws.data, 1, &corners[c], &mut corner_jac[c]);
+                point_jacobian(model, &ws.data, 1, &corners[c], &mut ws.corner_jac[c]);
             }
         }
         // Cost gradient.
-        let gc = ws.com_jac.transpose() * (com - spec.com_ref) * (2.0 * s.w_com);
+        let com_error = (com - spec.com_ref) * (2.0 * s.w_com);
         for i in 0..nv {
+            let gc = ws.com_jac.column(i).dot(&com_error);
             let w = if i < 3 {
                 s.w_base_position
             } else if i < 6 {
@@ -466,7 +483,7 @@ impl Stage for FullBodyStage {
             } else {
                 s.w_joint
             };
-            out.cost_gradient[i] = gc[i] + 2.0 * w * z[i];
+            out.cost_gradient[i] = gc + 2.0 * w * z[i];
             out.cost_gradient[nv + i] = 2.0 * s.w_velocity * z[nv + i];
         }
         if !spec.last {
@@ -485,56 +502,59 @@ impl Stage for FullBodyStage {
             // Dynamics: qdd = ABA(q, v, tau_gen(q)),  d qdd/dq = -M^-1 dRNEA/dq + M^-1 d tau_gen/dq.
             ws.tau.fill(0.0);
             ws.tau.as_mut_slice()[6..].copy_from_slice(&z[2 * nv..2 * nv + nj]);
-            let mut dgen_dq = DMatrix::zeros(nv, nv);
+            ws.dgen_dq.fill(0.0);
             for f in 0..4 {
                 if let Some(l) = self.force(z, f) {
                     ws.tau.gemv_tr(1.0, &ws.feet_jac[f], &l, 1.0);
-                    add_point_force_derivative(&ws.data, &sh.legs[f], &feet[f], &l, &mut dgen_dq);
+                    add_point_force_derivative(&ws.data, &sh.legs[f], &feet[f], &l, &mut ws.dgen_dq);
                 }
             }
-            compute_aba_derivatives(model, &mut ws.data, &ws.q, &v, &ws.tau);
+            compute_aba_derivatives(model, &mut ws.data, &ws.q, &ws.v, &ws.tau);
             ws.dqdd_dq.copy_from(&ws.data.ddq_dq);
-            ws.dqdd_dq.gemm(1.0, &ws.data.minv, &dgen_dq, 1.0);
+            ws.dqdd_dq.gemm(1.0, &ws.data.minv, &ws.dgen_dq, 1.0);
             // v' = v + dt qdd: d v'/dz.
             let dt = s.dt;
             ws.dv_dz.fill(0.0);
-            {
-                let m = &ws.dqdd_dq * &ws.jd * dt;
-                ws.dv_dz.columns_mut(0, nv).copy_from(&m);
-            }
-            {
-                let m = &ws.data.ddq_dv * dt + DMatrix::<f64>::identity(nv, nv);
-                ws.dv_dz.columns_mut(nv, nv).copy_from(&m);
+            ws.dv_dz.columns_mut(0, nv).gemm(dt, &ws.dqdd_dq, &ws.jd, 0.0);
+            for c in 0..nv {
+                for r in 0..nv {
+                    ws.dv_dz[(r, nv + c)] = dt * ws.data.ddq_dv[(r, c)] + if r == c { 1.0 } else { 0.0 };
+                }
             }
             for j in 0..nj {
-                let col = ws.data.minv.column(6 + j) * dt;
-                ws.dv_dz.column_mut(2 * nv + j).copy_from(&col);
+                for r in 0..nv {
+                    ws.dv_dz[(r, 2 * nv + j)] = dt * ws.data.minv[(r, 6 + j)];
+                }
             }
             for f in 0..4 {
                 if let Some(i) = self.force_index(f) {
-                    let m = &ws.data.minv * ws.feet_jac[f].transpose() * dt;
-                    ws.dv_dz.columns_mut(i, 3).copy_from(&m);
+                    // M^-1 J^T = (J M^-1)^T, M^-1 symmetric.
+                    ws.force_map.gemm(dt, &ws.feet_jac[f], &ws.data.minv, 0.0);
+                    for a in 0..3 {
+                        for r in 0..nv {
+                            ws.dv_dz[(r, i + a)] = ws.force_map[(a, r)];
+                        }
+                    }
                 }
             }
-            let a = ws.data.ddq.clone();
-            ws.v_next.copy_from(&(&v + a * dt));
-            ws.step.copy_from(&(&ws.v_next * dt));
+            ws.v_next.copy_from(&ws.v);
+            ws.v_next.axpy(dt, &ws.data.ddq, 1.0);
+            ws.step.copy_from(&ws.v_next);
+            ws.step *= dt;
             integrate(model, &ws.q, &ws.step, &mut ws.q_next);
             let qbar_next = spec.qbar_next.as_ref().expect("a stage with dynamics has a next knot");
             difference(model, qbar_next, &ws.q_next, &mut ws.dq_next);
             integrate_jacobians(model, &ws.step, &mut ws.jq_step, &mut ws.jv_step);
             // d dq'/d q' = Jr(dq')^-1 on the base.
             integrate_jacobians(model, &ws.dq_next, &mut ws.scratch, &mut ws.jl);
-            let jl = ws.jl.clone().try_inverse().unwrap_or_else(|| DMatrix::from_element(nv, nv, f64::NAN));
+            // Only the base block of Jr(dq') differs from the identity.
+            let base_block = ws.jl.fixed_view::<6, 6>(0, 0).into_owned();
+            let inverse = base_block.try_inverse().unwrap_or_else(|| nalgebra::Matrix6::from_element(f64::NAN));
+            ws.jl.fixed_view_mut::<6, 6>(0, 0).copy_from(&inverse);
             // dq' = (q (+) dt v') (-) qbar': d/dz = Jl (Jq [Jd 0 0] + dt Jv dv'/dz).
-            let mut dq_next_dz = &ws.jv_step * &ws.dv_dz * dt;
-            {
-                let m = &ws.jq_step * &ws.jd;
-                let mut c = dq_next_dz.columns_mut(0, nv);
-                c += m;
-            }
-            let dq_next_dz = jl * dq_next_dz;
-            out.dynamics.rows_mut(0, nv).copy_from(&dq_next_dz);
+            ws.dq_next_dz.gemm(dt, &ws.jv_step, &ws.dv_dz, 0.0);
+            ws.dq_next_dz.columns_mut(0, nv).gemm(1.0, &ws.jq_step, &ws.jd, 1.0);
+            out.dynamics.rows_mut(0, nv).gemm(1.0, &ws.jl, &ws.dq_next_dz, 0.0);
             out.dynamics.rows_mut(nv, nv).copy_from(&ws.dv_dz);
         }
         // Equalities.
@@ -548,8 +568,7 @@ impl Stage for FullBodyStage {
         } else {
             for f in 0..4 {
                 if spec.pinned[f].is_some() {
-                    let m = &ws.feet_jac[f] * &ws.jd;
-                    g.view_mut((r, 0), (3, nv)).copy_from(&m);
+                    g.view_mut((r, 0), (3, nv)).gemm(1.0, &ws.feet_jac[f], &ws.jd, 0.0);
                     r += 3;
                 }
             }
@@ -609,7 +628,7 @@ impl Stage for FullBodyStage {
             })
         };
         for f in 0..4 {
-            for (c, d) in base_rows(&knee_jac[f], f, 2) {
+            for (c, d) in base_rows(&ws.knee_jac[f], f, 2) {
                 h[(r, c)] = d;
             }
             for (c, d) in base_rows(&ws.feet_jac[f], f, 2) {
@@ -617,7 +636,7 @@ impl Stage for FullBodyStage {
             }
             r += 2;
         }
-        for (jacs, row) in [(&ws.feet_jac, r), (&knee_jac, r + 4)] {
+        for (jacs, row) in [(&ws.feet_jac, r), (&ws.knee_jac, r + 4)] {
             for (k, (fa, fb, axis)) in [(0, 1, 1), (2, 3, 1), (0, 2, 0), (1, 3, 0)].into_iter().enumerate() {
                 for (c, d) in base_rows(&jacs[fa], fa, axis) {
                     h[(row + k, c)] += d;
@@ -629,17 +648,21 @@ impl Stage for FullBodyStage {
         }
         r += 8;
         if let Some(b) = &sh.obstacle {
-            let row_of = |h: &mut DMatrix<f64>, r: usize, p: &Vector3<f64>, jac: &Matrix3xX<f64>| {
+            let (jd, row) = (&ws.jd, &mut ws.row);
+            let mut row_of = |h: &mut DMatrix<f64>, r: usize, p: &Vector3<f64>, jac: &Matrix3xX<f64>| {
+                // d sd / d dq = grad^T (d p / dq) Jd.
                 let grad = b.signed_distance(p).1;
-                let m = grad.transpose() * jac * &ws.jd;
-                h.view_mut((r, 0), (1, nv)).copy_from(&m);
+                row.gemv_tr(1.0, jac, &grad, 0.0);
+                for c in 0..nv {
+                    h[(r, c)] = (0..nv).map(|i| row[i] * jd[(i, c)]).sum();
+                }
             };
             for f in 0..4 {
-                row_of(h, r, &knees[f], &knee_jac[f]);
+                row_of(h, r, &knees[f], &ws.knee_jac[f]);
                 r += 1;
             }
             for c in 0..8 {
-                row_of(h, r, &corners[c], &corner_jac[c]);
+                row_of(h, r, &corners[c], &ws.corner_jac[c]);
                 r += 1;
             }
             for f in 0..4 {
@@ -663,13 +686,13 @@ impl Stage for FullBodyStage {
         let w = multipliers.cost;
         let mut guard = self.ws.lock().unwrap_or_else(|e| e.into_inner());
         let ws = &mut *guard;
-        let dq = DVector::from_column_slice(&z[..nv]);
-        integrate(model, &self.spec.qbar, &dq, &mut ws.q);
-        integrate_jacobians(model, &dq, &mut ws.scratch, &mut ws.jd);
-        let jc = com_jacobian(model, &mut ws.data, &ws.q).clone() * &ws.jd;
+        ws.dq.copy_from_slice(&z[..nv]);
+        integrate(model, &self.spec.qbar, &ws.dq, &mut ws.q);
+        integrate_jacobians(model, &ws.dq, &mut ws.scratch, &mut ws.jd);
+        let jc = com_jacobian(model, &mut ws.data, &ws.q);
+        ws.com_jac.gemm(1.0, jc, &ws.jd, 0.0);
         out.fill(0.0);
-        let hc = jc.transpose() * &jc * (2.0 * s.w_com * w);
-        out.view_mut((0, 0), (nv, nv)).copy_from(&hc);
+        out.view_mut((0, 0), (nv, nv)).gemm_tr(2.0 * s.w_com * w, &ws.com_jac, &ws.com_jac, 0.0);
         for i in 0..nv {
             let wd = if i < 3 {
                 s.w_base_position
