@@ -130,8 +130,8 @@ impl JumpController {
         let feet = model.feet.len();
         let effort = |iv: usize| model.joints[model.joint_of_dof[iv]].limits.effort[0];
         let torque_limits: Vec<Vector3<f64>> = legs.iter().map(|leg| Vector3::new(effort(leg.v_index[0]), effort(leg.v_index[1]), effort(leg.v_index[2]))).collect();
-        if torque_limits.iter().any(|t| t.iter().any(|x| !(*x > 0.0))) {
-            return Err(JumpControlError::Robot(format!("robot '{}': every leg joint needs a positive effort limit for the landing QP", model.name)));
+        if torque_limits.iter().any(|t| t.iter().any(|x| !(x.is_finite() && *x > 0.0))) {
+            return Err(JumpControlError::Robot(format!("robot '{}': every leg joint needs a finite, positive effort limit for the landing QP", model.name)));
         }
         Ok(Self {
             switch: LandingSwitch::new(landing.contact_threshold, reference.t_posing(), feet),
@@ -206,7 +206,7 @@ impl JumpController {
             *swing = !contact;
         }
         // Remark 2: the legs in the air hold the pre-landing configuration.
-        self.tracking.compute(model, q, v, &self.landing_pose, &self.landing.swing, &self.swing_legs, tau);
+        self.tracking.compute(model, (q, v), &self.landing_pose, &self.landing.swing, &self.swing_legs, tau);
         if self.swing_legs.iter().all(|&s| s) {
             return;
         }
@@ -265,7 +265,7 @@ impl Controller for JumpController {
                 self.sample.foot_velocity[leg.foot] = Vector3::zeros();
             }
         }
-        self.tracking.compute(model, q, v, &self.sample, &self.jump_gains, &self.all_legs, tau);
+        self.tracking.compute(model, (q, v), &self.sample, &self.jump_gains, &self.all_legs, tau);
         Ok(())
     }
 }

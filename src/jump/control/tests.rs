@@ -178,7 +178,7 @@ fn eq5_is_the_feed_forward_on_the_reference_and_its_jacobian_off_it() {
     let gains = JumpGains::default();
     let all = [true; 4];
     let mut tau = DVector::zeros(model.nv);
-    law.compute(&model, &sample.q, &sample.v, &sample, &gains, &all, &mut tau);
+    law.compute(&model, (&sample.q, &sample.v), &sample, &gains, &all, &mut tau);
     assert!((tau.rows(6, 12) - sample.tau.rows(6, 12)).amax() < 1e-9);
     // d tau / d q_k = -(J^T K_p J + K_p,joint) e_k (at zero error, J's own change drops out).
     let mut feet = feet::BaseFrameFeet::new(&model).unwrap();
@@ -191,7 +191,7 @@ fn eq5_is_the_feed_forward_on_the_reference_and_its_jacobian_off_it() {
             let mut q = sample.q.clone();
             q[leg.q_index[k]] += h;
             let mut tau_h = DVector::zeros(model.nv);
-            law.compute(&model, &q, &sample.v, &sample, &gains, &all, &mut tau_h);
+            law.compute(&model, (&q, &sample.v), &sample, &gains, &all, &mut tau_h);
             for r in 0..3 {
                 let fd = (tau_h[leg.v_index[r]] - tau[leg.v_index[r]]) / h;
                 assert!((fd - expected[(r, k)]).abs() < 1e-3 * (1.0 + expected[(r, k)].abs()), "leg {i} row {r} col {k}: {fd} vs {}", expected[(r, k)]);
@@ -202,7 +202,7 @@ fn eq5_is_the_feed_forward_on_the_reference_and_its_jacobian_off_it() {
         let mut v = sample.v.clone();
         v[leg.v_index[1]] += 1.0;
         let mut tau_v = DVector::zeros(model.nv);
-        law.compute(&model, &sample.q, &v, &sample, &gains, &all, &mut tau_v);
+        law.compute(&model, (&sample.q, &v), &sample, &gains, &all, &mut tau_v);
         for r in 0..3 {
             assert!((tau_v[leg.v_index[r]] - tau[leg.v_index[r]] - expected[(r, 1)]).abs() < 1e-9);
         }

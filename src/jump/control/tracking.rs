@@ -61,7 +61,7 @@ impl JumpTracking {
     /// Writes eq. (5)'s torques into `tau` for the joints of every leg whose foot has
     /// `legs[foot]` set (the others are left untouched), at the measured `(q, v)` and the
     /// reference `r`.
-    pub fn compute(&mut self, model: &Model, q: &DVector<f64>, v: &DVector<f64>, r: &ReferenceSample, gains: &JumpGains, legs: &[bool], tau: &mut DVector<f64>) {
+    pub fn compute(&mut self, model: &Model, (q, v): (&DVector<f64>, &DVector<f64>), r: &ReferenceSample, gains: &JumpGains, legs: &[bool], tau: &mut DVector<f64>) {
         self.feet.evaluate(model, q, v);
         let feet = &self.feet;
         for (i, leg) in feet.legs().iter().enumerate() {
