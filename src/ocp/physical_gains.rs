@@ -7,9 +7,10 @@
 //! whose ground is a spring: a stance foot's own motion stretches that spring, and the
 //! optimizer's answer to it counts on the spring's force. Measured on the nine plans
 //! (docs/experiments/policy-mujoco.md), the gain of a stance leg on its own joints is a
-//! *negative* stiffness at 86-95 % of the stance knots (median +450-520 N m/rad, no
-//! damping): harmless while the soft ground holds the foot, a runaway of that leg as soon
-//! as a foot loses its load in a stiff, unilateral contact (MuJoCo, a robot).
+//! *negative* stiffness (an eigenvalue with positive real part) at 23-99 % of the stance
+//! knots (diagonal_balance 95 %, median +447 N m/rad, with almost no damping): harmless
+//! while the soft ground holds the foot, a runaway of that leg as soon as a foot loses its
+//! load in a stiff, unilateral contact (MuJoCo, a robot).
 //!
 //! On a robot a loaded foot does not move; the deviations the gains may answer are those
 //! that keep the stance feet planted, `J_c dq = 0` (`J_c` stacks the stance feet's linear
