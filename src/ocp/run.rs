@@ -119,9 +119,10 @@ pub struct SolveProgress<'l> {
 /// The optimized states and inputs as a trajectory file: contact forces and flags
 /// evaluated at each state, the feedback gains at each knot (the last knot repeats the
 /// last input and gain). The gains are on the physical state `[q (-) q*; v - v*]`
-/// (`2 nv` columns, the trajectory format): with anchor states, the anchor columns are
-/// folded into the configuration columns through the feet in contact
-/// ([`super::physical_gain`]); the optimizer's own gains act in [`SlqPolicyController`].
+/// (`2 nv` columns, the trajectory format): the optimizer's gains on the deviations that
+/// keep the knot's stance feet planted, a free joint's damping on a stance foot's own
+/// motion ([`super::physical_gain`]); the optimizer's own gains act in
+/// [`SlqPolicyController`].
 pub fn solution_trajectory(problem: &WholeBodyProblem<'_>, solution: &SlqSolution<RobotState>, scenario: &str) -> Trajectory {
     let model = problem.model;
     let mut traj = Trajectory::new(model, scenario, problem.dt, problem.terrain.spec());
@@ -129,14 +130,19 @@ pub fn solution_trajectory(problem: &WholeBodyProblem<'_>, solution: &SlqSolutio
     traj.metadata.joint_stops = problem.joint_limits;
     let mut ws = crate::sim::ContactModelWorkspace::new(model, problem.terrain).with_joint_limits(problem.joint_limits);
     let n = solution.inputs.len();
-    let mut gain_ws = super::PhysicalGainWorkspace::new(model);
+    // The damping of a stance foot's own motion: legwork's joint PD for a free joint at the
+    // rate the exported policy runs at (legwork's simulator and the MuJoCo check, 1 kHz).
+    let control_dt = SimConfig::default().control_dt;
+    let q0 = &solution.states[0].q;
+    let joint_pd = crate::control::PdGains::from_model(model, q0, control_dt).capped_for_free_joints(model, q0, control_dt);
+    let mut gain_ws = super::PhysicalGainWorkspace::new(model, &joint_pd);
     let mut gain = DMatrix::zeros(model.nv - 6, 2 * model.nv);
     for (k, x) in solution.states.iter().enumerate() {
         ws.evaluate_contacts(&x.q, &x.v, &x.anchors);
         let i = k.min(n - 1);
         // The gain of knot i acts around state i (the last knot reuses the last gain).
         let around = &solution.states[i];
-        super::physical_gain(model, problem.terrain, &mut gain_ws, &around.q, &around.anchors, &solution.gains[i], &mut gain);
+        super::physical_gain(model, &mut gain_ws, &around.q, &around.anchors, &solution.gains[i], &mut gain);
         traj.knots.push(Knot {
             t: k as f64 * problem.dt,
             q: x.q.iter().copied().collect(),
