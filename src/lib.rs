@@ -28,6 +28,7 @@ pub mod dynamics;
 pub mod export;
 pub mod io;
 pub mod ipocp;
+pub mod jump;
 pub mod model;
 pub mod ocp;
 pub mod plan;

@@ -16,7 +16,6 @@ use super::params::SrbParams;
 use super::stage::{rotation_error_map, Shared, SrbStage, BIG, P, R, T, V, W};
 use crate::ipocp::{Problem, ProblemError, Settings, SolveError, SolveResult, Solver, Stage};
 use nalgebra::{DVector, Matrix3, Vector3};
-use std::f64::consts::PI;
 use std::sync::Arc;
 
 /// Feet in contact per phase, order LF, RF, LH, RH.
@@ -24,13 +23,12 @@ pub type Contacts = [bool; 4];
 
 const ALL: Contacts = [true; 4];
 const NONE: Contacts = [false; 4];
-const RIGHT: Contacts = [false, true, false, true];
-const REAR: Contacts = [false, false, true, true];
 
-/// A jump of the paper's Table I.
+/// A jump as the contact-timing formulation sees it (the jump files of [`crate::jump`]
+/// describe the seven of the paper's Table I).
 #[derive(Clone, Debug, PartialEq)]
 pub struct JumpSpec {
-    pub name: &'static str,
+    pub name: String,
     /// CoM displacement goal (world).
     pub displacement: Vector3<f64>,
     /// Goal rotation as axis and angle.
@@ -41,28 +39,6 @@ pub struct JumpSpec {
     pub phases: Vec<Contacts>,
     /// `[T_min, T_max]` of (2j).
     pub total_time: (f64, f64),
-}
-
-/// The seven jumps, as `contact_timing.py` defines them.
-pub fn jumps() -> Vec<JumpSpec> {
-    let j = |name, d: [f64; 3], axis: [f64; 3], angle, box_height, phases: Vec<Contacts>, total_time| JumpSpec {
-        name,
-        displacement: Vector3::from(d),
-        axis: Vector3::from(axis),
-        angle,
-        box_height,
-        phases,
-        total_time,
-    };
-    vec![
-        j("lateral30", [0.0, 0.3, 0.0], [0.0, 0.0, 1.0], 0.0, 0.0, vec![ALL, NONE], (0.5, 1.5)),
-        j("lateral_down", [0.0, 0.3, -0.3], [0.0, 0.0, 1.0], 0.0, 0.3, vec![ALL, NONE], (0.5, 1.5)),
-        j("spin90", [0.0, 0.0, 0.0], [0.0, 0.0, 1.0], PI / 2.0, 0.0, vec![ALL, NONE], (0.5, 1.5)),
-        j("diagonal", [0.4, -0.3, 0.0], [0.0, 0.0, 1.0], PI / 4.0, 0.0, vec![ALL, REAR, NONE], (1.0, 2.0)),
-        j("barrel_roll", [0.0, 0.2, -0.4], [1.0, 0.0, 0.0], -2.0 * PI, 0.4, vec![ALL, RIGHT, NONE], (1.0, 2.0)),
-        j("double_barrel_roll", [0.0, 0.3, -0.9], [1.0, 0.0, 0.0], -4.0 * PI, 0.9, vec![ALL, RIGHT, NONE], (1.0, 2.0)),
-        j("double_backflip", [-0.3, 0.0, -2.0], [0.0, 1.0, 0.0], -4.0 * PI, 2.0, vec![ALL, REAR, NONE], (1.0, 2.0)),
-    ]
 }
 
 /// Settings of the formulation (defaults: the script's, in parentheses).
@@ -158,7 +134,7 @@ impl ContactTimingProblem {
     /// Builds the problem of `jump` for the body `params`.
     pub fn new(jump: &JumpSpec, params: &SrbParams, s: &ContactTimingSettings) -> Result<Self, ContactTimingError> {
         s.validate()?;
-        let bad = |problem| ContactTimingError::Jump { jump: jump.name.to_string(), problem };
+        let bad = |problem| ContactTimingError::Jump { jump: jump.name.clone(), problem };
         if jump.phases.len() < 2 || jump.phases.last() != Some(&NONE) || jump.phases[0] != ALL {
             return Err(bad("phases must start with all four feet in contact and end with a flight phase"));
         }

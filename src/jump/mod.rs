@@ -1,0 +1,6 @@
+//! Nguyen 2022's 3D jumps: the jump files ([`spec`]) and the pipeline that plans, runs and
+//! reports a jump ([`pipeline`]).
+
+pub mod spec;
+
+pub use spec::{embedded_jumps, ContactTimingOverrides, Jump, JumpError, PaperRow, Platform, StanceConflict, EMBEDDED_JUMPS, FOOT_NAMES};
