@@ -38,7 +38,7 @@ fn main() -> anyhow::Result<()> {
     }
     let params = SrbParams::a1()?;
     let all = embedded_jumps()?;
-    let selected: Vec<_> = if names.is_empty() { all.clone() } else { all.iter().filter(|j| names.iter().any(|n| *n == j.name)).cloned().collect() };
+    let selected: Vec<_> = if names.is_empty() { all.clone() } else { all.iter().filter(|j| names.contains(&j.name)).cloned().collect() };
     println!("jump                 status      iters  cost          ref cost      rel.diff   T (10 ms)        ref T          viol      median s  (min s)  eval s  kkt s  solves");
     for file in &selected {
         let jump = file.srb();

@@ -51,10 +51,87 @@ pub enum BenchCommand {
         #[arg(long, value_delimiter = ',', value_name = "NAMES")]
         scenarios: Vec<String>,
     },
+    /// Nguyen 2022's Table I beside legwork's: phase timings, contact-timing and full-body
+    /// solve times, landing error and success rate, one row per embedded jump.
+    Jumps {
+        /// Print the results as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Contact-timing solves per jump (the median and the fastest are reported).
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+        /// Overrides the knots per phase `N_i` (the paper's 30).
+        #[arg(long)]
+        knots: Option<usize>,
+    },
+}
+
+/// `legwork bench jumps`.
+fn jumps(as_json: bool, repeats: usize, knots: Option<usize>) -> Result<()> {
+    if repeats == 0 {
+        bail!("--repeats: expected at least one solve per jump, got 0");
+    }
+    let mut rows = Vec::new();
+    let mut robots: Vec<(String, legwork::model::Model)> = Vec::new();
+    for jump in legwork::jump::embedded_jumps()? {
+        if !robots.iter().any(|(n, _)| *n == jump.robot) {
+            robots.push((jump.robot.clone(), embedded::load(&jump.robot)?));
+        }
+        let model = robots.iter().find(|(n, _)| *n == jump.robot).map(|(_, m)| m).context("the robot was just loaded")?;
+        let params = legwork::srb::SrbParams::from_model(model, "standing")?;
+        let radius = model.feet.iter().map(|f| f.radius).fold(0.0, f64::max);
+        let settings = super::jump::settings_of(&jump, knots)?;
+        rows.push(legwork::jump::bench_jump(&jump, &params, radius, &settings, repeats)?);
+    }
+    if as_json {
+        say!("{}", serde_json::to_string_pretty(&json!({ "repeats": repeats, "cpu": cpu_name(), "jumps": rows }))?);
+        return Ok(());
+    }
+    let opt = |x: Option<f64>, d: usize| x.map_or("-".to_string(), |x| format!("{x:.d$}"));
+    let list = |v: &[f64]| v.iter().map(|x| format!("{x:.1}")).collect::<Vec<_>>().join(", ");
+    say!("Nguyen 2022, Table I, against legwork ({repeats} contact-timing solves per jump, median; CPU: {})", cpu_name());
+    say!("  {:<19} | {:>17} {:>8} {:>8} | {:>17} {:>9} {:>9} {:>9} {:>8} {:>8}", "", "paper", "", "", "legwork", "", "", "", "", "");
+    say!(
+        "  {:<19} | {:>17} {:>8} {:>8} | {:>17} {:>9} {:>9} {:>9} {:>8} {:>8}",
+        "jump", "T_i [10 ms]", "CT [s]", "FB [s]", "T_i [10 ms]", "CT [s]", "status", "FB [s]", "land [m]", "success"
+    );
+    for r in &rows {
+        let (pt, pct, pfb) = r.paper.as_ref().map_or(("-".into(), "-".into(), "-".into()), |p| (list(&p.timings_10ms), format!("{:.2}", p.contact_timing_s), format!("{:.0}", p.full_body_s)));
+        say!(
+            "  {:<19} | {:>17} {:>8} {:>8} | {:>17} {:>9.3} {:>9} {:>9} {:>8} {:>8}",
+            r.jump,
+            pt,
+            pct,
+            pfb,
+            list(&r.phase_durations_10ms),
+            r.contact_timing_median_s,
+            r.contact_timing_status,
+            opt(r.full_body_solve_s, 2),
+            opt(r.landing_error_m, 3),
+            r.success_rate.map_or("-".to_string(), |s| format!("{:.0}%", 100.0 * s))
+        );
+    }
+    let mut missing: Vec<&str> = rows.iter().flat_map(|r| r.missing.iter().copied()).collect();
+    missing.sort_unstable();
+    missing.dedup();
+    for m in missing {
+        say!("  -: {m}");
+    }
+    for r in rows.iter().filter(|r| !r.stance_conflicts.is_empty()) {
+        say!("  {}: the target lands over the box: {}", r.jump, r.stance_conflicts.join("; "));
+    }
+    say!("  targets: contact timing at most 0.1 s per jump, full body at most 1 s; 20 trials per jump, success = upright, within 5 cm and 5 deg of the target");
+    Ok(())
+}
+
+/// The CPU's model name (Linux), for the record.
+fn cpu_name() -> String {
+    std::fs::read_to_string("/proc/cpuinfo").ok().and_then(|s| s.lines().find(|l| l.starts_with("model name")).and_then(|l| l.split(':').nth(1)).map(|s| s.trim().to_string())).unwrap_or_else(|| "unknown".into())
 }
 
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
+        BenchCommand::Jumps { json, repeats, knots } => jumps(json, repeats, knots),
         BenchCommand::Slq { json, threads, iterations, check } => slq(json, threads, iterations, check.is_some()),
         BenchCommand::Terrain { trials, json, threads, scenarios } => terrain(trials, json, threads, &scenarios),
     }

@@ -26,6 +26,7 @@ pub(crate) fn emit(args: std::fmt::Arguments) {
 mod bench;
 mod check;
 mod export;
+mod jump;
 mod robot;
 mod simulate;
 mod solve;
@@ -55,6 +56,14 @@ enum Command {
     Solve(solve::SolveArgs),
     /// List the embedded tasks.
     Tasks,
+    /// Plan and run one of Nguyen 2022's 3D jumps: contact timing, full-body trajectory
+    /// optimization, controllers in legwork's simulator. Writes the trajectory, a replay with
+    /// the box, plots and a summary. Exit code 0: landed on target; 2: contact timing failed;
+    /// 3: full-body optimization failed; 4: landed off target; 5: fell; 6: a stage is not in
+    /// this build.
+    Jump(jump::JumpArgs),
+    /// List the embedded jumps.
+    Jumps,
     /// Walk to a goal over terrain (Winkler 2015): plan and execute one trial of a scenario;
     /// writes the trajectory, a replay with the plans drawn, plots and a summary.
     Walk(walk::WalkArgs),
@@ -77,18 +86,25 @@ enum Command {
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Jump(args) => return finish(jump::run(args)),
         Command::Robot(cmd) => robot::run(cmd),
         Command::Simulate(args) => simulate::run(args),
         Command::Solve(args) => solve::run(args),
         Command::Tasks => solve::list(),
+        Command::Jumps => jump::list(),
         Command::Walk(args) => walk::run(args),
         Command::Bench(cmd) => bench::run(cmd),
         Command::View(args) => view::run(args),
         Command::Export(cmd) => export::run(cmd),
         Command::Check(cmd) => check::run(cmd),
     };
+    finish(result.map(|()| ExitCode::SUCCESS))
+}
+
+/// The command's exit code, or 1 with the error and its causes printed.
+fn finish(result: anyhow::Result<ExitCode>) -> ExitCode {
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE

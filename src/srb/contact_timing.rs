@@ -128,6 +128,30 @@ pub struct ContactTimingProblem {
     pub guess: Vec<DVector<f64>>,
     pub phases: usize,
     pub knots: usize,
+    /// Knots per phase and the feet in contact per phase (to read a solution with).
+    knots_per_phase: usize,
+    contacts: Vec<Contacts>,
+    feet_start: [Vector3<f64>; 4],
+    feet_goal: [Vector3<f64>; 4],
+}
+
+/// One knot of a contact-timing solution.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SrbKnot {
+    /// Time from the start (s).
+    pub t: f64,
+    /// CoM position and velocity (world), body angular velocity (body frame), rotation
+    /// body -> world.
+    pub position: Vector3<f64>,
+    pub velocity: Vector3<f64>,
+    pub angular_velocity: Vector3<f64>,
+    pub rotation: Matrix3<f64>,
+    /// Feet in contact over the interval from this knot, their ground forces (world, zero
+    /// off the ground) and positions (world): fixed in contact, the optimized swing
+    /// positions in the air, the goal's on the last knot.
+    pub in_contact: Contacts,
+    pub forces: [Vector3<f64>; 4],
+    pub feet: [Vector3<f64>; 4],
 }
 
 impl ContactTimingProblem {
@@ -260,7 +284,7 @@ impl ContactTimingProblem {
             }
             guess.push(z);
         }
-        Ok(Self { problem: Problem::new(stages)?, guess, phases: np, knots: nc })
+        Ok(Self { problem: Problem::new(stages)?, guess, phases: np, knots: nc, knots_per_phase: n, contacts: jump.phases.clone(), feet_start, feet_goal })
     }
 
     /// A solver for this problem.
@@ -271,6 +295,34 @@ impl ContactTimingProblem {
     /// Solves from the script's initial guess.
     pub fn solve(&self, solver: &mut Solver) -> Result<SolveResult, SolveError> {
         solver.solve(&self.problem, &self.guess)
+    }
+
+    /// The knots of an iterate, timed by its durations (`T_i / N_i` per interval of phase `i`).
+    pub fn trajectory(&self, primal: &[DVector<f64>]) -> Vec<SrbKnot> {
+        let durations = self.durations(primal);
+        let nx = T + self.phases;
+        let mut t = 0.0;
+        let mut knots = Vec::with_capacity(primal.len());
+        for (k, z) in primal.iter().enumerate() {
+            let last = k == self.knots;
+            let phase = k.min(self.knots - 1) / self.knots_per_phase;
+            let in_contact = if last { NONE } else { self.contacts[phase] };
+            let v3 = |i: usize| Vector3::new(z[i], z[i + 1], z[i + 2]);
+            let mut forces = [Vector3::zeros(); 4];
+            let mut feet = if last { self.feet_goal } else { self.feet_start };
+            if !last {
+                for f in 0..4 {
+                    if in_contact[f] {
+                        forces[f] = v3(nx + 3 * f);
+                    } else {
+                        feet[f] = v3(nx + 3 * f);
+                    }
+                }
+            }
+            knots.push(SrbKnot { t, position: v3(P), velocity: v3(V), angular_velocity: v3(W), rotation: Matrix3::from_fn(|a, b| z[R + a + 3 * b]), in_contact, forces, feet });
+            t += durations[phase] / self.knots_per_phase as f64;
+        }
+        knots
     }
 
     /// The phase durations `T_i` of an iterate.

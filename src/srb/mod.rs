@@ -7,6 +7,6 @@ pub mod exp_map;
 mod params;
 mod stage;
 
-pub use contact_timing::{ContactTimingError, ContactTimingProblem, ContactTimingSettings, Contacts, JumpSpec};
+pub use contact_timing::{ContactTimingError, ContactTimingProblem, ContactTimingSettings, Contacts, JumpSpec, SrbKnot};
 pub use exp_map::ExpMap;
 pub use params::{SrbParams, SrbParamsError};

@@ -1,0 +1,114 @@
+//! `legwork jump` and `legwork bench jumps` as a user runs them, in a short form (8 knots per
+//! phase): the exit code of the outcome, the files written, the summary's figures against
+//! the printed ones, bad input refused with a named error.
+
+use legwork::io::Trajectory;
+use serde_json::Value;
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn legwork(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_legwork")).args(args).current_dir(env!("CARGO_MANIFEST_DIR")).output().unwrap()
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8(bytes.to_vec()).unwrap()
+}
+
+fn out_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("legwork-cli-jump-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+#[test]
+fn lateral_jump_end_to_end_in_short_form() {
+    let dir = out_dir("lateral");
+    let out = legwork(&["jump", "lateral", "--knots", "8", "--out", dir.to_str().unwrap()]);
+    let stdout = text(&out.stdout);
+    // This build plans the contact timing; the full-body stage and the controllers are
+    // reported missing, exit code 6 (0 once they land and the jump meets its target).
+    assert_eq!(out.status.code(), Some(6), "{stdout}\n{}", text(&out.stderr));
+    assert!(stdout.contains("8 knots each") && stdout.contains("full body: not run:") && stdout.contains("(exit code 6)"), "{stdout}");
+    let traj = Trajectory::load_file(dir.join("trajectory.json")).unwrap();
+    assert_eq!(traj.metadata.robot, "a1");
+    assert_eq!(traj.knots.len(), 2 * 8 + 1);
+    let s = &traj.summary;
+    assert_eq!(s["exit_code"], 6);
+    assert_eq!(s["verdict"], "Incomplete");
+    let ct = &s["contact_timing"];
+    assert_eq!(ct["status"], "Solved");
+    assert_eq!(ct["knots_per_phase"], 8);
+    let durations: Vec<f64> = ct["phase_durations_s"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    // The knots' times are the optimal durations, the total within [T_min, T_max].
+    assert!((traj.duration() - durations.iter().sum::<f64>()).abs() < 1e-9, "{} vs {durations:?}", traj.duration());
+    assert!((0.5..=1.5).contains(&traj.duration()));
+    let printed = format!("phase durations [10 ms]: {}", ct["phase_durations_10ms"].as_array().unwrap().iter().map(|v| format!("{:.1}", v.as_f64().unwrap())).collect::<Vec<_>>().join(", "));
+    assert!(stdout.contains(&printed), "{printed} not in {stdout}");
+    // The plan lands 0.3 m to the side: the last knot's base moved by the displacement.
+    let (q0, q1) = (&traj.knots[0].q, &traj.knots.last().unwrap().q);
+    assert!((q1[1] - q0[1] - 0.3).abs() < 1e-6 && (q1[0] - q0[0]).abs() < 1e-6, "{:?} -> {:?}", &q0[..3], &q1[..3]);
+    // Stance: every foot in contact with a force; flight: none.
+    assert!(traj.knots[0].in_contact.iter().all(|&c| c) && traj.knots[0].contact_force.iter().all(|f| f[2] > 0.0));
+    assert!(traj.knots[10].in_contact.iter().all(|&c| !c));
+    for file in ["replay.html", "plots/phase_timings.svg", "plots/ground_forces.svg", "plots/base_pose.svg"] {
+        let bytes = std::fs::metadata(dir.join(file)).map(|m| m.len()).unwrap_or(0);
+        assert!(bytes > 1000, "{file}: {bytes} bytes");
+    }
+    let svg = std::fs::read_to_string(dir.join("plots/phase_timings.svg")).unwrap();
+    assert!(svg.contains("Nguyen 2022, Table I: 50.0, 28.0"), "the paper's row is drawn");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_box_jump_writes_its_box_and_names_the_conflicts() {
+    let dir = out_dir("barrel");
+    let out = legwork(&["jump", "barrel_roll", "--knots", "6", "--out", dir.to_str().unwrap()]);
+    let stdout = text(&out.stdout);
+    assert_eq!(out.status.code(), Some(6), "{stdout}\n{}", text(&out.stderr));
+    assert!(stdout.contains("warning: RF lands at (0.215, 0.067), over the box"), "{stdout}");
+    let traj = Trajectory::load_file(dir.join("trajectory.json")).unwrap();
+    let terrain: Value = serde_json::to_value(&traj.metadata.terrain).unwrap();
+    assert_eq!(terrain["kind"], "boxes");
+    assert_eq!(terrain["boxes"][0]["top"], 0.4);
+    let html = std::fs::read_to_string(dir.join("replay.html")).unwrap();
+    assert!(html.contains("\"boxes\":[[-0.5,0.5,-0.5,0.147,0.0,0.4]]"), "the replay draws the box");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bad_jumps_are_refused_with_exit_code_1() {
+    let out = legwork(&["jump", "moonwalk"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(text(&out.stderr).contains("no embedded jump named 'moonwalk'"), "{}", text(&out.stderr));
+    let dir = out_dir("bad");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("bad.toml");
+    let lateral = std::fs::read_to_string(format!("{}/jumps/lateral.toml", env!("CARGO_MANIFEST_DIR"))).unwrap();
+    std::fs::write(&file, lateral.replace("angle_deg = 0.0", "angle_deg = 0.0\nturns = 1.0")).unwrap();
+    let out = legwork(&["jump", file.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let e = text(&out.stderr);
+    assert!(e.contains("bad.toml: field `target`: expected exactly one of `angle_deg` and `turns`"), "{e}");
+    let out = legwork(&["jump", "lateral", "--knots", "0"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(text(&out.stderr).contains("knots_per_phase"), "{}", text(&out.stderr));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bench_jumps_json_has_a_row_per_jump() {
+    let out = legwork(&["bench", "jumps", "--json", "--repeats", "1", "--knots", "6"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rows = v["jumps"].as_array().unwrap();
+    let names: Vec<&str> = rows.iter().map(|r| r["jump"].as_str().unwrap()).collect();
+    assert_eq!(names, ["lateral", "lateral_down", "spin_90", "diagonal", "barrel_roll", "double_barrel_roll", "double_backflip"]);
+    for r in rows {
+        let phases = r["paper"]["timings_10ms"].as_array().unwrap().len();
+        assert_eq!(r["phase_durations_10ms"].as_array().unwrap().len(), phases, "{r}");
+        assert!(r["contact_timing_min_s"].as_f64().unwrap() > 0.0);
+        // Stages this build does not have: no figure, and the reason.
+        assert!(r["full_body_solve_s"].is_null() && r["success_rate"].is_null() && r["missing"].as_array().unwrap().len() == 2, "{r}");
+    }
+}
