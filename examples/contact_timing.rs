@@ -59,7 +59,7 @@ fn main() -> anyhow::Result<()> {
         let t = ct.durations(&r.last.primal);
         let (ref_cost, ref_t) = reference
             .as_ref()
-            .and_then(|v| v["results"].as_array()?.iter().find(|x| Some(x["jump"].as_str().unwrap_or_default()) == file.anchor.as_deref()).cloned())
+            .and_then(|v| v["results"].as_array()?.iter().find(|x| x["jump"].as_str() == file.anchor).cloned())
             .map(|x| (x["runs"][0]["cost"].as_f64().unwrap_or(f64::NAN), format!("{:?}", x["T_opt_10ms"].as_array().map(|a| a.iter().filter_map(|v| v.as_f64()).collect::<Vec<_>>()).unwrap_or_default())))
             .unwrap_or((f64::NAN, String::new()));
         println!(

@@ -26,6 +26,7 @@ pub mod contact;
 pub mod control;
 pub mod dynamics;
 pub mod export;
+pub mod fullbody;
 pub mod io;
 pub mod ipocp;
 pub mod jump;

@@ -1,6 +1,7 @@
 //! `legwork jump` and `legwork bench jumps` as a user runs them, in a short form (8 knots per
 //! phase): the exit code of the outcome, the files written, the summary's figures against
-//! the printed ones, bad input refused with a named error.
+//! the printed ones, bad input refused with a named error. The outcome itself (landed, fell)
+//! is the controllers' and is reported, not asserted: the exit code must say it.
 
 use legwork::io::Trajectory;
 use serde_json::Value;
@@ -26,16 +27,17 @@ fn lateral_jump_end_to_end_in_short_form() {
     let dir = out_dir("lateral");
     let out = legwork(&["jump", "lateral", "--knots", "8", "--out", dir.to_str().unwrap()]);
     let stdout = text(&out.stdout);
-    // This build plans the contact timing; the full-body stage and the controllers are
-    // reported missing, exit code 6 (0 once they land and the jump meets its target).
-    assert_eq!(out.status.code(), Some(6), "{stdout}\n{}", text(&out.stderr));
-    assert!(stdout.contains("8 knots each") && stdout.contains("full body: not run:") && stdout.contains("(exit code 6)"), "{stdout}");
-    let traj = Trajectory::load_file(dir.join("trajectory.json")).unwrap();
+    let code = out.status.code().unwrap();
+    let traj = Trajectory::load_file(dir.join("contact_timing.json")).unwrap();
     assert_eq!(traj.metadata.robot, "a1");
     assert_eq!(traj.knots.len(), 2 * 8 + 1);
     let s = &traj.summary;
-    assert_eq!(s["exit_code"], 6);
-    assert_eq!(s["verdict"], "Incomplete");
+    // The exit code is the verdict's, printed and in the summary.
+    let verdict = s["verdict"].as_str().unwrap();
+    let expected = match verdict { "Landed" => 0, "ContactTimingFailed" => 2, "FullBodyFailed" => 3, "MissedTarget" => 4, "Fell" => 5, other => panic!("verdict {other}") };
+    assert_eq!(code, expected, "{stdout}\n{}", text(&out.stderr));
+    assert_eq!(s["exit_code"], code);
+    assert!(stdout.contains("8 knots each") && stdout.contains(&format!("(exit code {code})")), "{stdout}");
     let ct = &s["contact_timing"];
     assert_eq!(ct["status"], "Solved");
     assert_eq!(ct["knots_per_phase"], 8);
@@ -51,7 +53,18 @@ fn lateral_jump_end_to_end_in_short_form() {
     // Stance: every foot in contact with a force; flight: none.
     assert!(traj.knots[0].in_contact.iter().all(|&c| c) && traj.knots[0].contact_force.iter().all(|f| f[2] > 0.0));
     assert!(traj.knots[10].in_contact.iter().all(|&c| !c));
-    for file in ["replay.html", "plots/phase_timings.svg", "plots/ground_forces.svg", "plots/base_pose.svg"] {
+    // The short form plans end to end: the full-body plan (10 ms knots, within its limits)
+    // and the controllers' re-run are written.
+    assert_eq!(s["full_body_stage"], "done", "{stdout}");
+    assert_eq!(s["full_body"]["limits_met"], true);
+    let plan = Trajectory::load_file(dir.join("trajectory.json")).unwrap();
+    assert!((plan.metadata.dt - 0.01).abs() < 1e-12 && (plan.duration() - traj.duration()).abs() < 0.011, "{} vs {}", plan.duration(), traj.duration());
+    assert_eq!(plan.summary["contact_timing"], s["contact_timing"]);
+    let rerun = Trajectory::load_file(dir.join("rerun.json")).unwrap();
+    assert!(rerun.duration() > plan.duration(), "the re-run goes on after the landing");
+    let error = s["rerun"]["position_error_m"].as_f64().unwrap();
+    assert!(stdout.contains(&format!("landing error {:.1} mm", 1e3 * error)), "{stdout}");
+    for file in ["replay.html", "plots/phase_timings.svg", "plots/contact_timing_forces.svg", "plots/contact_timing_pose.svg", "plots/plan_ground_forces.svg", "plots/plan_torques.svg", "plots/rerun_torques.svg", "plots/plan/base_pose.svg"] {
         let bytes = std::fs::metadata(dir.join(file)).map(|m| m.len()).unwrap_or(0);
         assert!(bytes > 1000, "{file}: {bytes} bytes");
     }
@@ -65,9 +78,9 @@ fn a_box_jump_writes_its_box_and_names_the_conflicts() {
     let dir = out_dir("barrel");
     let out = legwork(&["jump", "barrel_roll", "--knots", "6", "--out", dir.to_str().unwrap()]);
     let stdout = text(&out.stdout);
-    assert_eq!(out.status.code(), Some(6), "{stdout}\n{}", text(&out.stderr));
+    assert!(matches!(out.status.code(), Some(2..=5)), "{stdout}\n{}", text(&out.stderr));
     assert!(stdout.contains("warning: RF lands at (0.215, 0.067), over the box"), "{stdout}");
-    let traj = Trajectory::load_file(dir.join("trajectory.json")).unwrap();
+    let traj = Trajectory::load_file(dir.join("contact_timing.json")).unwrap();
     let terrain: Value = serde_json::to_value(&traj.metadata.terrain).unwrap();
     assert_eq!(terrain["kind"], "boxes");
     assert_eq!(terrain["boxes"][0]["top"], 0.4);
@@ -98,17 +111,24 @@ fn bad_jumps_are_refused_with_exit_code_1() {
 
 #[test]
 fn bench_jumps_json_has_a_row_per_jump() {
-    let out = legwork(&["bench", "jumps", "--json", "--repeats", "1", "--knots", "6"]);
+    let out = legwork(&["bench", "jumps", "--json", "--repeats", "1", "--knots", "6", "--trials", "0", "--jumps", "lateral,double_backflip"]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     let v: Value = serde_json::from_slice(&out.stdout).unwrap();
     let rows = v["jumps"].as_array().unwrap();
     let names: Vec<&str> = rows.iter().map(|r| r["jump"].as_str().unwrap()).collect();
-    assert_eq!(names, ["lateral", "lateral_down", "spin_90", "diagonal", "barrel_roll", "double_barrel_roll", "double_backflip"]);
+    assert_eq!(names, ["lateral", "double_backflip"]);
     for r in rows {
         let phases = r["paper"]["timings_10ms"].as_array().unwrap().len();
         assert_eq!(r["phase_durations_10ms"].as_array().unwrap().len(), phases, "{r}");
         assert!(r["contact_timing_min_s"].as_f64().unwrap() > 0.0);
-        // Stages this build does not have: no figure, and the reason.
-        assert!(r["full_body_solve_s"].is_null() && r["success_rate"].is_null() && r["missing"].as_array().unwrap().len() == 2, "{r}");
+        // No trials asked for: no success rate; a stage without a figure says why.
+        assert!(r["success_rate"].is_null() && r["trials"] == 0, "{r}");
+        let notes: Vec<&str> = r["notes"].as_array().unwrap().iter().map(|n| n.as_str().unwrap()).collect();
+        if r["full_body_solve_s"].is_null() {
+            assert!(notes.iter().any(|n| n.starts_with("full body: ")), "{r}");
+        }
+        if r["landing_error_m"].is_null() {
+            assert!(notes.iter().any(|n| n.starts_with("controllers: ") || n.starts_with("full body: ")), "{r}");
+        }
     }
 }

@@ -33,7 +33,7 @@ fn the_seven_files_are_the_reference_jumps() {
     assert_eq!(jumps.len(), 7);
     for (jump, (name, anchor, d, axis, angle, height, phases, total, paper)) in jumps.iter().zip(reference()) {
         assert_eq!(jump.name, name);
-        assert_eq!(jump.anchor.as_deref(), Some(anchor));
+        assert_eq!(jump.anchor, Some(anchor));
         assert_eq!(jump.robot, "a1");
         let s = jump.srb();
         assert_eq!(s.displacement, Vector3::from(d), "{name}");
@@ -46,6 +46,15 @@ fn the_seven_files_are_the_reference_jumps() {
         assert_eq!(jump.paper.as_ref().unwrap().timings_10ms, paper, "{name}");
         // The formulation's settings are the defaults: no file overrides them.
         assert_eq!(jump.contact_timing, Default::default(), "{name}");
+    }
+}
+
+#[test]
+fn srb_jumps_are_the_files_under_the_script_names() {
+    let names: Vec<&str> = legwork::srb::jumps().iter().map(|j| j.name).collect();
+    assert_eq!(names, ["lateral30", "lateral_down", "spin90", "diagonal", "barrel_roll", "double_barrel_roll", "double_backflip"]);
+    for (spec, file) in legwork::srb::jumps().into_iter().zip(embedded_jumps().unwrap()) {
+        assert_eq!(legwork::srb::JumpSpec { name: file.srb().name, ..spec }, file.srb());
     }
 }
 

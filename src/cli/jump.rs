@@ -4,7 +4,7 @@
 use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use legwork::jump::{pipeline, srb_plan_trajectory, Jump, JumpReport, Stage, EMBEDDED_JUMPS};
+use legwork::jump::{pipeline, srb_plan_trajectory, Jump, JumpReport, PipelineOptions, Stage, EMBEDDED_JUMPS};
 use legwork::model::Model;
 use legwork::srb::{ContactTimingSettings, SrbParams};
 use std::path::{Path, PathBuf};
@@ -22,6 +22,10 @@ pub struct JumpArgs {
     /// quick checks.
     #[arg(long)]
     knots: Option<usize>,
+    /// Robustness trials after the nominal re-run (+-5 % mass and inertia, +-2 cm base
+    /// offset; issue 17 asks for 20).
+    #[arg(long, default_value_t = 0)]
+    trials: usize,
 }
 
 /// The jump's settings with the command line's overrides.
@@ -36,13 +40,14 @@ fn stage_name(stage: Stage) -> &'static str {
         Stage::ContactTiming => "contact timing (single rigid body, sec. II-B)",
         Stage::FullBody => "full-body trajectory optimization (sec. II-C)",
         Stage::Controllers => "jump and landing controllers in legwork's simulator (sec. III)",
+        Stage::Trials => "robustness trials (mass, inertia, base offset)",
     }
 }
 
 /// `legwork jumps`: one line per embedded jump.
 pub fn list() -> Result<()> {
-    let width = EMBEDDED_JUMPS.iter().map(|(n, _)| n.len()).max().unwrap_or(0);
-    for (name, _) in EMBEDDED_JUMPS {
+    let width = EMBEDDED_JUMPS.iter().map(|(n, _, _)| n.len()).max().unwrap_or(0);
+    for (name, _, _) in EMBEDDED_JUMPS {
         let jump = Jump::embedded(name)?;
         say!("{name:<width$}  {} ({}, {} phases, T in [{}, {}] s)", jump.summary, jump.robot, jump.phases.len(), jump.total_time.0, jump.total_time.1);
     }
@@ -69,7 +74,8 @@ pub fn run(args: JumpArgs) -> Result<ExitCode> {
     let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
     bar.set_style(ProgressStyle::with_template("{spinner} {msg} ({elapsed})").expect("static template"));
     bar.enable_steady_tick(Duration::from_millis(120));
-    let report = pipeline::run(&jump, &model, &settings, |stage, done| {
+    let options = PipelineOptions { contact_timing: settings.clone(), trials: args.trials, ..PipelineOptions::of(&jump) };
+    let report = pipeline::run(&jump, &model, &options, |stage, done| {
         if done {
             bar.println(format!("  done: {}", stage_name(stage)));
         } else {
@@ -77,7 +83,7 @@ pub fn run(args: JumpArgs) -> Result<ExitCode> {
         }
     })?;
     bar.finish_and_clear();
-    let written = write_outputs(&jump, &model, &settings, &report, &out)?;
+    let written = write_outputs(&jump, &model, &options, &report, &out)?;
     print_report(&jump, &report);
     say!("Wrote {} ({}) in {:.1} s", out.display(), written.join(", "), started.elapsed().as_secs_f64());
     let verdict = report.verdict();
@@ -85,24 +91,56 @@ pub fn run(args: JumpArgs) -> Result<ExitCode> {
     Ok(ExitCode::from(verdict.exit_code()))
 }
 
-/// trajectory.json, replay.html and the plots; returns what was written.
-fn write_outputs(jump: &Jump, model: &Model, settings: &ContactTimingSettings, report: &JumpReport, out: &Path) -> Result<Vec<String>> {
+/// trajectory.json (the full-body plan), rerun.json (the controllers' run),
+/// contact_timing.json (the single-rigid-body plan), replay.html (the re-run, or the best
+/// plan there is) and the plots; returns what was written.
+fn write_outputs(jump: &Jump, model: &Model, options: &PipelineOptions, report: &JumpReport, out: &Path) -> Result<Vec<String>> {
+    use legwork::viz::jump as plots;
     std::fs::create_dir_all(out).with_context(|| format!("cannot create the output folder {}", out.display()))?;
+    let dir = out.join("plots");
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let summary = report.summary(jump);
+    let terrain = legwork::terrain::Terrain::spec(&jump.terrain());
+    let mut written = Vec::new();
     let params = SrbParams::from_model(model, "standing")?;
     let ct = &report.contact_timing;
-    // Until the full-body plan exists, the trajectory is the contact-timing plan, and says so.
-    let mut traj = srb_plan_trajectory(model, jump, &params, &ct.knots)?;
-    traj.summary = report.summary(jump);
-    traj.summary.insert("trajectory".into(), "the contact-timing plan: the single rigid body's base and ground forces, legs by inverse kinematics to its feet, no joint torques (tau = 0)".into());
-    traj.save_file(out.join("trajectory.json"))?;
-    legwork::viz::write_replay(model, &traj, out.join("replay.html"))?;
-    let plots = out.join("plots");
-    std::fs::create_dir_all(&plots).with_context(|| format!("cannot create {}", plots.display()))?;
-    let viz = legwork::viz::jump::write_phase_timings;
-    viz(&plots.join("phase_timings.svg"), &format!("{}: optimal phase durations", jump.name), &jump.phases, &ct.durations, jump.paper.as_ref().map(|p| p.timings_10ms.as_slice()))?;
-    legwork::viz::jump::write_srb_forces(&plots.join("ground_forces.svg"), &ct.knots, settings.mu, (settings.f_min, settings.f_max))?;
-    legwork::viz::jump::write_srb_pose(&plots.join("base_pose.svg"), &ct.knots)?;
-    Ok(vec!["trajectory.json (contact-timing plan)".into(), "replay.html".into(), "plots: phase timings, ground forces against the cone, base pose; no torque plot without a full-body plan".into()])
+    let mut srb = srb_plan_trajectory(model, jump, &params, ct.knots())?;
+    srb.summary = summary.clone();
+    srb.summary.insert("trajectory".into(), "the contact-timing plan: the single rigid body's base and ground forces, legs by inverse kinematics to its feet, no joint torques (tau = 0)".into());
+    srb.save_file(out.join("contact_timing.json"))?;
+    written.push("contact_timing.json".to_string());
+    let ct_settings = &options.contact_timing;
+    plots::write_phase_timings(&dir.join("phase_timings.svg"), &format!("{}: optimal phase durations", jump.name), &jump.phases, &ct.durations, jump.paper.as_ref().map(|p| p.timings_10ms.as_slice()))?;
+    plots::write_srb_forces(&dir.join("contact_timing_forces.svg"), ct.knots(), ct_settings.mu, (ct_settings.f_min, ct_settings.f_max))?;
+    plots::write_srb_pose(&dir.join("contact_timing_pose.svg"), ct.knots())?;
+    written.push("plots/phase_timings.svg, contact_timing_{forces,pose}.svg".into());
+    let mut replay = srb.clone();
+    if let Some(plan) = &report.full_body_plan {
+        let mut traj = plan.trajectory.clone();
+        traj.metadata.terrain = terrain.clone();
+        traj.summary = summary.clone();
+        traj.save_file(out.join("trajectory.json"))?;
+        let fb = &options.full_body;
+        plots::write_trajectory_forces(&dir.join("plan_ground_forces.svg"), &traj, fb.mu, fb.min_normal_force)?;
+        plots::write_torque_limits(&dir.join("plan_torques.svg"), model, &traj)?;
+        legwork::viz::write_plots(&traj, dir.join("plan"))?;
+        written.push("trajectory.json (full-body plan), plots/plan_{ground_forces,torques}.svg, plots/plan/".into());
+        replay = traj;
+    }
+    if let Some(run) = &report.rerun {
+        let mut traj = run.trajectory.clone();
+        traj.metadata.terrain = terrain.clone();
+        traj.summary = summary.clone();
+        traj.save_file(out.join("rerun.json"))?;
+        plots::write_trajectory_forces(&dir.join("rerun_ground_forces.svg"), &traj, model.contact.friction, 0.0)?;
+        plots::write_torque_limits(&dir.join("rerun_torques.svg"), model, &traj)?;
+        legwork::viz::write_plots(&traj, dir.join("rerun"))?;
+        written.push("rerun.json, plots/rerun_{ground_forces,torques}.svg, plots/rerun/".into());
+        replay = traj;
+    }
+    legwork::viz::write_replay(model, &replay, out.join("replay.html"))?;
+    written.push(format!("replay.html ({})", replay.metadata.scenario));
+    Ok(written)
 }
 
 fn print_report(jump: &Jump, report: &JumpReport) {
@@ -122,8 +160,42 @@ fn print_report(jump: &Jump, report: &JumpReport) {
         None => say!("  phase durations [10 ms]: {}", tenths(&ours)),
     }
     say!("  full body: {}", report.full_body);
+    if let Some(p) = &report.full_body_plan {
+        let r = &p.report;
+        say!(
+            "    {:?} after {} iterations in {:.3} s (evaluation {:.3} s, KKT {:.3} s), cost {:.6e}, violation {:.1e}, limits {}",
+            r.status,
+            r.iterations,
+            r.time.as_secs_f64(),
+            r.evaluation_time.as_secs_f64(),
+            r.kkt_time.as_secs_f64(),
+            r.objective,
+            r.primal_infeasibility,
+            if p.limits.all_met(1e-6) { "met" } else { "VIOLATED" }
+        );
+    }
     say!("  controllers: {}", report.controllers);
+    if let Some(r) = &report.rerun {
+        let t = |x: Option<f64>| x.map_or("-".to_string(), |t| format!("{t:.3} s"));
+        say!(
+            "    lift-off {}, touch-down {}, landing switch {}; landing error {:.1} mm, yaw error {:.2} deg, roll {:.1} deg, pitch {:.1} deg{}",
+            t(r.lift_off),
+            t(r.touch_down),
+            t(r.switch),
+            1e3 * r.position_error,
+            r.yaw_error.to_degrees(),
+            r.roll.to_degrees(),
+            r.pitch.to_degrees(),
+            if r.fell { "; FELL" } else { "" }
+        );
+        if let Some(f) = &r.failure {
+            say!("    {f}");
+        }
+    }
+    if let Some(tr) = &report.trials {
+        say!("  trials: {}/{} landed on target ({:.0} %)", tr.successes(), tr.outcomes.len(), 100.0 * tr.success_rate());
+    }
     for c in &report.stance_conflicts {
-        say!("  warning: {c}: the target is not a landing on the ground");
+        say!("  warning: {c}: the target is not a landing on the ground beside the box");
     }
 }

@@ -4,7 +4,6 @@
 //! name = "lateral_down"
 //! summary = "jump 0.3 m sideways off a 0.3 m box"
 //! robot = "a1"
-//! anchor = "lateral_down"            # optional: the jump's name in the reference script
 //! phases = [["LF", "RF", "LH", "RH"], []]   # feet in contact per phase; [] = flight
 //! total_time = [0.5, 1.5]            # [T_min, T_max] of (2j), s
 //!
@@ -38,15 +37,17 @@ use serde::Deserialize;
 use std::f64::consts::PI;
 use std::path::Path;
 
-/// The embedded jumps (Nguyen 2022, Table I), as `(name, TOML text)`, in the table's order.
-pub const EMBEDDED_JUMPS: &[(&str, &str)] = &[
-    ("lateral", include_str!("../../jumps/lateral.toml")),
-    ("lateral_down", include_str!("../../jumps/lateral_down.toml")),
-    ("spin_90", include_str!("../../jumps/spin_90.toml")),
-    ("diagonal", include_str!("../../jumps/diagonal.toml")),
-    ("barrel_roll", include_str!("../../jumps/barrel_roll.toml")),
-    ("double_barrel_roll", include_str!("../../jumps/double_barrel_roll.toml")),
-    ("double_backflip", include_str!("../../jumps/double_backflip.toml")),
+/// The embedded jumps (Nguyen 2022, Table I), as `(name, the jump's name in the reference
+/// script ../shared/anchors/nguyen2022/contact_timing.py and its results, TOML text)`, in the
+/// table's order.
+pub const EMBEDDED_JUMPS: &[(&str, &str, &str)] = &[
+    ("lateral", "lateral30", include_str!("../../jumps/lateral.toml")),
+    ("lateral_down", "lateral_down", include_str!("../../jumps/lateral_down.toml")),
+    ("spin_90", "spin90", include_str!("../../jumps/spin_90.toml")),
+    ("diagonal", "diagonal", include_str!("../../jumps/diagonal.toml")),
+    ("barrel_roll", "barrel_roll", include_str!("../../jumps/barrel_roll.toml")),
+    ("double_barrel_roll", "double_barrel_roll", include_str!("../../jumps/double_barrel_roll.toml")),
+    ("double_backflip", "double_backflip", include_str!("../../jumps/double_backflip.toml")),
 ];
 
 /// Foot names of the `phases` lists, in the contact-timing formulation's order.
@@ -71,8 +72,6 @@ struct JumpFile {
     name: String,
     summary: String,
     robot: String,
-    #[serde(default)]
-    anchor: Option<String>,
     phases: Vec<Vec<String>>,
     total_time: [f64; 2],
     target: TargetFile,
@@ -168,8 +167,12 @@ pub struct Jump {
     pub name: String,
     pub summary: String,
     pub robot: String,
-    /// The jump's name in `../shared/anchors/nguyen2022/contact_timing.py` (its results).
-    pub anchor: Option<String>,
+    /// An embedded jump's name in `../shared/anchors/nguyen2022/contact_timing.py` (and its
+    /// results files).
+    pub anchor: Option<&'static str>,
+    /// The name [`JumpSpec`] carries (a `&'static str`): an embedded jump's table name; a
+    /// file's name, kept for the rest of the program (one small allocation per file read).
+    srb_name: &'static str,
     /// Feet in contact per phase (order [`FOOT_NAMES`]).
     pub phases: Vec<Contacts>,
     /// `[T_min, T_max]` of (2j), s.
@@ -213,7 +216,8 @@ impl Jump {
     /// Parses and validates TOML text; `origin` goes into errors.
     pub fn from_toml(text: &str, origin: &str) -> Result<Self, JumpError> {
         let file: JumpFile = toml::from_str(text).map_err(|e| JumpError::Parse { origin: origin.into(), message: e.to_string() })?;
-        Self::validate(file, origin)
+        let name: &'static str = Box::leak(file.name.clone().into_boxed_str());
+        Self::validate(file, origin, name, None)
     }
 
     /// Reads a jump file.
@@ -226,11 +230,16 @@ impl Jump {
 
     /// An embedded jump by name.
     pub fn embedded(name: &str) -> Result<Self, JumpError> {
-        let (_, text) = EMBEDDED_JUMPS.iter().find(|(n, _)| *n == name).ok_or_else(|| JumpError::Unknown {
+        let &(key, anchor, text) = EMBEDDED_JUMPS.iter().find(|(n, _, _)| *n == name).ok_or_else(|| JumpError::Unknown {
             name: name.into(),
-            known: EMBEDDED_JUMPS.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "),
+            known: EMBEDDED_JUMPS.iter().map(|(n, _, _)| *n).collect::<Vec<_>>().join(", "),
         })?;
-        Self::from_toml(text, &format!("embedded jump {name}"))
+        let origin = format!("embedded jump {name}");
+        let file: JumpFile = toml::from_str(text).map_err(|e| JumpError::Parse { origin: origin.clone(), message: e.to_string() })?;
+        if file.name != key {
+            return Err(JumpError::Invalid { origin, field: "name".into(), expected: format!("'{key}' (the table's name)"), got: format!("'{}'", file.name) });
+        }
+        Self::validate(file, &origin, key, Some(anchor))
     }
 
     /// A file when `spec` ends in `.toml` or names an existing path, else an embedded jump.
@@ -243,7 +252,7 @@ impl Jump {
         }
     }
 
-    fn validate(file: JumpFile, origin: &str) -> Result<Self, JumpError> {
+    fn validate(file: JumpFile, origin: &str, srb_name: &'static str, anchor: Option<&'static str>) -> Result<Self, JumpError> {
         let bad = |field: &str, expected: &str, got: String| Err(JumpError::Invalid { origin: origin.into(), field: field.into(), expected: expected.into(), got });
         let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
         let mut phases = Vec::with_capacity(file.phases.len());
@@ -312,7 +321,8 @@ impl Jump {
             name: file.name,
             summary: file.summary,
             robot: file.robot,
-            anchor: file.anchor,
+            anchor,
+            srb_name,
             phases,
             total_time: (t_min, t_max),
             displacement: Vector3::from(t.displacement),
@@ -333,7 +343,7 @@ impl Jump {
     /// The jump as the contact-timing formulation takes it.
     pub fn srb(&self) -> JumpSpec {
         JumpSpec {
-            name: self.name.clone(),
+            name: self.srb_name,
             displacement: self.displacement,
             axis: self.axis,
             angle: self.angle,
@@ -388,7 +398,7 @@ impl Jump {
 
 /// The seven embedded jumps, in Table I's order.
 pub fn embedded_jumps() -> Result<Vec<Jump>, JumpError> {
-    EMBEDDED_JUMPS.iter().map(|(name, _)| Jump::embedded(name)).collect()
+    EMBEDDED_JUMPS.iter().map(|(name, _, _)| Jump::embedded(name)).collect()
 }
 
 #[cfg(test)]

@@ -28,7 +28,7 @@ const NONE: Contacts = [false; 4];
 /// describe the seven of the paper's Table I).
 #[derive(Clone, Debug, PartialEq)]
 pub struct JumpSpec {
-    pub name: String,
+    pub name: &'static str,
     /// CoM displacement goal (world).
     pub displacement: Vector3<f64>,
     /// Goal rotation as axis and angle.
@@ -39,6 +39,19 @@ pub struct JumpSpec {
     pub phases: Vec<Contacts>,
     /// `[T_min, T_max]` of (2j).
     pub total_time: (f64, f64),
+}
+
+/// The seven jumps of the paper's Table I under the reference script's names (`lateral30`,
+/// `spin90`, ...: its `JUMPS` keys and results), read from the embedded jump files
+/// ([`crate::jump::EMBEDDED_JUMPS`]).
+pub fn jumps() -> Vec<JumpSpec> {
+    crate::jump::EMBEDDED_JUMPS
+        .iter()
+        .map(|&(name, script_name, _)| {
+            let jump = crate::jump::Jump::embedded(name).unwrap_or_else(|e| panic!("the embedded jump files are checked by tests/jumps.rs: {e}"));
+            JumpSpec { name: script_name, ..jump.srb() }
+        })
+        .collect()
 }
 
 /// Settings of the formulation (defaults: the script's, in parentheses).
@@ -128,37 +141,20 @@ pub struct ContactTimingProblem {
     pub guess: Vec<DVector<f64>>,
     pub phases: usize,
     pub knots: usize,
-    /// Knots per phase and the feet in contact per phase (to read a solution with).
-    knots_per_phase: usize,
-    contacts: Vec<Contacts>,
-    feet_start: [Vector3<f64>; 4],
-    feet_goal: [Vector3<f64>; 4],
-}
-
-/// One knot of a contact-timing solution.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SrbKnot {
-    /// Time from the start (s).
-    pub t: f64,
-    /// CoM position and velocity (world), body angular velocity (body frame), rotation
-    /// body -> world.
-    pub position: Vector3<f64>,
-    pub velocity: Vector3<f64>,
-    pub angular_velocity: Vector3<f64>,
-    pub rotation: Matrix3<f64>,
-    /// Feet in contact over the interval from this knot, their ground forces (world, zero
-    /// off the ground) and positions (world): fixed in contact, the optimized swing
-    /// positions in the air, the goal's on the last knot.
-    pub in_contact: Contacts,
-    pub forces: [Vector3<f64>; 4],
-    pub feet: [Vector3<f64>; 4],
+    /// Knots per phase `N_i` (the same for every phase).
+    pub knots_per_phase: usize,
+    /// Feet in contact per phase (the jump's contact sequence).
+    pub phase_contacts: Vec<Contacts>,
+    /// Feet at the start (where stance feet stay) and at the goal (world, order LF, RF, LH, RH).
+    pub feet_start: [Vector3<f64>; 4],
+    pub feet_goal: [Vector3<f64>; 4],
 }
 
 impl ContactTimingProblem {
     /// Builds the problem of `jump` for the body `params`.
     pub fn new(jump: &JumpSpec, params: &SrbParams, s: &ContactTimingSettings) -> Result<Self, ContactTimingError> {
         s.validate()?;
-        let bad = |problem| ContactTimingError::Jump { jump: jump.name.clone(), problem };
+        let bad = |problem| ContactTimingError::Jump { jump: jump.name.to_string(), problem };
         if jump.phases.len() < 2 || jump.phases.last() != Some(&NONE) || jump.phases[0] != ALL {
             return Err(bad("phases must start with all four feet in contact and end with a flight phase"));
         }
@@ -284,7 +280,16 @@ impl ContactTimingProblem {
             }
             guess.push(z);
         }
-        Ok(Self { problem: Problem::new(stages)?, guess, phases: np, knots: nc, knots_per_phase: n, contacts: jump.phases.clone(), feet_start, feet_goal })
+        Ok(Self {
+            problem: Problem::new(stages)?,
+            guess,
+            phases: np,
+            knots: nc,
+            knots_per_phase: n,
+            phase_contacts: jump.phases.clone(),
+            feet_start,
+            feet_goal,
+        })
     }
 
     /// A solver for this problem.
@@ -295,34 +300,6 @@ impl ContactTimingProblem {
     /// Solves from the script's initial guess.
     pub fn solve(&self, solver: &mut Solver) -> Result<SolveResult, SolveError> {
         solver.solve(&self.problem, &self.guess)
-    }
-
-    /// The knots of an iterate, timed by its durations (`T_i / N_i` per interval of phase `i`).
-    pub fn trajectory(&self, primal: &[DVector<f64>]) -> Vec<SrbKnot> {
-        let durations = self.durations(primal);
-        let nx = T + self.phases;
-        let mut t = 0.0;
-        let mut knots = Vec::with_capacity(primal.len());
-        for (k, z) in primal.iter().enumerate() {
-            let last = k == self.knots;
-            let phase = k.min(self.knots - 1) / self.knots_per_phase;
-            let in_contact = if last { NONE } else { self.contacts[phase] };
-            let v3 = |i: usize| Vector3::new(z[i], z[i + 1], z[i + 2]);
-            let mut forces = [Vector3::zeros(); 4];
-            let mut feet = if last { self.feet_goal } else { self.feet_start };
-            if !last {
-                for f in 0..4 {
-                    if in_contact[f] {
-                        forces[f] = v3(nx + 3 * f);
-                    } else {
-                        feet[f] = v3(nx + 3 * f);
-                    }
-                }
-            }
-            knots.push(SrbKnot { t, position: v3(P), velocity: v3(V), angular_velocity: v3(W), rotation: Matrix3::from_fn(|a, b| z[R + a + 3 * b]), in_contact, forces, feet });
-            t += durations[phase] / self.knots_per_phase as f64;
-        }
-        knots
     }
 
     /// The phase durations `T_i` of an iterate.

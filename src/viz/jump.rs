@@ -59,7 +59,7 @@ pub fn write_phase_timings(path: &Path, title: &str, phases: &[[bool; 4]], durat
 /// contact against the cone's `mu`, and its normal force against `[f_min, f_max]`.
 pub fn write_srb_forces(path: &Path, knots: &[SrbKnot], mu: f64, f_bounds: (f64, f64)) -> Result<(), VizError> {
     let t: Vec<f64> = knots.iter().map(|k| k.t).collect();
-    let mut friction: Vec<Series> = (0..4).map(|f| Series { name: FEET[f].into(), values: knots.iter().map(|k| if k.in_contact[f] && k.forces[f].z > 1e-9 { k.forces[f].xy().norm() / k.forces[f].z } else { 0.0 }).collect() }).collect();
+    let mut friction: Vec<Series> = (0..4).map(|f| Series { name: FEET[f].into(), values: knots.iter().map(|k| if k.contacts[f] && k.forces[f].z > 1e-9 { k.forces[f].xy().norm() / k.forces[f].z } else { 0.0 }).collect() }).collect();
     friction.push(Series { name: format!("mu = {mu}"), values: vec![mu; t.len()] });
     let mut normal: Vec<Series> = (0..4).map(|f| Series { name: FEET[f].into(), values: knots.iter().map(|k| k.forces[f].z).collect() }).collect();
     normal.push(Series { name: format!("f_max = {} N", f_bounds.1), values: vec![f_bounds.1; t.len()] });
@@ -73,7 +73,7 @@ pub fn write_srb_forces(path: &Path, knots: &[SrbKnot], mu: f64, f_bounds: (f64,
 /// The single-rigid-body plan's CoM position and body roll, pitch, yaw (unwrapped).
 pub fn write_srb_pose(path: &Path, knots: &[SrbKnot]) -> Result<(), VizError> {
     let t: Vec<f64> = knots.iter().map(|k| k.t).collect();
-    let axis = |a: usize| knots.iter().map(|k| k.position[a]).collect::<Vec<_>>();
+    let axis = |a: usize| knots.iter().map(|k| k.com[a]).collect::<Vec<_>>();
     let rpy: Vec<(f64, f64, f64)> = knots.iter().map(|k| UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&k.rotation)).euler_angles()).collect();
     let deg = |a: usize| {
         let mut c: Vec<f64> = rpy.iter().map(|r| [r.0, r.1, r.2][a]).collect();
@@ -102,5 +102,26 @@ pub fn write_torque_limits(path: &Path, model: &Model, traj: &Trajectory) -> Res
         series.push(Series { name: "limit".into(), values: vec![1.0; t.len()] });
         panels.push(Panel { title: format!("{leg}: |torque| / limit"), unit: "-".into(), series });
     }
+    draw_panels(path, &t, &panels, &[])
+}
+
+/// A trajectory's ground forces: each foot's friction use `|F_t| / F_n` while in contact
+/// against the cone's `mu`, and its normal force against the minimum `f_min` a stance
+/// foot must push with (world z as the normal: flat ground and box tops).
+pub fn write_trajectory_forces(path: &Path, traj: &Trajectory, mu: f64, f_min: f64) -> Result<(), VizError> {
+    let t: Vec<f64> = traj.knots.iter().map(|k| k.t).collect();
+    let feet = &traj.metadata.foot_names;
+    let ratio = |k: &crate::io::Knot, f: usize| {
+        let [x, y, z] = k.contact_force[f];
+        if k.in_contact[f] && z > 1e-9 { x.hypot(y) / z } else { 0.0 }
+    };
+    let mut friction: Vec<Series> = feet.iter().enumerate().map(|(f, name)| Series { name: name.clone(), values: traj.knots.iter().map(|k| ratio(k, f)).collect() }).collect();
+    friction.push(Series { name: format!("mu = {mu}"), values: vec![mu; t.len()] });
+    let mut normal: Vec<Series> = feet.iter().enumerate().map(|(f, name)| Series { name: name.clone(), values: traj.knots.iter().map(|k| k.contact_force[f][2]).collect() }).collect();
+    normal.push(Series { name: format!("minimum in contact = {f_min} N"), values: vec![f_min; t.len()] });
+    let panels = [
+        Panel { title: format!("{}: friction use |F_t| / F_n against the cone", traj.metadata.scenario), unit: "-".into(), series: friction },
+        Panel { title: "Normal ground force per foot".into(), unit: "N".into(), series: normal },
+    ];
     draw_panels(path, &t, &panels, &[])
 }

@@ -58,10 +58,10 @@ mod tests;
 
 pub use force_distribution::{project_to_cone, DistributionInfo, DistributionProblem, DistributionSettings, FrictionConeDistribution};
 pub use inverse_dynamics::{clip_to_friction_cones, contact_forces, friction_weighted_contact_forces, joint_torques};
-pub use legs::{leg_chains, legs_inverse_kinematics, solve_leg, velocities_and_bias, FootKinematics, LegChain};
+pub use legs::{foot_position, leg_chains, leg_jacobian, legs_inverse_kinematics, solve_leg, velocities_and_bias, FootKinematics, LegChain};
 pub use reference::{BodyMotion, FootMotion, LegMotion, MotionSource, WholeBodyReference};
 
-use self::legs::{base_jacobian, foot_kinematics, foot_position, leg_jacobian};
+use self::legs::{base_jacobian, foot_kinematics};
 use self::virtual_model::{base_acceleration, desired_base, reference_acceleration, virtual_model_wrench, BodyState, CompositeInertia};
 use super::{BaseGains, PdGains};
 use crate::dynamics::{base_orientation, centroidal_map, rnea, Data};

@@ -1,0 +1,95 @@
+//! Nguyen 2022's full-body trajectory optimization (sec. II-C) of the jumps, end to end:
+//! contact timing on the single rigid body, its solution resampled at 10 ms, the initial
+//! guess, the full-body solve with ipocp, every limit checked at every knot.
+//!
+//! ```text
+//! cargo run --release --example fullbody -- [--repeats 3] [--no-box] [--overhang 0.01]
+//!     [--pre-landing 10] [--verbose] [--limits] [jump ...]
+//! ```
+//!
+//! The box of a jump from a platform is the start feet's footprint grown by `--overhang`
+//! (0.01 m) in x and y, its top under the feet's spheres.
+
+use legwork::fullbody::{initial_guess, BoxObstacle, FullBodyProblem, FullBodySettings};
+use legwork::ipocp::Settings;
+use legwork::model::embedded;
+use legwork::srb::{jumps, ContactTimingProblem, ContactTimingSettings, SrbParams, SrbTrajectory};
+
+fn main() -> anyhow::Result<()> {
+    let mut args = std::env::args().skip(1);
+    let mut repeats = 3;
+    let mut with_box = true;
+    let mut verbose = false;
+    let mut show_limits = false;
+    let mut overhang = 0.01;
+    let mut pre_landing = None;
+    let mut names = Vec::new();
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--repeats" => repeats = args.next().ok_or_else(|| anyhow::anyhow!("--repeats: a number"))?.parse()?,
+            "--overhang" => overhang = args.next().ok_or_else(|| anyhow::anyhow!("--overhang: metres"))?.parse()?,
+            "--no-box" => with_box = false,
+            "--pre-landing" => pre_landing = Some(args.next().ok_or_else(|| anyhow::anyhow!("--pre-landing: knots"))?.parse()?),
+            "--verbose" => verbose = true,
+            "--limits" => show_limits = true,
+            _ => names.push(a),
+        }
+    }
+    let model = embedded::load("a1")?;
+    let params = SrbParams::a1()?;
+    let defaults = FullBodySettings::default();
+    let settings = FullBodySettings {
+        solver: Settings { verbose, ..defaults.solver.clone() },
+        pre_landing_knots: pre_landing.unwrap_or(defaults.pre_landing_knots),
+        ..defaults
+    };
+    let all = jumps();
+    let selected: Vec<_> = if names.is_empty() { all.clone() } else { all.iter().filter(|j| names.iter().any(|n| n == j.name)).cloned().collect() };
+    println!("jump                 T (10 ms)     box     status             iters  median s   (min s)  eval s  kkt s   viol      limits  binding");
+    for jump in &selected {
+        let ct = ContactTimingProblem::new(jump, &params, &ContactTimingSettings::default())?;
+        let mut solver = ct.solver(Settings::default())?;
+        let r = ct.solve(&mut solver)?;
+        let srb = SrbTrajectory::from_solution(&ct, &r.last.primal)?.resample(settings.dt)?;
+        let guess = initial_guess(&model, &srb, settings.pre_landing_knots)?;
+        let obstacle = (with_box && jump.box_height > 0.0).then(|| {
+            let feet = &ct.feet_start;
+            let lo = |a: usize| feet.iter().map(|f| f[a]).fold(f64::INFINITY, f64::min) - overhang;
+            let hi = |a: usize| feet.iter().map(|f| f[a]).fold(f64::NEG_INFINITY, f64::max) + overhang;
+            BoxObstacle { top: jump.box_height - model.feet[0].radius, x: [lo(0), hi(0)], y: [lo(1), hi(1)] }
+        });
+        let fb = FullBodyProblem::new(&model, &srb, &guess, &settings, obstacle)?;
+        let mut times = Vec::new();
+        let mut plan = None;
+        for _ in 0..repeats.max(1) {
+            let p = fb.solve()?;
+            times.push(p.report.time.as_secs_f64());
+            plan = Some(p);
+        }
+        let plan = plan.expect("at least one solve");
+        times.sort_by(f64::total_cmp);
+        let rep = &plan.report;
+        println!(
+            "{:20} {:13} {:7} {:18} {:5}  {:.4}    ({:.4})  {:.3}   {:.3}   {:.1e}   {:7} {}",
+            jump.name,
+            format!("{:?}", srb.phase_knots),
+            obstacle.map_or("-".to_string(), |b| format!("{:.2} m", b.top)),
+            format!("{:?}", rep.status),
+            rep.iterations,
+            times[times.len() / 2],
+            times[0],
+            rep.evaluation_time.as_secs_f64(),
+            rep.kkt_time.as_secs_f64(),
+            rep.primal_infeasibility,
+            if plan.limits.all_met(1e-6) { "met" } else { "VIOLATED" },
+            plan.limits.binding(1e-3).join(", ")
+        );
+        if show_limits {
+            println!("{}", plan.limits);
+            for (kind, v) in &rep.max_violation {
+                println!("  optimizer rows {kind:20} {v:.2e}");
+            }
+        }
+    }
+    Ok(())
+}

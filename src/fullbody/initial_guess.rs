@@ -1,0 +1,198 @@
+//! The full-body initial guess from the single-rigid-body trajectory (Nguyen 2022,
+//! sec. II-C2: "We also use q_ref,h as initial guess for the TO"), on the SRB's uniform grid:
+//!
+//! - base pose: the SRB rotation, and the base placed so that the CoM of the robot in its
+//!   nominal pose is the SRB CoM, `t = p - R c_b` (`c_b` the nominal CoM in the base frame);
+//! - stance legs by inverse kinematics to their contact points (at the lift-off knot as
+//!   close as the joint limits allow); where the SRB's foot sphere (2d) asks for more than
+//!   a leg reaches, the base is moved towards the feet until every stance foot is reached; a leg in the air blends (smoothstep) from its lift-off angles to
+//!   the pre-landing angles, which it holds over the last `a` knots;
+//! - the pre-landing angles: inverse kinematics of the SRB's final feet in the final pose;
+//! - joint velocities by backward differences (`q_k = q_{k-1} (+) dt v_k`, the semi-implicit
+//!   Euler step of the full-body dynamics), `v_0 = 0`;
+//! - torques `tau_leg = -J_leg^T f` of each stance foot's SRB force `f` (a massless leg in
+//!   equilibrium with the ground force), zero in the air.
+
+// Index loops over legs and joints read like the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
+use super::kinematics::{leg_inverse_kinematics, legs, point_jacobian, Leg};
+use super::FullBodyError;
+use crate::dynamics::{compute_joint_jacobians, difference, frame_position, Data};
+use crate::io::{Knot, Trajectory};
+use crate::model::Model;
+use crate::srb::{SrbParams, SrbTrajectory};
+use crate::terrain::TerrainSpec;
+use crate::spatial::SE3;
+use nalgebra::{DVector, Matrix3xX, Vector3};
+
+/// Largest distance (m) the inverse kinematics may leave between a stance foot and its
+/// contact point.
+pub const IK_TOLERANCE: f64 = 1e-6;
+
+/// The nominal pose the guess starts its legs from and whose CoM offset places the base.
+pub const NOMINAL_POSE: &str = "standing";
+
+/// The base configuration (position, quaternion x y z w) that puts the nominal CoM at `com`
+/// with rotation `rotation`, into `q[0..7]`.
+fn set_base(q: &mut DVector<f64>, com: &Vector3<f64>, rotation: &nalgebra::Matrix3<f64>, com_in_base: &Vector3<f64>) {
+    let t = com - rotation * com_in_base;
+    q.as_mut_slice()[..3].copy_from_slice(t.as_slice());
+    q.as_mut_slice()[3..7].copy_from_slice(&SE3::new(*rotation, t).quaternion_xyzw());
+}
+
+/// Leg IK to `target`; an error names the leg and the knot if the foot stays away.
+fn reach_or_fail(model: &Model, data: &mut Data, legs: &[Leg], f: usize, knot: usize, target: &Vector3<f64>, q: &mut DVector<f64>) -> Result<(), FullBodyError> {
+    let distance = leg_inverse_kinematics(model, data, &legs[f], target, q);
+    if distance > IK_TOLERANCE {
+        return Err(FullBodyError::Unreachable { foot: model.feet[f].name.clone(), knot, distance });
+    }
+    Ok(())
+}
+
+/// The pre-landing configuration: the nominal pose with the base at the SRB's final pose and
+/// the legs by inverse kinematics to the SRB's final feet.
+pub fn pre_landing_configuration(model: &Model, srb: &SrbTrajectory) -> Result<DVector<f64>, FullBodyError> {
+    let legs = legs(model)?;
+    let params = SrbParams::from_model(model, NOMINAL_POSE).map_err(|e| FullBodyError::Model(e.to_string()))?;
+    let mut q = nominal(model)?;
+    let mut data = Data::new(model);
+    let end = srb.knots.last().ok_or(FullBodyError::Guess("the SRB trajectory has no knots".into()))?;
+    set_base(&mut q, &end.com, &end.rotation, &params.com_in_base);
+    for f in 0..4 {
+        reach_or_fail(model, &mut data, &legs, f, srb.knots.len() - 1, &end.feet[f], &mut q)?;
+    }
+    Ok(q)
+}
+
+fn nominal(model: &Model) -> Result<DVector<f64>, FullBodyError> {
+    model
+        .reference_configuration(NOMINAL_POSE)
+        .cloned()
+        .ok_or_else(|| FullBodyError::Model(format!("'{}' has no '{NOMINAL_POSE}' configuration", model.name)))
+}
+
+fn smoothstep(s: f64) -> f64 {
+    let s = s.clamp(0.0, 1.0);
+    s * s * (3.0 - 2.0 * s)
+}
+
+/// The initial guess on the grid of `srb` (uniform, as [`SrbTrajectory::resample`] makes
+/// it), with the pre-landing angles over the last `pre_landing_knots` knots (and the last).
+pub fn initial_guess(model: &Model, srb: &SrbTrajectory, pre_landing_knots: usize) -> Result<Trajectory, FullBodyError> {
+    let n = srb.knots.len();
+    if n < 2 {
+        return Err(FullBodyError::Guess(format!("the SRB trajectory needs at least 2 knots, it has {n}")));
+    }
+    let dt = srb.knots[1].t - srb.knots[0].t;
+    for (k, w) in srb.knots.windows(2).enumerate() {
+        if ((w[1].t - w[0].t) - dt).abs() > 1e-9 || dt <= 0.0 {
+            return Err(FullBodyError::Guess(format!("the SRB trajectory is not on a uniform grid (knots {k}, {}): resample it first", k + 1)));
+        }
+    }
+    let last = n - 1;
+    if pre_landing_knots >= last {
+        return Err(FullBodyError::Setting { field: "pre_landing_knots", value: pre_landing_knots as f64, expected: "fewer than the knots of the trajectory" });
+    }
+    let legs = legs(model)?;
+    let params = SrbParams::from_model(model, NOMINAL_POSE).map_err(|e| FullBodyError::Model(e.to_string()))?;
+    let q_pre = pre_landing_configuration(model, srb)?;
+    let prelanding_start = last - pre_landing_knots;
+    // Lift-off knot of each leg: the knot after its last stance interval.
+    let lift_off: [usize; 4] = std::array::from_fn(|f| srb.knots.iter().rposition(|k| k.contacts[f]).map_or(0, |k| k + 1));
+    if let Some(f) = (0..4).find(|&f| lift_off[f] > prelanding_start) {
+        return Err(FullBodyError::Guess(format!(
+            "foot '{}' lifts off at knot {} after the pre-landing window starts (knot {prelanding_start})",
+            model.feet[f].name, lift_off[f]
+        )));
+    }
+    let mut data = Data::new(model);
+    let mut qs: Vec<DVector<f64>> = Vec::with_capacity(n);
+    let mut q = nominal(model)?;
+    let mut lift_off_angles = [[0.0; 3]; 4];
+    for (k, knot) in srb.knots.iter().enumerate() {
+        set_base(&mut q, &knot.com, &knot.rotation, &params.com_in_base);
+        // Stance legs, with the base moved towards the feet where the SRB's foot sphere (2d)
+        // asks for more than a leg reaches (the knee stops at -52.5 deg).
+        let stance: Vec<usize> = (0..4).filter(|&f| k < lift_off[f]).collect();
+        let mut shift_left = 50;
+        loop {
+            let mut pull = Vector3::zeros();
+            let mut worst = 0.0f64;
+            for &f in &stance {
+                let target = knot.feet[f];
+                let miss = leg_inverse_kinematics(model, &mut data, &legs[f], &target, &mut q);
+                if miss > IK_TOLERANCE {
+                    pull += target - frame_position(model, &data, legs[f].foot_frame);
+                }
+                worst = worst.max(miss);
+            }
+            if worst <= IK_TOLERANCE {
+                break;
+            }
+            if shift_left == 0 {
+                let f = stance.iter().copied().max_by(|&a, &b| {
+                    let d = |f: usize| (knot.feet[f] - frame_position(model, &data, legs[f].foot_frame)).norm();
+                    d(a).total_cmp(&d(b))
+                });
+                return Err(FullBodyError::Unreachable { foot: model.feet[f.unwrap_or(0)].name.clone(), knot: k, distance: worst });
+            }
+            shift_left -= 1;
+            for a in 0..3 {
+                q[a] += pull[a];
+            }
+        }
+        for f in 0..4 {
+            let leg = &legs[f];
+            if k < lift_off[f] {
+                lift_off_angles[f] = std::array::from_fn(|a| q[leg.q_index[a]]);
+            } else if k == lift_off[f] {
+                // The lift-off knot: as close to the contact point as the joint limits allow.
+                let anchor = srb.knots[k - 1].feet[f];
+                leg_inverse_kinematics(model, &mut data, leg, &anchor, &mut q);
+                lift_off_angles[f] = std::array::from_fn(|a| q[leg.q_index[a]]);
+            } else {
+                let s = smoothstep((k - lift_off[f]) as f64 / (prelanding_start - lift_off[f]).max(1) as f64);
+                for a in 0..3 {
+                    let i = leg.q_index[a];
+                    q[i] = lift_off_angles[f][a] + (q_pre[i] - lift_off_angles[f][a]) * s;
+                }
+            }
+        }
+        qs.push(q.clone());
+    }
+    let mut traj = Trajectory::new(model, "fullbody initial guess (Nguyen 2022, sec. II-C)", dt, TerrainSpec::flat());
+    let mut v = DVector::zeros(model.nv);
+    let mut jac = Matrix3xX::zeros(model.nv);
+    for (k, knot) in srb.knots.iter().enumerate() {
+        if k > 0 {
+            difference(model, &qs[k - 1], &qs[k], &mut v);
+            v /= dt;
+        }
+        compute_joint_jacobians(model, &mut data, &qs[k]);
+        let mut tau = vec![0.0; model.nv - 6];
+        for f in 0..4 {
+            if !knot.contacts[f] {
+                continue;
+            }
+            let leg = &legs[f];
+            let p = frame_position(model, &data, leg.foot_frame);
+            point_jacobian(model, &data, leg.knee_joint, &p, &mut jac);
+            for a in 0..3 {
+                let c = leg.v_index[a];
+                tau[c - 6] = -(jac[(0, c)] * knot.forces[f].x + jac[(1, c)] * knot.forces[f].y + jac[(2, c)] * knot.forces[f].z);
+            }
+        }
+        traj.knots.push(Knot {
+            t: knot.t,
+            q: qs[k].as_slice().to_vec(),
+            v: v.as_slice().to_vec(),
+            tau,
+            contact_force: knot.forces.iter().map(|f| [f.x, f.y, f.z]).collect(),
+            in_contact: knot.contacts.to_vec(),
+            feedback_gain: None,
+        });
+    }
+    traj.summary.insert("pre_landing_knots".into(), pre_landing_knots.into());
+    Ok(traj)
+}

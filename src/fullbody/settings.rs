@@ -1,0 +1,145 @@
+//! Settings of the full-body optimization and the box a jump starts from.
+
+use super::FullBodyError;
+use crate::ipocp::Settings;
+use nalgebra::Vector3;
+
+/// An axis-aligned box in the world (the platform of `barrel_roll`, `double_barrel_roll`,
+/// `double_backflip`): its top face at `top`, `x` and `y` its extent; it reaches down to
+/// the ground (no lower face is checked).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoxObstacle {
+    /// Height of the top face (m).
+    pub top: f64,
+    /// `[x_min, x_max]` and `[y_min, y_max]` (m).
+    pub x: [f64; 2],
+    pub y: [f64; 2],
+}
+
+impl BoxObstacle {
+    /// Signed distance of `p` from the box (negative inside) and its gradient: outside, the
+    /// Euclidean distance to the box (differentiable everywhere outside); inside, minus the
+    /// distance to the nearest face (top, or a side), whose gradient still points out, so a
+    /// point the guess put inside the box is pushed out.
+    pub fn signed_distance(&self, p: &Vector3<f64>) -> (f64, Vector3<f64>) {
+        let cx = 0.5 * (self.x[0] + self.x[1]);
+        let cy = 0.5 * (self.y[0] + self.y[1]);
+        let e = Vector3::new((p.x - cx).abs() - 0.5 * (self.x[1] - self.x[0]), (p.y - cy).abs() - 0.5 * (self.y[1] - self.y[0]), p.z - self.top);
+        let sign = Vector3::new(if p.x >= cx { 1.0 } else { -1.0 }, if p.y >= cy { 1.0 } else { -1.0 }, 1.0);
+        let out = e.map(|v| v.max(0.0));
+        let d = out.norm();
+        if d > 0.0 {
+            return (d, out.component_mul(&sign) / d);
+        }
+        let axis = e.imax();
+        let mut g = Vector3::zeros();
+        g[axis] = sign[axis];
+        (e[axis], g)
+    }
+
+    fn validate(&self) -> Result<(), FullBodyError> {
+        let ok = self.top.is_finite() && self.x[0] < self.x[1] && self.y[0] < self.y[1] && self.x.iter().chain(&self.y).all(|v| v.is_finite());
+        if ok {
+            Ok(())
+        } else {
+            Err(FullBodyError::Setting { field: "box", value: self.top, expected: "a finite top and x_min < x_max, y_min < y_max" })
+        }
+    }
+}
+
+/// Settings of the full-body problem (defaults in parentheses). Joint angle, velocity and
+/// torque limits are the robot model's (A1: 33.5 N m, 21 rad/s).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FullBodySettings {
+    /// Time step (0.01 s, the paper's).
+    pub dt: f64,
+    /// Pre-landing knots `a`: the joints hold the pre-landing angles with zero velocity over
+    /// the last `a` knots and the last (10).
+    pub pre_landing_knots: usize,
+    /// Friction coefficient of the pyramid `|f_x|, |f_y| <= mu f_z` (0.6, the SRB's) and the
+    /// minimum normal force on a stance foot (2 N).
+    pub mu: f64,
+    pub min_normal_force: f64,
+    /// Half extents of the trunk's box in the base frame (A1: 0.1335, 0.097, 0.057 m) and the
+    /// clearance kept from it and from the jump's box (0.01 m; a swing foot keeps its radius).
+    pub trunk_half_extents: Vector3<f64>,
+    pub clearance: f64,
+    /// Smallest distance (base frame) between the left and right feet and knees in y
+    /// (0.05 m), and between the front and hind feet and knees of a side in x (0.1 m).
+    pub legs_apart_y: f64,
+    pub legs_apart_x: f64,
+    /// Cost weights (eq. 4, written out): CoM tracking (100 / m^2), base position and
+    /// orientation deviation from the SRB pose (10, 10), joint deviation from the guess (0.1),
+    /// velocities (1e-3), torques `eps_tau` (1e-3), forces against the SRB's (1e-4).
+    pub w_com: f64,
+    pub w_base_position: f64,
+    pub w_base_orientation: f64,
+    pub w_joint: f64,
+    pub w_velocity: f64,
+    pub w_torque: f64,
+    pub w_force: f64,
+    /// The interior-point solver's settings (`ipocp` defaults, 300 iterations at most,
+    /// optimality tolerance 1e-6, constraint violation 1e-6).
+    pub solver: Settings,
+}
+
+impl Default for FullBodySettings {
+    fn default() -> Self {
+        Self {
+            dt: 0.01,
+            pre_landing_knots: 10,
+            mu: 0.6,
+            min_normal_force: 2.0,
+            trunk_half_extents: Vector3::new(0.1335, 0.097, 0.057),
+            clearance: 0.01,
+            legs_apart_y: 0.05,
+            legs_apart_x: 0.1,
+            w_com: 100.0,
+            w_base_position: 10.0,
+            w_base_orientation: 10.0,
+            w_joint: 0.1,
+            w_velocity: 1e-3,
+            w_torque: 1e-3,
+            w_force: 1e-4,
+            solver: Settings { max_iterations: 300, tolerance: 1e-6, constraint_violation_tolerance: 1e-6, ..Settings::default() },
+        }
+    }
+}
+
+impl FullBodySettings {
+    /// Checks the ranges the formulation needs (and the box, if any).
+    pub fn validate(&self, obstacle: Option<&BoxObstacle>) -> Result<(), FullBodyError> {
+        let check = |field, value: f64, ok: bool, expected| if ok { Ok(()) } else { Err(FullBodyError::Setting { field, value, expected }) };
+        check("dt", self.dt, self.dt > 0.0 && self.dt.is_finite(), "a finite positive step")?;
+        check("pre_landing_knots", self.pre_landing_knots as f64, self.pre_landing_knots >= 1, ">= 1")?;
+        check("mu", self.mu, self.mu > 0.0 && self.mu.is_finite(), "> 0")?;
+        check("min_normal_force", self.min_normal_force, self.min_normal_force >= 0.0 && self.min_normal_force.is_finite(), ">= 0")?;
+        for (field, v) in [
+            ("trunk_half_extents.x", self.trunk_half_extents.x),
+            ("trunk_half_extents.y", self.trunk_half_extents.y),
+            ("trunk_half_extents.z", self.trunk_half_extents.z),
+        ] {
+            check(field, v, v > 0.0 && v.is_finite(), "> 0")?;
+        }
+        for (field, v) in [
+            ("clearance", self.clearance),
+            ("legs_apart_y", self.legs_apart_y),
+            ("legs_apart_x", self.legs_apart_x),
+            ("w_com", self.w_com),
+            ("w_base_position", self.w_base_position),
+            ("w_base_orientation", self.w_base_orientation),
+            ("w_joint", self.w_joint),
+        ] {
+            check(field, v, v >= 0.0 && v.is_finite(), ">= 0")?;
+        }
+        // Positive weights on every control and velocity keep the Gauss-Newton Hessian definite.
+        for (field, v) in [("w_velocity", self.w_velocity), ("w_torque", self.w_torque), ("w_force", self.w_force)] {
+            check(field, v, v > 0.0 && v.is_finite(), "> 0")?;
+        }
+        self.solver.validate().map_err(|e| FullBodyError::Setting { field: e.field, value: e.value, expected: e.expected })?;
+        if let Some(b) = obstacle {
+            b.validate()?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,697 @@
+//! One knot of the full-body jump optimization (Nguyen 2022, sec. II-C) as an ipocp stage.
+//!
+//! ```text
+//! x_k = [dq_k (nv), v_k (nv)]      q_k = qbar_k (+) dq_k, the deviation in the tangent space
+//!                                  around the initial guess (no singularity at any rotation)
+//! u_k = [tau_k (12), lambda_k^s (3 per stance foot, world)]
+//! v_{k+1} = v_k + dt ABA(q_k, v_k, S^T tau_k + sum_s J_s(q_k)^T lambda^s)     eq. (3), semi-implicit
+//! q_{k+1} = q_k (+) dt v_{k+1},   dq_{k+1} = q_{k+1} (-) qbar_{k+1}            Euler
+//! ```
+//!
+//! Equalities: the initial state at rest (`dq_0 = 0`, `v_0 = 0`), each stance foot at its
+//! contact point on the knots whose interval it pushes in (`k >= 1`), the pre-landing joint
+//! angles over the last `a` knots with zero joint velocity at the first of them (the rest
+//! follows from the dynamics), the final base pose. Inequalities: joint angle, velocity and
+//! torque limits, the friction pyramid and minimum normal force, knees and feet below the
+//! trunk's bottom face (a half-space inside the "outside the trunk's box" region, smooth),
+//! the legs apart, and knees, trunk corners and airborne feet clear of the box (signed
+//! distance at least the clearance, the foot's radius for a foot).
+//!
+//! Derivatives: exact first derivatives of the dynamics (ABA derivatives of Carpentier &
+//! Mansard 2018 plus the contact forces' `d (J^T lambda) / dq`) and of every constraint;
+//! the Hessian is Gauss-Newton (`2 J_r^T W J_r` of the cost residuals; the curvature of the
+//! dynamics and constraints, weighted by their multipliers, is left out).
+
+// Index loops over rows and columns read like the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
+use super::kinematics::{add_point_force_derivative, foot_position, knee_position, point_jacobian, Leg};
+use super::settings::{BoxObstacle, FullBodySettings};
+use crate::dynamics::{
+    aba, center_of_mass, com_jacobian, compute_aba_derivatives, compute_joint_jacobians, difference, integrate,
+    integrate_jacobians, Data,
+};
+use crate::ipocp::{Stage, StageDims, StageJacobians, StageMultipliers, StageValues};
+use crate::model::Model;
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix3xX, Vector3};
+use std::sync::{Arc, Mutex};
+
+/// What all knots share.
+pub(crate) struct Shared {
+    pub model: Model,
+    pub legs: Vec<Leg>,
+    pub settings: FullBodySettings,
+    pub obstacle: Option<BoxObstacle>,
+    /// Joint limits in `q[7..]` order: angles, velocities, torques.
+    pub joint_lower: Vec<f64>,
+    pub joint_upper: Vec<f64>,
+    pub velocity_limit: Vec<f64>,
+    pub torque_limit: Vec<f64>,
+    pub foot_radius: f64,
+}
+
+/// What one knot is.
+#[derive(Clone, Debug)]
+pub(crate) struct KnotSpec {
+    pub knot: usize,
+    pub last: bool,
+    /// The guess: tangent origin of this knot and of the next.
+    pub qbar: DVector<f64>,
+    pub qbar_next: Option<DVector<f64>>,
+    /// SRB references: CoM and the stance feet's forces.
+    pub com_ref: Vector3<f64>,
+    pub force_ref: [Vector3<f64>; 4],
+    /// Feet pushing over this knot's interval (their forces are controls).
+    pub contacts: [bool; 4],
+    /// Feet held at a contact point at this knot.
+    pub pinned: [Option<Vector3<f64>>; 4],
+    /// Feet that must keep clear of the box at this knot (in the air since before it).
+    pub airborne: [bool; 4],
+    pub initial: bool,
+    pub pre_landing: bool,
+    pub pre_landing_first: bool,
+    pub is_final: bool,
+}
+
+/// Inequality row kinds, in the order a stage stacks them (for the report).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum ConstraintKind {
+    JointAngle,
+    JointVelocity,
+    Torque,
+    FrictionCone,
+    MinNormalForce,
+    TrunkClearance,
+    LegsApart,
+    BoxClearance,
+}
+
+impl ConstraintKind {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::JointAngle => "joint angle",
+            Self::JointVelocity => "joint velocity",
+            Self::Torque => "torque",
+            Self::FrictionCone => "friction cone",
+            Self::MinNormalForce => "min normal force",
+            Self::TrunkClearance => "trunk clearance",
+            Self::LegsApart => "legs apart",
+            Self::BoxClearance => "box clearance",
+        }
+    }
+}
+
+/// Buffers of one stage's evaluations.
+struct Workspace {
+    data: Data,
+    q: DVector<f64>,
+    q_next: DVector<f64>,
+    v_next: DVector<f64>,
+    tau: DVector<f64>,
+    step: DVector<f64>,
+    dq_next: DVector<f64>,
+    /// `d q / d dq` (`Jr(dq)` on the base), and the integrate / difference Jacobians of the step.
+    jd: DMatrix<f64>,
+    jq_step: DMatrix<f64>,
+    jv_step: DMatrix<f64>,
+    jl: DMatrix<f64>,
+    scratch: DMatrix<f64>,
+    /// `d qdd / dq` (tangent), `d v' / dz`, `d dq' / dz`.
+    dqdd_dq: DMatrix<f64>,
+    dv_dz: DMatrix<f64>,
+    point_jac: Matrix3xX<f64>,
+    feet_jac: [Matrix3xX<f64>; 4],
+    com_jac: Matrix3xX<f64>,
+}
+
+pub(crate) struct FullBodyStage {
+    pub shared: Arc<Shared>,
+    pub spec: KnotSpec,
+    dims: StageDims,
+    ws: Mutex<Workspace>,
+}
+
+const TRUNK_CORNERS: [[f64; 3]; 8] = [
+    [1.0, 1.0, 1.0],
+    [1.0, 1.0, -1.0],
+    [1.0, -1.0, 1.0],
+    [1.0, -1.0, -1.0],
+    [-1.0, 1.0, 1.0],
+    [-1.0, 1.0, -1.0],
+    [-1.0, -1.0, 1.0],
+    [-1.0, -1.0, -1.0],
+];
+
+impl FullBodyStage {
+    pub fn new(shared: Arc<Shared>, spec: KnotSpec) -> Self {
+        let nv = shared.model.nv;
+        let nc = spec.contacts.iter().filter(|&&c| c).count();
+        let (nu, nx_next) = if spec.last { (0, 0) } else { (nv - 6 + 3 * nc, 2 * nv) };
+        let ng = if spec.initial { 2 * nv } else { 3 * spec.pinned.iter().filter(|p| p.is_some()).count() }
+            + if spec.pre_landing { nv - 6 } else { 0 }
+            + if spec.pre_landing_first { nv - 6 } else { 0 }
+            + if spec.is_final { 6 } else { 0 };
+        let nh = Self::kinds_of(&shared, &spec).len();
+        let model = &shared.model;
+        let ws = Workspace {
+            data: Data::new(model),
+            q: DVector::zeros(model.nq),
+            q_next: DVector::zeros(model.nq),
+            v_next: DVector::zeros(nv),
+            tau: DVector::zeros(nv),
+            step: DVector::zeros(nv),
+            dq_next: DVector::zeros(nv),
+            jd: DMatrix::zeros(nv, nv),
+            jq_step: DMatrix::zeros(nv, nv),
+            jv_step: DMatrix::zeros(nv, nv),
+            jl: DMatrix::zeros(nv, nv),
+            scratch: DMatrix::zeros(nv, nv),
+            dqdd_dq: DMatrix::zeros(nv, nv),
+            dv_dz: DMatrix::zeros(nv, 2 * nv + nu),
+            point_jac: Matrix3xX::zeros(nv),
+            feet_jac: std::array::from_fn(|_| Matrix3xX::zeros(nv)),
+            com_jac: Matrix3xX::zeros(nv),
+        };
+        Self { dims: StageDims { nx: 2 * nv, nu, nx_next, ng, nh }, shared, spec, ws: Mutex::new(ws) }
+    }
+
+    /// The kind of every inequality row, in order.
+    pub fn kinds_of(shared: &Shared, spec: &KnotSpec) -> Vec<ConstraintKind> {
+        use ConstraintKind::*;
+        let nc = spec.contacts.iter().filter(|&&c| c).count();
+        let nj = shared.model.nv - 6;
+        let mut k = vec![JointAngle; nj];
+        k.extend(std::iter::repeat_n(JointVelocity, nj));
+        if !spec.last {
+            k.extend(std::iter::repeat_n(Torque, nj));
+            for _ in 0..nc {
+                k.extend([FrictionCone; 4]);
+                k.push(MinNormalForce);
+            }
+        }
+        k.extend([TrunkClearance; 8]);
+        k.extend([LegsApart; 8]);
+        if shared.obstacle.is_some() {
+            k.extend([BoxClearance; 12]);
+            k.extend(std::iter::repeat_n(BoxClearance, spec.airborne.iter().filter(|&&a| a).count()));
+        }
+        k
+    }
+
+    fn n_contacts(&self) -> usize {
+        self.spec.contacts.iter().filter(|&&c| c).count()
+    }
+
+    fn nv(&self) -> usize {
+        self.shared.model.nv
+    }
+
+    /// Index in `z` of the force of stance foot `f` (None if `f` does not push).
+    fn force_index(&self, f: usize) -> Option<usize> {
+        if self.spec.last || !self.spec.contacts[f] {
+            return None;
+        }
+        let before = self.spec.contacts[..f].iter().filter(|&&c| c).count();
+        Some(2 * self.nv() + self.nv() - 6 + 3 * before)
+    }
+
+    fn force(&self, z: &[f64], f: usize) -> Option<Vector3<f64>> {
+        self.force_index(f).map(|i| Vector3::new(z[i], z[i + 1], z[i + 2]))
+    }
+}
+
+impl Stage for FullBodyStage {
+    fn dims(&self) -> StageDims {
+        self.dims
+    }
+
+    fn inequality_bounds(&self, lower: &mut [f64], upper: &mut [f64]) {
+        let sh = &self.shared;
+        let s = &sh.settings;
+        let nj = sh.model.nv - 6;
+        let mut r = 0;
+        for j in 0..nj {
+            (lower[r], upper[r]) = (sh.joint_lower[j], sh.joint_upper[j]);
+            r += 1;
+        }
+        for j in 0..nj {
+            (lower[r], upper[r]) = (-sh.velocity_limit[j], sh.velocity_limit[j]);
+            r += 1;
+        }
+        if !self.spec.last {
+            for j in 0..nj {
+                (lower[r], upper[r]) = (-sh.torque_limit[j], sh.torque_limit[j]);
+                r += 1;
+            }
+            for _ in 0..self.n_contacts() {
+                for _ in 0..4 {
+                    (lower[r], upper[r]) = (f64::NEG_INFINITY, 0.0);
+                    r += 1;
+                }
+                (lower[r], upper[r]) = (s.min_normal_force, f64::INFINITY);
+                r += 1;
+            }
+        }
+        for _ in 0..8 {
+            (lower[r], upper[r]) = (f64::NEG_INFINITY, -(s.trunk_half_extents.z + s.clearance));
+            r += 1;
+        }
+        for pair in 0..8 {
+            let d = if pair % 4 < 2 { s.legs_apart_y } else { s.legs_apart_x };
+            (lower[r], upper[r]) = (d, f64::INFINITY);
+            r += 1;
+        }
+        if sh.obstacle.is_some() {
+            for _ in 0..12 {
+                (lower[r], upper[r]) = (s.clearance, f64::INFINITY);
+                r += 1;
+            }
+            for f in 0..4 {
+                if self.spec.airborne[f] {
+                    (lower[r], upper[r]) = (sh.foot_radius, f64::INFINITY);
+                    r += 1;
+                }
+            }
+        }
+    }
+
+    fn evaluate(&self, z: &[f64], out: &mut StageValues) {
+        let sh = &self.shared;
+        let s = &sh.settings;
+        let model = &sh.model;
+        let nv = model.nv;
+        let nj = nv - 6;
+        let spec = &self.spec;
+        let mut guard = self.ws.lock().unwrap_or_else(|e| e.into_inner());
+        let ws = &mut *guard;
+        let dq = DVector::from_column_slice(&z[..nv]);
+        integrate(model, &spec.qbar, &dq, &mut ws.q);
+        let v = &z[nv..2 * nv];
+        let com = center_of_mass(model, &mut ws.data, &ws.q);
+        // Cost (eq. 4, with the references of sec. II-C2).
+        let sq = |a: &[f64]| a.iter().map(|x| x * x).sum::<f64>();
+        let mut cost = s.w_com * (com - spec.com_ref).norm_squared()
+            + s.w_base_position * sq(&z[..3])
+            + s.w_base_orientation * sq(&z[3..6])
+            + s.w_joint * sq(&z[6..nv])
+            + s.w_velocity * sq(v);
+        if !spec.last {
+            cost += s.w_torque * sq(&z[2 * nv..2 * nv + nj]);
+            for f in 0..4 {
+                if let Some(l) = self.force(z, f) {
+                    cost += s.w_force * (l - spec.force_ref[f]).norm_squared();
+                }
+            }
+        }
+        out.cost = cost;
+        // Points of the constraints at q_k (forward kinematics done by the CoM).
+        let feet: [Vector3<f64>; 4] = std::array::from_fn(|f| foot_position(model, &ws.data, &sh.legs[f]));
+        let knees: [Vector3<f64>; 4] = std::array::from_fn(|f| knee_position(&ws.data, &sh.legs[f]));
+        let base = ws.data.o_m_i[1];
+        if !spec.last {
+            // Dynamics (3): generalized forces of the torques and the stance feet's forces.
+            ws.tau.fill(0.0);
+            ws.tau.as_mut_slice()[6..].copy_from_slice(&z[2 * nv..2 * nv + nj]);
+            compute_joint_jacobians(model, &mut ws.data, &ws.q);
+            for f in 0..4 {
+                if let Some(l) = self.force(z, f) {
+                    point_jacobian(model, &ws.data, sh.legs[f].knee_joint, &feet[f], &mut ws.point_jac);
+                    ws.tau.gemv_tr(1.0, &ws.point_jac, &l, 1.0);
+                }
+            }
+            let vv = DVector::from_column_slice(v);
+            let a = aba(model, &mut ws.data, &ws.q, &vv, &ws.tau);
+            ws.v_next.copy_from(&(&vv + a * s.dt));
+            ws.step.copy_from(&(&ws.v_next * s.dt));
+            integrate(model, &ws.q, &ws.step, &mut ws.q_next);
+            difference(model, spec.qbar_next.as_ref().expect("a stage with dynamics has a next knot"), &ws.q_next, &mut ws.dq_next);
+            out.dynamics.rows_mut(0, nv).copy_from(&ws.dq_next);
+            out.dynamics.rows_mut(nv, nv).copy_from(&ws.v_next);
+        }
+        // Equalities.
+        let g = &mut out.equalities;
+        let mut r = 0;
+        if spec.initial {
+            g.rows_mut(0, 2 * nv).copy_from_slice(&z[..2 * nv]);
+            r = 2 * nv;
+        } else {
+            for f in 0..4 {
+                if let Some(anchor) = spec.pinned[f] {
+                    g.rows_mut(r, 3).copy_from(&(feet[f] - anchor));
+                    r += 3;
+                }
+            }
+        }
+        if spec.pre_landing {
+            g.rows_mut(r, nj).copy_from_slice(&z[6..nv]);
+            r += nj;
+        }
+        if spec.pre_landing_first {
+            g.rows_mut(r, nj).copy_from_slice(&z[nv + 6..2 * nv]);
+            r += nj;
+        }
+        if spec.is_final {
+            g.rows_mut(r, 6).copy_from_slice(&z[..6]);
+        }
+        // Inequalities.
+        let h = &mut out.inequalities;
+        let mut r = 0;
+        for j in 0..nj {
+            h[r] = ws.q[7 + j];
+            r += 1;
+        }
+        for j in 0..nj {
+            h[r] = v[6 + j];
+            r += 1;
+        }
+        if !spec.last {
+            for j in 0..nj {
+                h[r] = z[2 * nv + j];
+                r += 1;
+            }
+            for f in 0..4 {
+                if let Some(l) = self.force(z, f) {
+                    h[r] = l.x - s.mu * l.z;
+                    h[r + 1] = -l.x - s.mu * l.z;
+                    h[r + 2] = l.y - s.mu * l.z;
+                    h[r + 3] = -l.y - s.mu * l.z;
+                    h[r + 4] = l.z;
+                    r += 5;
+                }
+            }
+        }
+        let in_base = |p: &Vector3<f64>| base.rotation.transpose() * (p - base.translation);
+        for f in 0..4 {
+            h[r] = in_base(&knees[f]).z;
+            h[r + 1] = in_base(&feet[f]).z;
+            r += 2;
+        }
+        for (points, row) in [(&feet, r), (&knees, r + 4)] {
+            let pb: [Vector3<f64>; 4] = std::array::from_fn(|f| in_base(&points[f]));
+            // LF-RF, LH-RH in y; LF-LH, RF-RH in x (order LF, RF, LH, RH).
+            h[row] = pb[0].y - pb[1].y;
+            h[row + 1] = pb[2].y - pb[3].y;
+            h[row + 2] = pb[0].x - pb[2].x;
+            h[row + 3] = pb[1].x - pb[3].x;
+        }
+        r += 8;
+        if let Some(b) = &sh.obstacle {
+            for f in 0..4 {
+                h[r] = b.signed_distance(&knees[f]).0;
+                r += 1;
+            }
+            for c in TRUNK_CORNERS {
+                let p = base.act_point(&s.trunk_half_extents.component_mul(&Vector3::from(c)));
+                h[r] = b.signed_distance(&p).0;
+                r += 1;
+            }
+            for f in 0..4 {
+                if spec.airborne[f] {
+                    h[r] = b.signed_distance(&feet[f]).0;
+                    r += 1;
+                }
+            }
+        }
+    }
+
+    fn jacobians(&self, z: &[f64], out: &mut StageJacobians) {
+        let sh = &self.shared;
+        let s = &sh.settings;
+        let model = &sh.model;
+        let nv = model.nv;
+        let nj = nv - 6;
+        let nz = self.dims.nz();
+        let spec = &self.spec;
+        let mut guard = self.ws.lock().unwrap_or_else(|e| e.into_inner());
+        let ws = &mut *guard;
+        let dq = DVector::from_column_slice(&z[..nv]);
+        integrate(model, &spec.qbar, &dq, &mut ws.q);
+        // d q / d dq: Jr(dq) on the base, identity on the joints.
+        integrate_jacobians(model, &dq, &mut ws.scratch, &mut ws.jd);
+        let v = DVector::from_column_slice(&z[nv..2 * nv]);
+        out.dynamics.fill(0.0);
+        out.equalities.fill(0.0);
+        out.inequalities.fill(0.0);
+        out.cost_gradient.fill(0.0);
+        // Kinematics at q_k: world Jacobians, CoM and its Jacobian, the feet's Jacobians.
+        let jc = com_jacobian(model, &mut ws.data, &ws.q).clone() * &ws.jd;
+        ws.com_jac.copy_from(&jc);
+        let com = ws.data.com;
+        let feet: [Vector3<f64>; 4] = std::array::from_fn(|f| foot_position(model, &ws.data, &sh.legs[f]));
+        let knees: [Vector3<f64>; 4] = std::array::from_fn(|f| knee_position(&ws.data, &sh.legs[f]));
+        let base = ws.data.o_m_i[1];
+        for f in 0..4 {
+            point_jacobian(model, &ws.data, sh.legs[f].knee_joint, &feet[f], &mut ws.point_jac);
+            ws.feet_jac[f].copy_from(&ws.point_jac);
+        }
+        // (Before the dynamics' derivatives, which reuse the world Jacobians' buffer.)
+        let mut knee_jac: [Matrix3xX<f64>; 4] = std::array::from_fn(|_| Matrix3xX::zeros(nv));
+        for f in 0..4 {
+            point_jacobian(model, &ws.data, sh.legs[f].knee_joint, &knees[f], &mut knee_jac[f]);
+        }
+        let corners: [Vector3<f64>; 8] = std::array::from_fn(|c| base.act_point(&s.trunk_half_extents.component_mul(&Vector3::from(TRUNK_CORNERS[c]))));
+        let mut corner_jac: [Matrix3xX<f64>; 8] = std::array::from_fn(|_| Matrix3xX::zeros(nv));
+        if sh.obstacle.is_some() {
+            for c in 0..8 {
+                point_jacobian(model, &ws.data, 1, &corners[c], &mut corner_jac[c]);
+            }
+        }
+        // Cost gradient.
+        let gc = ws.com_jac.transpose() * (com - spec.com_ref) * (2.0 * s.w_com);
+        for i in 0..nv {
+            let w = if i < 3 {
+                s.w_base_position
+            } else if i < 6 {
+                s.w_base_orientation
+            } else {
+                s.w_joint
+            };
+            out.cost_gradient[i] = gc[i] + 2.0 * w * z[i];
+            out.cost_gradient[nv + i] = 2.0 * s.w_velocity * z[nv + i];
+        }
+        if !spec.last {
+            for j in 0..nj {
+                out.cost_gradient[2 * nv + j] = 2.0 * s.w_torque * z[2 * nv + j];
+            }
+            for f in 0..4 {
+                if let (Some(i), Some(l)) = (self.force_index(f), self.force(z, f)) {
+                    for a in 0..3 {
+                        out.cost_gradient[i + a] = 2.0 * s.w_force * (l[a] - spec.force_ref[f][a]);
+                    }
+                }
+            }
+        }
+        if !spec.last {
+            // Dynamics: qdd = ABA(q, v, tau_gen(q)),  d qdd/dq = -M^-1 dRNEA/dq + M^-1 d tau_gen/dq.
+            ws.tau.fill(0.0);
+            ws.tau.as_mut_slice()[6..].copy_from_slice(&z[2 * nv..2 * nv + nj]);
+            let mut dgen_dq = DMatrix::zeros(nv, nv);
+            for f in 0..4 {
+                if let Some(l) = self.force(z, f) {
+                    ws.tau.gemv_tr(1.0, &ws.feet_jac[f], &l, 1.0);
+                    add_point_force_derivative(&ws.data, &sh.legs[f], &feet[f], &l, &mut dgen_dq);
+                }
+            }
+            compute_aba_derivatives(model, &mut ws.data, &ws.q, &v, &ws.tau);
+            ws.dqdd_dq.copy_from(&ws.data.ddq_dq);
+            ws.dqdd_dq.gemm(1.0, &ws.data.minv, &dgen_dq, 1.0);
+            // v' = v + dt qdd: d v'/dz.
+            let dt = s.dt;
+            ws.dv_dz.fill(0.0);
+            {
+                let m = &ws.dqdd_dq * &ws.jd * dt;
+                ws.dv_dz.columns_mut(0, nv).copy_from(&m);
+            }
+            {
+                let m = &ws.data.ddq_dv * dt + DMatrix::<f64>::identity(nv, nv);
+                ws.dv_dz.columns_mut(nv, nv).copy_from(&m);
+            }
+            for j in 0..nj {
+                let col = ws.data.minv.column(6 + j) * dt;
+                ws.dv_dz.column_mut(2 * nv + j).copy_from(&col);
+            }
+            for f in 0..4 {
+                if let Some(i) = self.force_index(f) {
+                    let m = &ws.data.minv * ws.feet_jac[f].transpose() * dt;
+                    ws.dv_dz.columns_mut(i, 3).copy_from(&m);
+                }
+            }
+            let a = ws.data.ddq.clone();
+            ws.v_next.copy_from(&(&v + a * dt));
+            ws.step.copy_from(&(&ws.v_next * dt));
+            integrate(model, &ws.q, &ws.step, &mut ws.q_next);
+            let qbar_next = spec.qbar_next.as_ref().expect("a stage with dynamics has a next knot");
+            difference(model, qbar_next, &ws.q_next, &mut ws.dq_next);
+            integrate_jacobians(model, &ws.step, &mut ws.jq_step, &mut ws.jv_step);
+            // d dq'/d q' = Jr(dq')^-1 on the base.
+            integrate_jacobians(model, &ws.dq_next, &mut ws.scratch, &mut ws.jl);
+            let jl = ws.jl.clone().try_inverse().unwrap_or_else(|| DMatrix::from_element(nv, nv, f64::NAN));
+            // dq' = (q (+) dt v') (-) qbar': d/dz = Jl (Jq [Jd 0 0] + dt Jv dv'/dz).
+            let mut dq_next_dz = &ws.jv_step * &ws.dv_dz * dt;
+            {
+                let m = &ws.jq_step * &ws.jd;
+                let mut c = dq_next_dz.columns_mut(0, nv);
+                c += m;
+            }
+            let dq_next_dz = jl * dq_next_dz;
+            out.dynamics.rows_mut(0, nv).copy_from(&dq_next_dz);
+            out.dynamics.rows_mut(nv, nv).copy_from(&ws.dv_dz);
+        }
+        // Equalities.
+        let g = &mut out.equalities;
+        let mut r = 0;
+        if spec.initial {
+            for i in 0..2 * nv {
+                g[(i, i)] = 1.0;
+            }
+            r = 2 * nv;
+        } else {
+            for f in 0..4 {
+                if spec.pinned[f].is_some() {
+                    let m = &ws.feet_jac[f] * &ws.jd;
+                    g.view_mut((r, 0), (3, nv)).copy_from(&m);
+                    r += 3;
+                }
+            }
+        }
+        if spec.pre_landing {
+            for j in 0..nj {
+                g[(r + j, 6 + j)] = 1.0;
+            }
+            r += nj;
+        }
+        if spec.pre_landing_first {
+            for j in 0..nj {
+                g[(r + j, nv + 6 + j)] = 1.0;
+            }
+            r += nj;
+        }
+        if spec.is_final {
+            for i in 0..6 {
+                g[(r + i, i)] = 1.0;
+            }
+        }
+        // Inequalities.
+        let h = &mut out.inequalities;
+        let mut r = 0;
+        for j in 0..nj {
+            h[(r, 6 + j)] = 1.0;
+            r += 1;
+        }
+        for j in 0..nj {
+            h[(r, nv + 6 + j)] = 1.0;
+            r += 1;
+        }
+        if !spec.last {
+            for j in 0..nj {
+                h[(r, 2 * nv + j)] = 1.0;
+                r += 1;
+            }
+            for f in 0..4 {
+                if let Some(i) = self.force_index(f) {
+                    for (row, (cx, cy)) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)].into_iter().enumerate() {
+                        h[(r + row, i)] = cx;
+                        h[(r + row, i + 1)] = cy;
+                        h[(r + row, i + 2)] = -s.mu;
+                    }
+                    h[(r + 4, i + 2)] = 1.0;
+                    r += 5;
+                }
+            }
+        }
+        // Base-frame coordinates p_b = R^T (p - t) move with the leg's joints only:
+        // d p_b / d q_leg = R^T d p / d q_leg.
+        let rt: Matrix3<f64> = base.rotation.transpose();
+        let base_rows = |jac: &Matrix3xX<f64>, f: usize, axis: usize| -> [(usize, f64); 3] {
+            std::array::from_fn(|a| {
+                let c = sh.legs[f].v_index[a];
+                (c, (0..3).map(|b| rt[(axis, b)] * jac[(b, c)]).sum())
+            })
+        };
+        for f in 0..4 {
+            for (c, d) in base_rows(&knee_jac[f], f, 2) {
+                h[(r, c)] = d;
+            }
+            for (c, d) in base_rows(&ws.feet_jac[f], f, 2) {
+                h[(r + 1, c)] = d;
+            }
+            r += 2;
+        }
+        for (jacs, row) in [(&ws.feet_jac, r), (&knee_jac, r + 4)] {
+            for (k, (fa, fb, axis)) in [(0, 1, 1), (2, 3, 1), (0, 2, 0), (1, 3, 0)].into_iter().enumerate() {
+                for (c, d) in base_rows(&jacs[fa], fa, axis) {
+                    h[(row + k, c)] += d;
+                }
+                for (c, d) in base_rows(&jacs[fb], fb, axis) {
+                    h[(row + k, c)] -= d;
+                }
+            }
+        }
+        r += 8;
+        if let Some(b) = &sh.obstacle {
+            let row_of = |h: &mut DMatrix<f64>, r: usize, p: &Vector3<f64>, jac: &Matrix3xX<f64>| {
+                let grad = b.signed_distance(p).1;
+                let m = grad.transpose() * jac * &ws.jd;
+                h.view_mut((r, 0), (1, nv)).copy_from(&m);
+            };
+            for f in 0..4 {
+                row_of(h, r, &knees[f], &knee_jac[f]);
+                r += 1;
+            }
+            for c in 0..8 {
+                row_of(h, r, &corners[c], &corner_jac[c]);
+                r += 1;
+            }
+            for f in 0..4 {
+                if spec.airborne[f] {
+                    row_of(h, r, &feet[f], &ws.feet_jac[f]);
+                    r += 1;
+                }
+            }
+        }
+        debug_assert_eq!(out.cost_gradient.len(), nz);
+    }
+
+    /// Gauss-Newton: `2 J_r^T W J_r` of the cost's residuals (CoM, base and joint deviation,
+    /// velocities, torques, forces); the multipliers are not used.
+    fn lagrangian_hessian(&self, z: &[f64], multipliers: StageMultipliers<'_>, out: &mut DMatrix<f64>) {
+        let sh = &self.shared;
+        let s = &sh.settings;
+        let model = &sh.model;
+        let nv = model.nv;
+        let nj = nv - 6;
+        let w = multipliers.cost;
+        let mut guard = self.ws.lock().unwrap_or_else(|e| e.into_inner());
+        let ws = &mut *guard;
+        let dq = DVector::from_column_slice(&z[..nv]);
+        integrate(model, &self.spec.qbar, &dq, &mut ws.q);
+        integrate_jacobians(model, &dq, &mut ws.scratch, &mut ws.jd);
+        let jc = com_jacobian(model, &mut ws.data, &ws.q).clone() * &ws.jd;
+        out.fill(0.0);
+        let hc = jc.transpose() * &jc * (2.0 * s.w_com * w);
+        out.view_mut((0, 0), (nv, nv)).copy_from(&hc);
+        for i in 0..nv {
+            let wd = if i < 3 {
+                s.w_base_position
+            } else if i < 6 {
+                s.w_base_orientation
+            } else {
+                s.w_joint
+            };
+            out[(i, i)] += 2.0 * wd * w;
+            out[(nv + i, nv + i)] += 2.0 * s.w_velocity * w;
+        }
+        if !self.spec.last {
+            for j in 0..nj {
+                out[(2 * nv + j, 2 * nv + j)] += 2.0 * s.w_torque * w;
+            }
+            for f in 0..4 {
+                if let Some(i) = self.force_index(f) {
+                    for a in 0..3 {
+                        out[(i + a, i + a)] += 2.0 * s.w_force * w;
+                    }
+                }
+            }
+        }
+    }
+}

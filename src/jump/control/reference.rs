@@ -1,0 +1,221 @@
+//! The jump reference of the full-body optimization (Nguyen 2022, sec. III): joint angles
+//! and velocities, feed-forward torques, and the feet's positions and velocities relative
+//! to the base, per 10 ms knot, linearly interpolated to the 1 kHz control rate.
+//!
+//! The feet are taken relative to the base, in base axes, from the joint angles alone (the
+//! paper's "w.r.t. their hips": a hip is fixed in the base frame, so the offset cancels in
+//! `p_f,d - p_f` and the Jacobian is the same). They are computed once per knot here and
+//! interpolated like the other profiles, as the paper does.
+
+use super::feet::BaseFrameFeet;
+use super::JumpControlError;
+use crate::control::interpolate_state;
+use crate::dynamics::base_orientation;
+use crate::io::Trajectory;
+use crate::model::Model;
+use nalgebra::{DVector, Vector3};
+
+/// How close to the final knot's joint state a knot must be to count as the pre-landing
+/// configuration (Nguyen 2022 sec. II-C: `q_j = q_N^d`, `qd_j = 0` over the last `a` knots).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PosingTolerance {
+    /// Largest joint angle difference to the final knot (rad). Default 1e-3.
+    pub angle: f64,
+    /// Largest joint speed (rad/s). Default 1e-2.
+    pub speed: f64,
+}
+
+impl Default for PosingTolerance {
+    fn default() -> Self {
+        Self { angle: 1e-3, speed: 1e-2 }
+    }
+}
+
+/// The reference sampled at one instant (preallocated, overwritten by [`JumpReference::sample`]).
+#[derive(Clone, Debug)]
+pub struct ReferenceSample {
+    /// Configuration (`nq`) and velocity (`nv`).
+    pub q: DVector<f64>,
+    pub v: DVector<f64>,
+    /// Feed-forward torques (`nv`, base entries zero).
+    pub tau: DVector<f64>,
+    /// Per foot (model order): position and velocity relative to the base, base axes.
+    pub foot_position: Vec<Vector3<f64>>,
+    pub foot_velocity: Vec<Vector3<f64>>,
+    dq: DVector<f64>,
+}
+
+impl ReferenceSample {
+    pub fn new(model: &Model) -> Self {
+        let feet = model.feet.len();
+        Self {
+            q: DVector::zeros(model.nq),
+            v: DVector::zeros(model.nv),
+            tau: DVector::zeros(model.nv),
+            foot_position: vec![Vector3::zeros(); feet],
+            foot_velocity: vec![Vector3::zeros(); feet],
+            dq: DVector::zeros(model.nv),
+        }
+    }
+}
+
+/// Where the jump should end: the base position and yaw of the reference's last knot.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JumpTarget {
+    /// Base position, world frame (m).
+    pub position: Vector3<f64>,
+    /// Base yaw (rad).
+    pub yaw: f64,
+}
+
+/// A jump reference converted once from its trajectory file.
+#[derive(Clone, Debug)]
+pub struct JumpReference {
+    t: Vec<f64>,
+    q: Vec<DVector<f64>>,
+    v: Vec<DVector<f64>>,
+    tau: Vec<DVector<f64>>,
+    foot_position: Vec<Vec<Vector3<f64>>>,
+    foot_velocity: Vec<Vec<Vector3<f64>>>,
+    /// `T_posing`: start of the pre-landing configuration (s).
+    t_posing: f64,
+    /// The pre-landing configuration: the last knot (`nq`).
+    pre_landing: DVector<f64>,
+    target: JumpTarget,
+    /// The reference's base velocity at its last knot (touch-down), world frame: linear
+    /// and angular (Remark 3's "body velocity reference at the impact").
+    impact_velocity: (Vector3<f64>, Vector3<f64>),
+}
+
+impl JumpReference {
+    /// Converts `trajectory` (checked against `model`: joint names, sizes, finite values)
+    /// and finds `T_posing`: the earliest knot from which every knot holds the last knot's
+    /// joint angles with zero joint speed, within `tolerance`.
+    pub fn new(model: &Model, trajectory: &Trajectory, tolerance: PosingTolerance) -> Result<Self, JumpControlError> {
+        let invalid = |e: crate::io::TrajectoryError| JumpControlError::Reference(e.to_string());
+        trajectory.check_against(model, "jump reference").map_err(invalid)?;
+        trajectory.validate("jump reference").map_err(invalid)?;
+        if trajectory.knots.len() < 2 {
+            return Err(JumpControlError::Reference(format!("expected at least 2 knots, got {}", trajectory.knots.len())));
+        }
+        if !(tolerance.angle >= 0.0 && tolerance.speed >= 0.0) {
+            return Err(JumpControlError::Setting { field: "posing_tolerance", expected: "non-negative angle and speed".into() });
+        }
+        let nj = model.nv - 6;
+        let mut feet = BaseFrameFeet::new(model)?;
+        let mut r = Self {
+            t: vec![],
+            q: vec![],
+            v: vec![],
+            tau: vec![],
+            foot_position: vec![],
+            foot_velocity: vec![],
+            t_posing: 0.0,
+            pre_landing: DVector::zeros(model.nq),
+            target: JumpTarget { position: Vector3::zeros(), yaw: 0.0 },
+            impact_velocity: (Vector3::zeros(), Vector3::zeros()),
+        };
+        for k in &trajectory.knots {
+            let q = DVector::from_column_slice(&k.q);
+            let v = DVector::from_column_slice(&k.v);
+            let mut tau = DVector::zeros(model.nv);
+            tau.rows_mut(6, nj).copy_from_slice(&k.tau);
+            let mut p = vec![Vector3::zeros(); model.feet.len()];
+            let mut pd = vec![Vector3::zeros(); model.feet.len()];
+            feet.evaluate(model, &q, &v);
+            for (i, leg) in feet.legs().iter().enumerate() {
+                p[leg.foot] = feet.position[i];
+                pd[leg.foot] = feet.velocity[i];
+            }
+            r.t.push(k.t);
+            r.q.push(q);
+            r.v.push(v);
+            r.tau.push(tau);
+            r.foot_position.push(p);
+            r.foot_velocity.push(pd);
+        }
+        let last = r.q.len() - 1;
+        r.pre_landing.copy_from(&r.q[last]);
+        let posing = |k: usize| {
+            model.actuated_joints().all(|j| (r.q[k][j.idx_q] - r.q[last][j.idx_q]).abs() <= tolerance.angle && r.v[k][j.idx_v].abs() <= tolerance.speed)
+        };
+        let mut first = last;
+        while first > 0 && posing(first - 1) {
+            first -= 1;
+        }
+        r.t_posing = r.t[first];
+        let rotation = base_orientation(r.q[last].as_slice());
+        let (_, _, yaw) = rotation.euler_angles();
+        r.target = JumpTarget { position: Vector3::new(r.q[last][0], r.q[last][1], r.q[last][2]), yaw };
+        let v = &r.v[last];
+        r.impact_velocity = (rotation * Vector3::new(v[0], v[1], v[2]), rotation * Vector3::new(v[3], v[4], v[5]));
+        Ok(r)
+    }
+
+    /// The same reference with `T_posing` and the pre-landing configuration given (as the
+    /// full-body optimizer reports them) instead of found.
+    pub fn with_posing(mut self, t_posing: f64, pre_landing: &DVector<f64>) -> Result<Self, JumpControlError> {
+        if !t_posing.is_finite() || t_posing < self.t[0] || t_posing > self.duration_end() {
+            return Err(JumpControlError::Setting { field: "t_posing", expected: format!("a time within the reference [{}, {}] s, got {t_posing}", self.t[0], self.duration_end()) });
+        }
+        if pre_landing.len() != self.pre_landing.len() || pre_landing.iter().any(|x| !x.is_finite()) {
+            return Err(JumpControlError::Setting { field: "pre_landing", expected: format!("{} finite entries (nq)", self.pre_landing.len()) });
+        }
+        self.t_posing = t_posing;
+        self.pre_landing.copy_from(pre_landing);
+        Ok(self)
+    }
+
+    /// `T_posing` (s).
+    pub fn t_posing(&self) -> f64 {
+        self.t_posing
+    }
+
+    /// Time of the last knot (s).
+    pub fn duration_end(&self) -> f64 {
+        self.t[self.t.len() - 1]
+    }
+
+    pub fn pre_landing(&self) -> &DVector<f64> {
+        &self.pre_landing
+    }
+
+    pub fn target(&self) -> JumpTarget {
+        self.target
+    }
+
+    /// The reference's first configuration and velocity (the robot at rest before take-off).
+    pub fn initial_state(&self) -> (&DVector<f64>, &DVector<f64>) {
+        (&self.q[0], &self.v[0])
+    }
+
+    /// Base linear and angular velocity (world) of the last knot.
+    pub fn impact_velocity(&self) -> (Vector3<f64>, Vector3<f64>) {
+        self.impact_velocity
+    }
+
+    /// Linear interpolation between the knots around `t` into `out` (held at the ends; after
+    /// the last knot, the pre-landing configuration with zero joint velocity). Configurations
+    /// are interpolated on the manifold ([`interpolate_state`]).
+    pub fn sample(&self, model: &Model, t: f64, out: &mut ReferenceSample) {
+        let n = self.t.len();
+        let k = self.t.partition_point(|&tk| tk <= t).saturating_sub(1);
+        if t <= self.t[0] || k + 1 >= n {
+            let k = if t <= self.t[0] { 0 } else { n - 1 };
+            out.q.copy_from(&self.q[k]);
+            out.v.copy_from(&self.v[k]);
+            out.tau.copy_from(&self.tau[k]);
+            out.foot_position.copy_from_slice(&self.foot_position[k]);
+            out.foot_velocity.copy_from_slice(&self.foot_velocity[k]);
+            return;
+        }
+        let s = ((t - self.t[k]) / (self.t[k + 1] - self.t[k])).clamp(0.0, 1.0);
+        interpolate_state(model, (&self.q[k], &self.v[k]), (&self.q[k + 1], &self.v[k + 1]), s, &mut out.dq, &mut out.q, &mut out.v);
+        out.tau.copy_from(&self.tau[k]);
+        out.tau.axpy(s, &self.tau[k + 1], 1.0 - s);
+        for f in 0..out.foot_position.len() {
+            out.foot_position[f] = self.foot_position[k][f].lerp(&self.foot_position[k + 1][f], s);
+            out.foot_velocity[f] = self.foot_velocity[k][f].lerp(&self.foot_velocity[k + 1][f], s);
+        }
+    }
+}

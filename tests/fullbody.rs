@@ -1,0 +1,228 @@
+//! Nguyen 2022's full-body pipeline (sec. II-C): the SRB solution read back and resampled,
+//! the full-body initial guess, the full-body stages' derivatives against finite
+//! differences, and the lateral jump solved end to end within every limit.
+
+use legwork::dynamics::{center_of_mass, forward_kinematics, frame_position, Data};
+use legwork::fullbody::{initial_guess, BoxObstacle, FullBodyError, FullBodyProblem, FullBodySettings};
+use legwork::ipocp::{Settings, Stage, StageJacobians, StageMultipliers, StageValues, Status};
+use legwork::model::embedded;
+use legwork::srb::{jumps, ContactTimingProblem, ContactTimingSettings, SrbParams, SrbSolutionError, SrbTrajectory};
+use nalgebra::{DMatrix, DVector};
+
+/// The contact-timing solution of `name` (exact exponential, the default settings).
+fn srb_solution(name: &str) -> SrbTrajectory {
+    let params = SrbParams::a1().unwrap();
+    let jump = jumps().into_iter().find(|j| j.name == name).unwrap();
+    let ct = ContactTimingProblem::new(&jump, &params, &ContactTimingSettings::default()).unwrap();
+    let mut solver = ct.solver(Settings::default()).unwrap();
+    let r = ct.solve(&mut solver).unwrap();
+    assert_eq!(r.status, Status::Solved);
+    SrbTrajectory::from_solution(&ct, &r.last.primal).unwrap()
+}
+
+#[test]
+fn srb_solution_reads_back_and_resamples_on_the_10ms_grid() {
+    let srb = srb_solution("lateral30");
+    assert_eq!(srb.knots.len(), 61);
+    let total: f64 = srb.phase_durations.iter().sum();
+    assert!((srb.knots[60].t - total).abs() < 1e-12);
+    // Stance feet at their contact points, the forward-Euler step of the CoM holds.
+    for w in srb.knots.windows(2) {
+        let dt = w[1].t - w[0].t;
+        assert!((w[0].com + w[0].com_velocity * dt - w[1].com).norm() < 1e-6);
+    }
+    let r = srb.resample(0.01).unwrap();
+    let n: Vec<usize> = srb.phase_durations.iter().map(|t| (t / 0.01).round() as usize).collect();
+    assert_eq!(r.phase_knots, n);
+    assert_eq!(r.knots.len(), n.iter().sum::<usize>() + 1);
+    for (k, knot) in r.knots.iter().enumerate() {
+        assert!((knot.t - 0.01 * k as f64).abs() < 1e-12);
+        assert!((knot.rotation.transpose() * knot.rotation - nalgebra::Matrix3::identity()).amax() < 1e-9);
+        let phase = r.phase_of_knot(k);
+        if k < r.knots.len() - 1 {
+            assert_eq!(knot.contacts, r.phase_contacts[phase]);
+        }
+    }
+    assert!((r.knots[0].com - srb.knots[0].com).norm() < 1e-12);
+    assert!((r.knots.last().unwrap().com - srb.knots.last().unwrap().com).norm() < 1e-12);
+    // The phase switch (lift-off) is a grid point with the SRB state of the switch.
+    let lift = n[0];
+    assert!((r.knots[lift].com - srb.knots[30].com).norm() < 1e-12);
+    assert_eq!(srb.resample(0.0).unwrap_err(), SrbSolutionError::Step(0.0));
+}
+
+#[test]
+fn srb_solution_rejects_a_primal_of_another_problem() {
+    let params = SrbParams::a1().unwrap();
+    let jump = jumps().into_iter().find(|j| j.name == "lateral30").unwrap();
+    let ct = ContactTimingProblem::new(&jump, &params, &ContactTimingSettings::default()).unwrap();
+    let err = SrbTrajectory::from_solution(&ct, &ct.guess[..10]).unwrap_err();
+    assert_eq!(err, SrbSolutionError::Stages { got: 10, expected: 61 });
+    let mut bad = ct.guess.clone();
+    bad[0][18] = -0.1;
+    assert_eq!(SrbTrajectory::from_solution(&ct, &bad).unwrap_err(), SrbSolutionError::Duration { phase: 0, value: -0.1 });
+}
+
+#[test]
+fn initial_guess_legs_reach_their_contact_points() {
+    let model = embedded::load("a1").unwrap();
+    let srb = srb_solution("lateral30").resample(0.01).unwrap();
+    let guess = initial_guess(&model, &srb, 8).unwrap();
+    assert_eq!(guess.knots.len(), srb.knots.len());
+    guess.validate("guess").unwrap();
+    let mut data = Data::new(&model);
+    let nk = guess.knots.len();
+    for (k, knot) in guess.knots.iter().enumerate() {
+        let q = DVector::from_column_slice(&knot.q);
+        forward_kinematics(&model, &mut data, &q);
+        for f in 0..4 {
+            if knot.in_contact[f] {
+                let p = frame_position(&model, &data, model.feet[f].frame);
+                assert!((p - srb.knots[k].feet[f]).norm() < 1e-6, "knot {k} foot {f}: {p} vs {}", srb.knots[k].feet[f]);
+            }
+        }
+        // The base carries the nominal CoM offset: the CoM is the SRB's up to the legs' motion
+        // and the base's shift towards feet the SRB puts out of the legs' reach near lift-off
+        // (5.5 cm at most here; none while standing at the start).
+        let com = center_of_mass(&model, &mut data, &q);
+        let bound = if k == 0 { 5e-3 } else { 0.06 };
+        assert!((com - srb.knots[k].com).norm() < bound, "knot {k}: CoM {com} vs {}", srb.knots[k].com);
+        // Pre-landing: the same joint angles over the last 8 knots and the last.
+        if k >= nk - 9 {
+            assert_eq!(knot.q[7..], guess.knots[nk - 1].q[7..]);
+        }
+    }
+    // The SRB's forces, and the torques that hold them.
+    for f in 0..4 {
+        let e = srb.knots[0].forces[f];
+        assert_eq!(guess.knots[0].contact_force[f], [e.x, e.y, e.z]);
+    }
+    assert!(guess.knots[0].tau.iter().any(|t| t.abs() > 1.0));
+    assert!(guess.knots[0].v.iter().all(|&v| v == 0.0));
+}
+
+#[test]
+fn initial_guess_rejects_a_pre_landing_window_longer_than_the_flight() {
+    let model = embedded::load("a1").unwrap();
+    let srb = srb_solution("lateral30").resample(0.01).unwrap();
+    let n = srb.knots.len();
+    assert!(matches!(initial_guess(&model, &srb, n).unwrap_err(), FullBodyError::Setting { field: "pre_landing_knots", .. }));
+    assert!(matches!(initial_guess(&model, &srb, n - 5).unwrap_err(), FullBodyError::Guess(_)));
+}
+
+/// Deterministic pseudo-random numbers in [-1, 1).
+struct Lcg(u64);
+impl Lcg {
+    fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((self.0 >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    }
+}
+
+/// The lateral jump's full-body problem, with a box under the right half of the start
+/// (only for the derivative test: the lateral jump starts on flat ground).
+fn lateral_problem(obstacle: Option<BoxObstacle>) -> (FullBodyProblem, legwork::io::Trajectory) {
+    let model = embedded::load("a1").unwrap();
+    let srb = srb_solution("lateral30").resample(0.01).unwrap();
+    let settings = FullBodySettings::default();
+    let guess = initial_guess(&model, &srb, settings.pre_landing_knots).unwrap();
+    (FullBodyProblem::new(&model, &srb, &guess, &settings, obstacle).unwrap(), guess)
+}
+
+/// First derivatives by central differences of `evaluate` at a perturbed start; the
+/// Gauss-Newton Hessian symmetric and positive semi-definite.
+fn check_stage(stage: &dyn Stage, z0: &DVector<f64>, rng: &mut Lcg) {
+    let d = stage.dims();
+    let nz = d.nz();
+    let z = DVector::from_fn(nz, |i, _| z0[i] + if i < 36 { 0.02 } else { 0.5 } * rng.next());
+    let mut jac = StageJacobians::zeros(d);
+    stage.jacobians(z.as_slice(), &mut jac);
+    let h = 1e-6;
+    for i in 0..nz {
+        let (mut zp, mut zm) = (z.clone(), z.clone());
+        zp[i] += h;
+        zm[i] -= h;
+        let (mut vp, mut vm) = (StageValues::zeros(d), StageValues::zeros(d));
+        stage.evaluate(zp.as_slice(), &mut vp);
+        stage.evaluate(zm.as_slice(), &mut vm);
+        let fd = |a: &DVector<f64>, b: &DVector<f64>| (a - b) / (2.0 * h);
+        let close = |fd: f64, an: f64, what: &str| assert!((fd - an).abs() < 2e-5 * (1.0 + an.abs()), "{what} column {i}: fd {fd} analytic {an}");
+        close((vp.cost - vm.cost) / (2.0 * h), jac.cost_gradient[i], "cost gradient");
+        for (r, v) in fd(&vp.dynamics, &vm.dynamics).iter().enumerate() {
+            close(*v, jac.dynamics[(r, i)], &format!("dynamics row {r}"));
+        }
+        for (r, v) in fd(&vp.equalities, &vm.equalities).iter().enumerate() {
+            close(*v, jac.equalities[(r, i)], &format!("equality row {r}"));
+        }
+        for (r, v) in fd(&vp.inequalities, &vm.inequalities).iter().enumerate() {
+            close(*v, jac.inequalities[(r, i)], &format!("inequality row {r}"));
+        }
+    }
+    let mut hess = DMatrix::zeros(nz, nz);
+    let none = vec![0.0; d.nx_next.max(d.ng).max(d.nh)];
+    let m = StageMultipliers { cost: 1.0, dynamics: &none[..d.nx_next], equalities: &none[..d.ng], inequalities: &none[..d.nh] };
+    stage.lagrangian_hessian(z.as_slice(), m, &mut hess);
+    assert!((&hess - hess.transpose()).amax() < 1e-12, "Hessian not symmetric");
+    assert!(hess.symmetric_eigenvalues().min() > 0.0, "Gauss-Newton Hessian not positive definite");
+}
+
+#[test]
+fn stage_derivatives_match_finite_differences() {
+    let obstacle = BoxObstacle { top: -0.02, x: [-0.3, 0.3], y: [-0.2, 0.0] };
+    let (fb, _) = lateral_problem(Some(obstacle));
+    let mut rng = Lcg(7);
+    let n = fb.problem.len();
+    let lift_off = fb.anchors().iter().rposition(|a| a[0].is_some()).unwrap() + 1;
+    let a = FullBodySettings::default().pre_landing_knots;
+    for k in [0, 1, lift_off - 1, lift_off, lift_off + 2, n - 1 - a, n - 2, n - 1] {
+        check_stage(fb.problem.stage(k), &fb.start[k], &mut rng);
+    }
+}
+
+#[test]
+fn lateral_jump_solves_end_to_end_within_every_limit() {
+    let (fb, _) = lateral_problem(None);
+    let plan = fb.solve().unwrap();
+    let r = &plan.report;
+    eprintln!("{:?} after {} iterations, {:.3} s, objective {:.6}, violation {:.2e}", r.status, r.iterations, r.time.as_secs_f64(), r.objective, r.primal_infeasibility);
+    eprintln!("{:#?}", r.max_violation);
+    eprintln!("{}", plan.limits);
+    assert_eq!(r.status, Status::Solved);
+    assert!(plan.limits.all_met(1e-6), "{}", plan.limits);
+}
+
+#[test]
+fn box_signed_distance_is_the_euclidean_distance_outside_and_the_nearest_face_inside() {
+    let b = BoxObstacle { top: 0.4, x: [-0.3, 0.3], y: [-0.2, 0.2] };
+    let (d, g) = b.signed_distance(&nalgebra::Vector3::new(0.6, 0.6, 0.8));
+    assert!((d - (0.09f64 + 0.16 + 0.16).sqrt()).abs() < 1e-12);
+    assert!((g - nalgebra::Vector3::new(0.3, 0.4, 0.4) / d).norm() < 1e-12);
+    let (d, g) = b.signed_distance(&nalgebra::Vector3::new(0.0, 0.15, 0.1));
+    assert!((d + 0.05).abs() < 1e-12, "nearest face y = 0.2: {d}");
+    assert_eq!(g, nalgebra::Vector3::new(0.0, 1.0, 0.0));
+    let (d, _) = b.signed_distance(&nalgebra::Vector3::new(0.0, 0.0, 0.45));
+    assert!((d - 0.05).abs() < 1e-12);
+}
+
+#[test]
+fn full_body_problem_rejects_bad_input() {
+    let model = embedded::load("a1").unwrap();
+    let srb = srb_solution("lateral30").resample(0.01).unwrap();
+    let settings = FullBodySettings::default();
+    let guess = initial_guess(&model, &srb, settings.pre_landing_knots).unwrap();
+    let new = |s: &FullBodySettings, b: Option<BoxObstacle>, g: &legwork::io::Trajectory| FullBodyProblem::new(&model, &srb, g, s, b).err().unwrap();
+    let e = new(&FullBodySettings { w_torque: 0.0, ..settings.clone() }, None, &guess);
+    assert_eq!(e, FullBodyError::Setting { field: "w_torque", value: 0.0, expected: "> 0" });
+    let e = new(&FullBodySettings { dt: 0.02, ..settings.clone() }, None, &guess);
+    assert!(matches!(e, FullBodyError::Guess(ref m) if m.contains("dt = 0.02")), "{e}");
+    let e = new(&settings, Some(BoxObstacle { top: 0.3, x: [0.2, -0.2], y: [-0.1, 0.1] }), &guess);
+    assert!(matches!(e, FullBodyError::Setting { field: "box", .. }), "{e}");
+    let e = new(&FullBodySettings { pre_landing_knots: 30, ..settings.clone() }, None, &guess);
+    assert!(matches!(e, FullBodyError::Setting { field: "pre_landing_knots", .. }), "{e}");
+    let mut short = guess.clone();
+    short.knots.pop();
+    assert!(matches!(new(&settings, None, &short), FullBodyError::Guess(_)));
+    let mut nan = guess.clone();
+    nan.knots[3].tau[0] = f64::NAN;
+    assert!(matches!(new(&settings, None, &nan), FullBodyError::Guess(ref m) if m.contains("knot 3")));
+}
