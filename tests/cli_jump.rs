@@ -132,3 +132,42 @@ fn bench_jumps_json_has_a_row_per_jump() {
         }
     }
 }
+
+#[test]
+fn control_serve_answers_states_with_torques_and_refuses_bad_requests() {
+    use std::io::{BufRead, BufReader, Write};
+    let dir = out_dir("serve");
+    let out = legwork(&["jump", "lateral", "--knots", "8", "--out", dir.to_str().unwrap()]);
+    assert!(matches!(out.status.code(), Some(0 | 4 | 5)), "{}", text(&out.stdout));
+    let plan_path = dir.join("trajectory.json");
+    let plan = Trajectory::load_file(&plan_path).unwrap();
+    let mut server = Command::new(env!("CARGO_BIN_EXE_legwork"))
+        .args(["control", "serve", "--reference", plan_path.to_str().unwrap()])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut input = server.stdin.take().unwrap();
+    let mut output = BufReader::new(server.stdout.take().unwrap());
+    let k = &plan.knots[0];
+    let mut ask = |line: String| {
+        writeln!(input, "{line}").unwrap();
+        let mut reply = String::new();
+        output.read_line(&mut reply).unwrap();
+        serde_json::from_str::<Value>(&reply).unwrap()
+    };
+    // The plan's first state with its forces: the jump controller's torques, near the plan's
+    // own (the state is the reference's: feedback is zero, feed-forward remains).
+    let reply = ask(serde_json::json!({ "t": k.t, "q": k.q, "v": k.v, "forces": k.contact_force }).to_string());
+    let tau: Vec<f64> = reply["tau"].as_array().unwrap_or_else(|| panic!("{reply}")).iter().map(|x| x.as_f64().unwrap()).collect();
+    assert_eq!(tau.len(), 12);
+    assert_eq!(reply["landing"], false);
+    let gap = tau.iter().zip(&k.tau).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(gap < 1.0, "torques {tau:?} against the plan's {:?}", k.tau);
+    let reply = ask(serde_json::json!({ "t": k.t, "q": [0.0], "v": k.v, "forces": k.contact_force }).to_string());
+    assert!(reply["error"].as_str().unwrap().contains("expected q of 19"), "{reply}");
+    let status = server.wait().unwrap();
+    assert_eq!(status.code(), Some(1));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -25,6 +25,7 @@ pub(crate) fn emit(args: std::fmt::Arguments) {
 
 mod bench;
 mod check;
+mod control;
 mod export;
 mod jump;
 mod robot;
@@ -77,6 +78,9 @@ enum Command {
     /// Check a solved motion in physics legwork did not write: MuJoCo.
     #[command(subcommand)]
     Check(check::CheckCommand),
+    /// Controllers for another simulator: `serve` answers states with torques over a pipe.
+    #[command(subcommand)]
+    Control(control::ControlCommand),
     /// Replay a trajectory: write a self-contained HTML page (3D robot, plots) and,
     /// optionally, static SVG plots.
     View(view::ViewArgs),
@@ -97,6 +101,7 @@ pub fn main() -> ExitCode {
         Command::View(args) => view::run(args),
         Command::Export(cmd) => export::run(cmd),
         Command::Check(cmd) => check::run(cmd),
+        Command::Control(cmd) => control::run(cmd),
     };
     finish(result.map(|()| ExitCode::SUCCESS))
 }
