@@ -6,12 +6,14 @@
 //! cargo run --release --example jump_trials -- REFERENCE.json [TRIALS]
 //! cargo run --release --example jump_trials -- drop:HEIGHT:VY [TRIALS]
 //! cargo run --release --example jump_trials -- guess:JUMP [TRIALS]
+//! cargo run --release --example jump_trials -- solved:JUMP [TRIALS]
 //! ```
 //!
 //! `REFERENCE.json` is a trajectory file (`io::Trajectory`, 10 ms knots) of the full-body
 //! optimization; `drop:0.15:0.6` is the built-in ballistic reference
 //! ([`legwork::jump::control::check_references::drop_reference`]); `guess:lateral30` the
-//! full-body optimizer's initial guess of a jump (`fullbody::initial_guess`).
+//! full-body optimizer's initial guess of a jump (`fullbody::initial_guess`), `solved:lateral30`
+//! its full-body plan (`fullbody::FullBodyProblem::solve`).
 
 use anyhow::{bail, Context};
 use legwork::io::Trajectory;
@@ -45,16 +47,27 @@ fn row(name: &str, run: &JumpRun, success: Option<bool>) {
 }
 
 /// The full-body optimizer's initial guess of jump `name` (contact timing solved, legs by
-/// IK, torques `-J^T f`): a reference before the full-body optimization has run.
-fn initial_guess_reference(model: &legwork::model::Model, name: &str) -> anyhow::Result<Trajectory> {
+/// IK, torques `-J^T f`), or with `solve` the full-body optimization's plan from it.
+fn initial_guess_reference(model: &legwork::model::Model, name: &str, solve: bool) -> anyhow::Result<Trajectory> {
+    use legwork::fullbody::{FullBodyProblem, FullBodySettings};
     use legwork::srb::{jumps, ContactTimingProblem, ContactTimingSettings, SrbParams, SrbTrajectory};
     let params = SrbParams::a1()?;
     let jump = jumps().into_iter().find(|j| j.name == name).with_context(|| format!("no jump named '{name}'"))?;
     let problem = ContactTimingProblem::new(&jump, &params, &ContactTimingSettings::default())?;
     let mut solver = problem.solver(legwork::ipocp::Settings::default())?;
     let result = problem.solve(&mut solver)?;
-    let srb = SrbTrajectory::from_solution(&problem, &result.last.primal)?.resample(0.01)?;
-    Ok(legwork::fullbody::initial_guess(model, &srb, 8)?)
+    let settings = FullBodySettings::default();
+    let srb = SrbTrajectory::from_solution(&problem, &result.last.primal)?.resample(settings.dt)?;
+    let guess = legwork::fullbody::initial_guess(model, &srb, settings.pre_landing_knots)?;
+    if !solve {
+        return Ok(guess);
+    }
+    if jump.box_height > 0.0 {
+        bail!("jump '{name}' starts from a box: the trials run on flat ground only for now");
+    }
+    let plan = FullBodyProblem::new(model, &srb, &guess, &settings, None)?.solve()?;
+    println!("full-body plan of {name}: {:?} after {} iterations, limits {}", plan.report.status, plan.report.iterations, if plan.limits.all_met(1e-6) { "met" } else { "VIOLATED" });
+    Ok(plan.trajectory)
 }
 
 fn main() -> anyhow::Result<()> {
@@ -70,7 +83,9 @@ fn main() -> anyhow::Result<()> {
         }
         check_references::drop_reference(&model, &ground, parts[0], parts[1])?
     } else if let Some(name) = source.strip_prefix("guess:") {
-        initial_guess_reference(&model, name)?
+        initial_guess_reference(&model, name, false)?
+    } else if let Some(name) = source.strip_prefix("solved:") {
+        initial_guess_reference(&model, name, true)?
     } else {
         Trajectory::load_file(source)?
     };

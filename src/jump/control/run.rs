@@ -68,9 +68,11 @@ impl Default for JumpSettings {
 #[derive(Clone, Debug)]
 pub struct JumpRun {
     pub target: JumpTarget,
-    /// All feet below the contact threshold for the first time (s).
+    /// Start of the flight that ended in the landing: the last instant, before the switch,
+    /// from which every foot stayed below the contact threshold (s).
     pub lift_off: Option<f64>,
-    /// The first foot above the threshold after lift-off (s).
+    /// Its end: the first foot at or above the threshold (s). A bounce before `T_posing`
+    /// (e.g. a foot tapping the ground in the two-leg phase) is not a landing.
     pub touch_down: Option<f64>,
     /// The switch to the landing controller (s).
     pub switch: Option<f64>,
@@ -128,6 +130,9 @@ pub fn run_jump_on(plant: &Model, model: &Model, terrain: &dyn Terrain, referenc
     let mut trajectory = Trajectory::new(plant, "jump", record_every as f64 * physics_dt, terrain.spec());
     let threshold = settings.landing.contact_threshold;
     let (mut lift_off, mut touch_down) = (None, None);
+    // The current and the last completed interval with every foot unloaded, until the switch.
+    let mut unloaded_since: Option<f64> = None;
+    let mut last_flight: Option<(f64, f64)> = None;
     let mut failure = None;
     let mut fell = false;
     let mut step: u64 = 0;
@@ -158,10 +163,19 @@ pub fn run_jump_on(plant: &Model, model: &Model, terrain: &dyn Terrain, referenc
         step += 1;
         let loaded = sim.feet().iter().any(|f| f.contact.normal_force >= threshold);
         let t = sim.state().t;
-        match (lift_off, touch_down) {
-            (None, _) if !loaded && t > physics_dt => lift_off = Some(t),
-            (Some(_), None) if loaded => touch_down = Some(t),
-            _ => {}
+        if touch_down.is_none() {
+            match (loaded, unloaded_since) {
+                (false, None) => unloaded_since = Some(t),
+                (true, Some(start)) => {
+                    last_flight = Some((start, t));
+                    unloaded_since = None;
+                }
+                _ => {}
+            }
+            if controller.switch().switched_at().is_some() {
+                lift_off = last_flight.map(|f| f.0);
+                touch_down = last_flight.map(|f| f.1).or(Some(t));
+            }
         }
         if touch_down.is_some() {
             if let Some(reason) = fallen(&settings.fall, terrain, &sim.state().q) {
