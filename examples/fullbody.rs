@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! cargo run --release --example fullbody -- [--repeats 3] [--no-box] [--overhang 0.01]
-//!     [--pre-landing 10] [--verbose] [--limits] [jump ...]
+//!     [--pre-landing 10] [--parallel] [--max-iterations 300] [--verbose] [--limits] [jump ...]
 //! ```
 //!
 //! The box of a jump from a platform is the start feet's footprint grown by `--overhang`
@@ -23,6 +23,8 @@ fn main() -> anyhow::Result<()> {
     let mut show_limits = false;
     let mut overhang = 0.01;
     let mut pre_landing = None;
+    let mut parallel = false;
+    let mut max_iterations = None;
     let mut names = Vec::new();
     while let Some(a) = args.next() {
         match a.as_str() {
@@ -31,6 +33,8 @@ fn main() -> anyhow::Result<()> {
             "--no-box" => with_box = false,
             "--pre-landing" => pre_landing = Some(args.next().ok_or_else(|| anyhow::anyhow!("--pre-landing: knots"))?.parse()?),
             "--verbose" => verbose = true,
+            "--parallel" => parallel = true,
+            "--max-iterations" => max_iterations = Some(args.next().ok_or_else(|| anyhow::anyhow!("--max-iterations: a number"))?.parse()?),
             "--limits" => show_limits = true,
             _ => names.push(a),
         }
@@ -39,7 +43,7 @@ fn main() -> anyhow::Result<()> {
     let params = SrbParams::a1()?;
     let defaults = FullBodySettings::default();
     let settings = FullBodySettings {
-        solver: Settings { verbose, ..defaults.solver.clone() },
+        solver: Settings { verbose, parallel, max_iterations: max_iterations.unwrap_or(defaults.solver.max_iterations), ..defaults.solver.clone() },
         pre_landing_knots: pre_landing.unwrap_or(defaults.pre_landing_knots),
         ..defaults
     };

@@ -274,3 +274,16 @@ fn unconstrained_lq_pushes_through_the_boxes_of_the_constrained_test() {
     let vmin = r.last.primal.iter().map(|z| z[1]).fold(f64::INFINITY, f64::min);
     assert!(umax > 2.5 && vmin < -0.7, "umax {umax} vmin {vmin}");
 }
+
+#[test]
+fn parallel_stage_evaluation_takes_the_same_steps() {
+    // The stages are evaluated independently: on rayon's threads the iterates are the same
+    // to the last bit.
+    let stages = double_integrator(Some(2.0), Some(-0.6));
+    let pb = problem(&stages);
+    let serial = Solver::new(&pb, Settings::default()).unwrap().solve(&pb, &zero_guess(&stages)).unwrap();
+    let parallel = Solver::new(&pb, Settings { parallel: true, ..Settings::default() }).unwrap().solve(&pb, &zero_guess(&stages)).unwrap();
+    assert_eq!(parallel.status, Status::Solved);
+    assert_eq!(parallel.iterations, serial.iterations);
+    assert_eq!(parallel.last.primal, serial.last.primal);
+}

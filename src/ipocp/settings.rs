@@ -69,6 +69,9 @@ pub struct Settings {
     /// [`kappa_soc`].
     pub max_second_order_corrections: usize,
     pub kappa_soc: f64,
+    /// Evaluate the stages (values, Jacobians, Hessians) on rayon's threads (false: worth it
+    /// when a stage's evaluation costs more than a thread hand-off, as full-body dynamics do).
+    pub parallel: bool,
     /// Print one line per iteration to stderr (false).
     pub verbose: bool,
 }
@@ -110,6 +113,7 @@ impl Default for Settings {
             backtracking_factor: 0.5,
             max_second_order_corrections: 4,
             kappa_soc: 0.99,
+            parallel: false,
             verbose: false,
         }
     }

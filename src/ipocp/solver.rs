@@ -24,6 +24,7 @@ use super::riccati::{RiccatiSolver, StageQp, StageStep};
 use super::settings::{Settings, SettingsError};
 use super::stage::{StageJacobians, StageMultipliers, StageValues};
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// Per-stage evaluation buffers.
@@ -47,6 +48,18 @@ struct StageBuffers {
     nonzeros: Vec<usize>,
     /// Scratch: the stage's part of the Lagrangian gradient.
     lagrangian_gradient: DVector<f64>,
+}
+
+/// Runs `f` on every stage's buffers, on rayon's threads when `parallel` (the stages'
+/// evaluations are independent; each stage owns its workspace).
+fn for_each_stage(parallel: bool, buffers: &mut [StageBuffers], f: impl Fn(usize, &mut StageBuffers) + Sync + Send) {
+    if parallel {
+        buffers.par_iter_mut().enumerate().for_each(|(k, b)| f(k, b));
+    } else {
+        for (k, b) in buffers.iter_mut().enumerate() {
+            f(k, b);
+        }
+    }
 }
 
 /// A solver for the problems of one stage layout; allocates its workspace once.
@@ -421,9 +434,7 @@ impl Solver {
     /// Evaluates values at `it` into `values` and returns the violation `theta`.
     fn evaluate_values_at(&mut self, problem: &Problem, it: &Iterate, timings: &mut Timings) -> f64 {
         let t = Instant::now();
-        for (k, b) in self.buffers.iter_mut().enumerate() {
-            problem.stage(k).evaluate(it.primal[k].as_slice(), &mut b.values);
-        }
+        for_each_stage(self.settings.parallel, &mut self.buffers, |k, b| problem.stage(k).evaluate(it.primal[k].as_slice(), &mut b.values));
         timings.evaluation += t.elapsed();
         let n = self.buffers.len();
         let mut theta = 0.0;
@@ -434,7 +445,7 @@ impl Solver {
     }
 
     fn evaluate_derivatives(&mut self, problem: &Problem, it: &Iterate) {
-        for (k, b) in self.buffers.iter_mut().enumerate() {
+        for_each_stage(self.settings.parallel, &mut self.buffers, |k, b| {
             let stage = problem.stage(k);
             let z = it.primal[k].as_slice();
             stage.jacobians(z, &mut b.jac);
@@ -445,7 +456,7 @@ impl Solver {
                 inequalities: it.inequality_multiplier[k].as_slice(),
             };
             stage.lagrangian_hessian(z, m, &mut b.hess);
-        }
+        });
     }
 
     /// Optimality errors (eq. 5) from the values and derivatives in the buffers.
@@ -658,9 +669,7 @@ impl Solver {
     /// Barrier objective `phi` of the trial point in `trial`, and its violation `theta`.
     fn measure_trial(&mut self, problem: &Problem, mu: f64, timings: &mut Timings) -> (f64, f64) {
         let t = Instant::now();
-        for (k, b) in self.buffers.iter_mut().enumerate() {
-            problem.stage(k).evaluate(b.trial_primal.as_slice(), &mut b.trial);
-        }
+        for_each_stage(self.settings.parallel, &mut self.buffers, |k, b| problem.stage(k).evaluate(b.trial_primal.as_slice(), &mut b.trial));
         timings.evaluation += t.elapsed();
         let n = self.buffers.len();
         let (mut theta, mut phi) = (0.0, 0.0);
