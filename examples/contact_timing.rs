@@ -7,7 +7,8 @@
 //! ```
 
 use legwork::ipocp::Settings;
-use legwork::srb::{jumps, ContactTimingProblem, ContactTimingSettings, ExpMap, SrbParams};
+use legwork::jump::embedded_jumps;
+use legwork::srb::{ContactTimingProblem, ContactTimingSettings, ExpMap, SrbParams};
 use std::time::Instant;
 
 fn main() -> anyhow::Result<()> {
@@ -36,12 +37,13 @@ fn main() -> anyhow::Result<()> {
         }
     }
     let params = SrbParams::a1()?;
-    let settings = ContactTimingSettings { exp_map, ..Default::default() };
-    let all = jumps();
-    let selected: Vec<_> = if names.is_empty() { all.clone() } else { all.iter().filter(|j| names.iter().any(|n| n == j.name)).cloned().collect() };
+    let all = embedded_jumps()?;
+    let selected: Vec<_> = if names.is_empty() { all.clone() } else { all.iter().filter(|j| names.contains(&j.name)).cloned().collect() };
     println!("jump                 status      iters  cost          ref cost      rel.diff   T (10 ms)        ref T          viol      median s  (min s)  eval s  kkt s  solves");
-    for jump in &selected {
-        let ct = ContactTimingProblem::new(jump, &params, &settings)?;
+    for file in &selected {
+        let jump = file.srb();
+        let settings = ContactTimingSettings { exp_map, ..file.contact_timing.clone() };
+        let ct = ContactTimingProblem::new(&jump, &params, &settings)?;
         let mut solver = ct.solver(Settings { verbose, ..Settings::default() })?;
         let mut times = Vec::new();
         let mut result = None;
@@ -57,7 +59,7 @@ fn main() -> anyhow::Result<()> {
         let t = ct.durations(&r.last.primal);
         let (ref_cost, ref_t) = reference
             .as_ref()
-            .and_then(|v| v["results"].as_array()?.iter().find(|x| x["jump"] == jump.name).cloned())
+            .and_then(|v| v["results"].as_array()?.iter().find(|x| x["jump"].as_str() == file.anchor).cloned())
             .map(|x| (x["runs"][0]["cost"].as_f64().unwrap_or(f64::NAN), format!("{:?}", x["T_opt_10ms"].as_array().map(|a| a.iter().filter_map(|v| v.as_f64()).collect::<Vec<_>>()).unwrap_or_default())))
             .unwrap_or((f64::NAN, String::new()));
         println!(

@@ -3,7 +3,8 @@
 //! and the lateral jump's optimum against `results_srb_costdt.json`.
 
 use legwork::ipocp::{Settings, Stage, StageJacobians, StageMultipliers, StageValues, Status};
-use legwork::srb::{jumps, ContactTimingProblem, ContactTimingSettings, ExpMap, SrbParams};
+use legwork::jump::Jump;
+use legwork::srb::{ContactTimingProblem, ContactTimingSettings, ExpMap, SrbParams};
 use nalgebra::{DMatrix, DVector};
 
 fn anchor(file: &str) -> serde_json::Value {
@@ -91,8 +92,8 @@ fn check_stage(stage: &dyn Stage, z0: &DVector<f64>, rng: &mut Lcg) {
 fn stage_derivatives_match_finite_differences() {
     let params = SrbParams::a1().unwrap();
     let mut rng = Lcg(5);
-    for (name, exp_map) in [("lateral30", ExpMap::Taylor4), ("barrel_roll", ExpMap::Exact), ("double_backflip", ExpMap::Taylor4)] {
-        let jump = jumps().into_iter().find(|j| j.name == name).unwrap();
+    for (name, exp_map) in [("lateral", ExpMap::Taylor4), ("barrel_roll", ExpMap::Exact), ("double_backflip", ExpMap::Taylor4)] {
+        let jump = Jump::embedded(name).unwrap().srb();
         let settings = ContactTimingSettings { exp_map, knots_per_phase: 4, ..Default::default() };
         let ct = ContactTimingProblem::new(&jump, &params, &settings).unwrap();
         for k in 0..ct.problem.len() {
@@ -109,7 +110,7 @@ fn lateral_jump_reaches_the_reference_optimum() {
     let cost_ref = r0["runs"][0]["cost"].as_f64().unwrap();
     let t_ref: Vec<f64> = r0["T_opt_s"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
     let params = SrbParams::a1().unwrap();
-    let jump = jumps().into_iter().find(|j| j.name == "lateral30").unwrap();
+    let jump = Jump::embedded("lateral").unwrap().srb();
     // The script's exponential is the paper's 4th-order Taylor polynomial.
     let settings = ContactTimingSettings { exp_map: ExpMap::Taylor4, ..Default::default() };
     let ct = ContactTimingProblem::new(&jump, &params, &settings).unwrap();

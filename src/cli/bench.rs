@@ -51,10 +51,88 @@ pub enum BenchCommand {
         #[arg(long, value_delimiter = ',', value_name = "NAMES")]
         scenarios: Vec<String>,
     },
+    /// Nguyen 2022's Table I beside legwork's: phase timings, contact-timing and full-body
+    /// solve times, landing error and success rate, one row per embedded jump.
+    Jumps {
+        /// Print the results as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Contact-timing solves per jump (the median and the fastest are reported).
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+        /// Overrides the knots per phase `N_i` (the paper's 30).
+        #[arg(long)]
+        knots: Option<usize>,
+        /// Robustness trials per jump after the nominal re-run (issue 17: 20).
+        #[arg(long, default_value_t = 20)]
+        trials: usize,
+        /// Jumps, comma-separated (default: the seven embedded ones).
+        #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+        jumps: Vec<String>,
+    },
+}
+
+/// `legwork bench jumps`.
+fn jumps(as_json: bool, repeats: usize, knots: Option<usize>, trials: usize, names: &[String]) -> Result<()> {
+    if repeats == 0 {
+        bail!("--repeats: expected at least one solve per jump, got 0");
+    }
+    let jumps = if names.is_empty() { legwork::jump::embedded_jumps()? } else { names.iter().map(|n| legwork::jump::Jump::load(n.trim())).collect::<Result<Vec<_>, _>>()? };
+    let bar = indicatif::ProgressBar::with_draw_target(Some(jumps.len() as u64), indicatif::ProgressDrawTarget::stderr());
+    bar.set_style(indicatif::ProgressStyle::with_template("{msg:30} [{bar:30}] {pos}/{len} jumps ({elapsed})").expect("static template"));
+    let mut rows = Vec::new();
+    for jump in &jumps {
+        bar.set_message(jump.name.clone());
+        let model = embedded::load(&jump.robot)?;
+        let settings = super::jump::settings_of(jump, knots)?;
+        let options = legwork::jump::PipelineOptions { contact_timing: settings, trials, ..legwork::jump::PipelineOptions::of(jump) };
+        rows.push(legwork::jump::bench_jump(jump, &model, &options, repeats)?);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    if as_json {
+        say!("{}", serde_json::to_string_pretty(&json!({ "repeats": repeats, "trials": trials, "cpu": cpu_name(), "jumps": rows }))?);
+        return Ok(());
+    }
+    let opt = |x: Option<f64>, d: usize| x.map_or("-".to_string(), |x| format!("{x:.d$}"));
+    let list = |v: &[f64]| v.iter().map(|x| format!("{x:.1}")).collect::<Vec<_>>().join(", ");
+    say!("Nguyen 2022, Table I, against legwork ({repeats} contact-timing solves per jump, median; {trials} trials per jump; CPU: {})", cpu_name());
+    say!("  {:<19} | {:>17} {:>6} {:>5} | {:>17} {:>7} {:>7} {:>6} {:>8} {:>8} {:>8}", "", "paper", "", "", "legwork", "", "", "", "", "", "");
+    say!("  {:<19} | {:>17} {:>6} {:>5} | {:>17} {:>7} {:>7} {:>6} {:>8} {:>8} {:>8}", "jump", "T_i [10 ms]", "CT [s]", "FB [s]", "T_i [10 ms]", "CT [s]", "FB [s]", "limits", "land [mm]", "yaw [deg]", "success");
+    for r in &rows {
+        let (pt, pct, pfb) = r.paper.as_ref().map_or(("-".into(), "-".into(), "-".into()), |p| (list(&p.timings_10ms), format!("{:.2}", p.contact_timing_s), format!("{:.0}", p.full_body_s)));
+        say!(
+            "  {:<19} | {:>17} {:>6} {:>5} | {:>17} {:>7.3} {:>7} {:>6} {:>8} {:>8} {:>8}",
+            r.jump,
+            pt,
+            pct,
+            pfb,
+            list(&r.phase_durations_10ms),
+            r.contact_timing_median_s,
+            opt(r.full_body_solve_s, 3),
+            r.full_body_limits_met.map_or("-", |m| if m { "met" } else { "broken" }),
+            opt(r.landing_error_m.map(|e| 1e3 * e), 1),
+            opt(r.yaw_error_deg, 2),
+            r.success_rate.map_or(r.landed.map_or("-".to_string(), |l| if l { "nominal".into() } else { "missed".into() }), |s| format!("{:.0}%", 100.0 * s))
+        );
+    }
+    for r in &rows {
+        for n in &r.notes {
+            say!("  {}: {n}", r.jump);
+        }
+    }
+    say!("  targets: contact timing at most 0.1 s per jump, full body at most 1 s within every limit; 20 trials per jump, success = upright, within 5 cm and 5 deg of the target");
+    Ok(())
+}
+
+/// The CPU's model name (Linux), for the record.
+fn cpu_name() -> String {
+    std::fs::read_to_string("/proc/cpuinfo").ok().and_then(|s| s.lines().find(|l| l.starts_with("model name")).and_then(|l| l.split(':').nth(1)).map(|s| s.trim().to_string())).unwrap_or_else(|| "unknown".into())
 }
 
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
+        BenchCommand::Jumps { json, repeats, knots, trials, jumps: names } => jumps(json, repeats, knots, trials, &names),
         BenchCommand::Slq { json, threads, iterations, check } => slq(json, threads, iterations, check.is_some()),
         BenchCommand::Terrain { trials, json, threads, scenarios } => terrain(trials, json, threads, &scenarios),
     }

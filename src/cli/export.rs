@@ -1,5 +1,5 @@
-//! `legwork export mjcf <robot> [--scenario S | --task T] [--out FILE]`: the robot (and the
-//! ground of a walk scenario or a task) as MuJoCo MJCF, from legwork's own model.
+//! `legwork export mjcf <robot> [--scenario S | --task T | --jump J] [--out FILE]`: the robot
+//! (and the ground of a walk scenario, a task or a jump with its box) as MuJoCo MJCF, from legwork's own model.
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
@@ -25,8 +25,11 @@ pub struct MjcfArgs {
     #[arg(long, conflicts_with = "task")]
     scenario: Option<String>,
     /// A task (embedded name or file): its ground (flat).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "jump")]
     task: Option<String>,
+    /// A jump (embedded name or file): the ground with its box.
+    #[arg(long, conflicts_with = "scenario")]
+    jump: Option<String>,
     /// Output file; standard output if absent.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -42,6 +45,7 @@ fn mjcf(args: MjcfArgs) -> Result<()> {
     let (model, _) = super::robot::load(&args.robot)?;
     let settings = MjcfSettings::default();
     let terrain = match (&args.scenario, &args.task) {
+        _ if args.jump.is_some() => legwork::jump::Jump::load(args.jump.as_deref().unwrap_or_default())?.terrain().spec(),
         (Some(s), _) => ScenarioSpec::resolve(s)?.world_at(0.0).spec(),
         (None, Some(t)) => {
             // Tasks are solved on flat ground (`legwork solve`); the file is still checked.

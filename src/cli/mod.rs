@@ -25,7 +25,9 @@ pub(crate) fn emit(args: std::fmt::Arguments) {
 
 mod bench;
 mod check;
+mod control;
 mod export;
+mod jump;
 mod robot;
 mod simulate;
 mod solve;
@@ -55,6 +57,14 @@ enum Command {
     Solve(solve::SolveArgs),
     /// List the embedded tasks.
     Tasks,
+    /// Plan and run one of Nguyen 2022's 3D jumps: contact timing, full-body trajectory
+    /// optimization, controllers in legwork's simulator. Writes the trajectory, a replay with
+    /// the box, plots and a summary. Exit code 0: landed on target; 2: contact timing failed;
+    /// 3: full-body optimization failed; 4: landed off target; 5: fell; 6: a stage is not in
+    /// this build.
+    Jump(jump::JumpArgs),
+    /// List the embedded jumps.
+    Jumps,
     /// Walk to a goal over terrain (Winkler 2015): plan and execute one trial of a scenario;
     /// writes the trajectory, a replay with the plans drawn, plots and a summary.
     Walk(walk::WalkArgs),
@@ -68,6 +78,9 @@ enum Command {
     /// Check a solved motion in physics legwork did not write: MuJoCo.
     #[command(subcommand)]
     Check(check::CheckCommand),
+    /// Controllers for another simulator: `serve` answers states with torques over a pipe.
+    #[command(subcommand)]
+    Control(control::ControlCommand),
     /// Replay a trajectory: write a self-contained HTML page (3D robot, plots) and,
     /// optionally, static SVG plots.
     View(view::ViewArgs),
@@ -77,18 +90,26 @@ enum Command {
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Jump(args) => return finish(jump::run(args)),
         Command::Robot(cmd) => robot::run(cmd),
         Command::Simulate(args) => simulate::run(args),
         Command::Solve(args) => solve::run(args),
         Command::Tasks => solve::list(),
+        Command::Jumps => jump::list(),
         Command::Walk(args) => walk::run(args),
         Command::Bench(cmd) => bench::run(cmd),
         Command::View(args) => view::run(args),
         Command::Export(cmd) => export::run(cmd),
         Command::Check(cmd) => check::run(cmd),
+        Command::Control(cmd) => control::run(cmd),
     };
+    finish(result.map(|()| ExitCode::SUCCESS))
+}
+
+/// The command's exit code, or 1 with the error and its causes printed.
+fn finish(result: anyhow::Result<ExitCode>) -> ExitCode {
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE

@@ -26,7 +26,10 @@
 //! triangles per cell where legwork interpolates bilinearly, so the two agree at the grid
 //! points and on flat cells, and differ by less than the cell's twist elsewhere; and
 //! MuJoCo's field ends at the grid's border, where legwork's extends the border heights;
-//! and MuJoCo stores the field's data in single precision, 6e-8 of the height span).
+//! and MuJoCo stores the field's data in single precision, 6e-8 of the height span). Boxes
+//! on the ground are a plane and one `box` geom per box, from the ground to its top (MuJoCo's
+//! boxes have sides a foot can hit; legwork's terrain is a height function, see
+//! [`crate::terrain::Boxes`]).
 //!
 //! Numbers are written with Rust's shortest round-trip formatting: the file holds the
 //! model's `f64`s exactly.
@@ -294,6 +297,16 @@ fn write_terrain(xml: &mut String, terrain: &TerrainSpec, friction: f64) -> Resu
             let field = HeightField::of(file)?;
             let _ = writeln!(xml, "    <geom name=\"ground\" type=\"hfield\" hfield=\"terrain\" pos=\"{}\" friction=\"{friction} 0.005 0.0001\" contype=\"1\" conaffinity=\"1\" condim=\"3\"/>", vec3(&field.centre));
         }
+        TerrainSpec::Boxes { ground, boxes } => {
+            let checked = crate::terrain::Boxes::new(*ground, boxes.clone()).map_err(|(field, problem)| MjcfError::Terrain { field, problem })?;
+            let _ = writeln!(xml, "    <geom name=\"ground\" type=\"plane\" size=\"0 0 1\" pos=\"0 0 {}\" friction=\"{friction} 0.005 0.0001\" contype=\"1\" conaffinity=\"1\" condim=\"3\"/>", num(*ground));
+            // A box geom from the ground up to its top: `size` holds half-extents.
+            for (i, b) in checked.boxes().iter().enumerate() {
+                let centre = Vector3::new(0.5 * (b.x[0] + b.x[1]), 0.5 * (b.y[0] + b.y[1]), 0.5 * (ground + b.top));
+                let half = Vector3::new(0.5 * (b.x[1] - b.x[0]), 0.5 * (b.y[1] - b.y[0]), 0.5 * (b.top - ground));
+                let _ = writeln!(xml, "    <geom name=\"box{i}\" type=\"box\" pos=\"{}\" size=\"{}\" friction=\"{friction} 0.005 0.0001\" contype=\"1\" conaffinity=\"1\" condim=\"3\" rgba=\"0.62 0.55 0.45 1\"/>", vec3(&centre), vec3(&half));
+            }
+        }
     }
     Ok(())
 }
@@ -508,6 +521,30 @@ mod tests {
         assert!((e[2] - 1.0 / 3.0).abs() < 1e-15 && (e[5] - 1.0 / 3.0).abs() < 1e-15);
         let ground = elements(&root, "geom").into_iter().find(|g| g.get_attribute("name", None) == Some("ground")).unwrap();
         assert_eq!(numbers(&attr(ground, "pos")), vec![-0.5, -0.25, 0.0]);
+    }
+
+    /// Boxes on the ground: a plane at the ground's height and one box geom per box, its
+    /// centre and half-extents spanning the ground to the top.
+    #[test]
+    fn boxes_are_box_geoms() {
+        use crate::terrain::BoxSpec;
+        let model = embedded::load("a1").unwrap();
+        let boxes = vec![BoxSpec { x: [-0.5, 0.5], y: [-0.5, 0.147], top: 0.9 }, BoxSpec { x: [1.0, 2.0], y: [0.0, 0.5], top: 0.2 }];
+        let text = mjcf_model(&model, &TerrainSpec::Boxes { ground: -0.1, boxes }, &MjcfSettings::default()).unwrap();
+        let root = parse(&text);
+        let geoms = elements(&root, "geom");
+        let named = |n: &str| *geoms.iter().find(|g| g.get_attribute("name", None) == Some(n)).unwrap_or_else(|| panic!("no geom {n}"));
+        assert_eq!((attr(named("ground"), "type"), numbers(&attr(named("ground"), "pos"))), ("plane".into(), vec![0.0, 0.0, -0.1]));
+        let b0 = named("box0");
+        assert_eq!(attr(b0, "type"), "box");
+        let close = |a: Vec<f64>, b: [f64; 3]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-15) && a.len() == 3;
+        assert!(close(numbers(&attr(b0, "pos")), [0.0, -0.1765, 0.4]), "{}", attr(b0, "pos"));
+        assert!(close(numbers(&attr(b0, "size")), [0.5, 0.3235, 0.5]), "{}", attr(b0, "size"));
+        assert_eq!(attr(b0, "friction"), attr(named("ground"), "friction"));
+        assert!(close(numbers(&attr(named("box1"), "size")), [0.5, 0.25, 0.15]));
+        let bad = TerrainSpec::Boxes { ground: 0.0, boxes: vec![BoxSpec { x: [0.0, 1.0], y: [0.0, 1.0], top: -1.0 }] };
+        let err = mjcf_model(&model, &bad, &MjcfSettings::default()).unwrap_err();
+        assert!(err.to_string().starts_with("terrain field `boxes[0].top`"), "{err}");
     }
 
     #[test]

@@ -16,7 +16,6 @@ use super::params::SrbParams;
 use super::stage::{rotation_error_map, Shared, SrbStage, BIG, P, R, T, V, W};
 use crate::ipocp::{Problem, ProblemError, Settings, SolveError, SolveResult, Solver, Stage};
 use nalgebra::{DVector, Matrix3, Vector3};
-use std::f64::consts::PI;
 use std::sync::Arc;
 
 /// Feet in contact per phase, order LF, RF, LH, RH.
@@ -24,10 +23,9 @@ pub type Contacts = [bool; 4];
 
 const ALL: Contacts = [true; 4];
 const NONE: Contacts = [false; 4];
-const RIGHT: Contacts = [false, true, false, true];
-const REAR: Contacts = [false, false, true, true];
 
-/// A jump of the paper's Table I.
+/// A jump as the contact-timing formulation sees it (the jump files of [`crate::jump`]
+/// describe the seven of the paper's Table I).
 #[derive(Clone, Debug, PartialEq)]
 pub struct JumpSpec {
     pub name: &'static str,
@@ -43,26 +41,17 @@ pub struct JumpSpec {
     pub total_time: (f64, f64),
 }
 
-/// The seven jumps, as `contact_timing.py` defines them.
+/// The seven jumps of the paper's Table I under the reference script's names (`lateral30`,
+/// `spin90`, ...: its `JUMPS` keys and results), read from the embedded jump files
+/// ([`crate::jump::EMBEDDED_JUMPS`]).
 pub fn jumps() -> Vec<JumpSpec> {
-    let j = |name, d: [f64; 3], axis: [f64; 3], angle, box_height, phases: Vec<Contacts>, total_time| JumpSpec {
-        name,
-        displacement: Vector3::from(d),
-        axis: Vector3::from(axis),
-        angle,
-        box_height,
-        phases,
-        total_time,
-    };
-    vec![
-        j("lateral30", [0.0, 0.3, 0.0], [0.0, 0.0, 1.0], 0.0, 0.0, vec![ALL, NONE], (0.5, 1.5)),
-        j("lateral_down", [0.0, 0.3, -0.3], [0.0, 0.0, 1.0], 0.0, 0.3, vec![ALL, NONE], (0.5, 1.5)),
-        j("spin90", [0.0, 0.0, 0.0], [0.0, 0.0, 1.0], PI / 2.0, 0.0, vec![ALL, NONE], (0.5, 1.5)),
-        j("diagonal", [0.4, -0.3, 0.0], [0.0, 0.0, 1.0], PI / 4.0, 0.0, vec![ALL, REAR, NONE], (1.0, 2.0)),
-        j("barrel_roll", [0.0, 0.2, -0.4], [1.0, 0.0, 0.0], -2.0 * PI, 0.4, vec![ALL, RIGHT, NONE], (1.0, 2.0)),
-        j("double_barrel_roll", [0.0, 0.3, -0.9], [1.0, 0.0, 0.0], -4.0 * PI, 0.9, vec![ALL, RIGHT, NONE], (1.0, 2.0)),
-        j("double_backflip", [-0.3, 0.0, -2.0], [0.0, 1.0, 0.0], -4.0 * PI, 2.0, vec![ALL, REAR, NONE], (1.0, 2.0)),
-    ]
+    crate::jump::EMBEDDED_JUMPS
+        .iter()
+        .map(|&(name, script_name, _)| {
+            let jump = crate::jump::Jump::embedded(name).unwrap_or_else(|e| panic!("the embedded jump files are checked by tests/jumps.rs: {e}"));
+            JumpSpec { name: script_name, ..jump.srb() }
+        })
+        .collect()
 }
 
 /// Settings of the formulation (defaults: the script's, in parentheses).

@@ -6,7 +6,9 @@
 //!   see [`Plane::fit`]);
 //! * [`HeightMap`]: a regular grid of heights, bilinear between the grid points, the
 //!   normal from the gradient of that interpolant; built in code (boxes, gaps, steps) or
-//!   loaded from a TOML file ([`HeightMap::load_file`], format in [`HeightMap`]).
+//!   loaded from a TOML file ([`HeightMap::load_file`], format in [`HeightMap`]);
+//! * [`Boxes`]: flat ground with axis-aligned boxes on it, exact edges (the platforms the
+//!   jumps of Nguyen 2022 start from).
 //!
 //! The robot's own view of the ground is separate: [`TerrainMap`] (Winkler 2015 sec. III-A)
 //! is an on-board grid built from noisy height samples of a `Terrain` around the robot,
@@ -15,11 +17,13 @@
 //! [`TerrainSpec`] is the serialisable description of either, as stored in a trajectory
 //! file or a scenario file; [`TerrainSpec::build`] turns it into a `Box<dyn Terrain>`.
 
+mod boxes;
 mod cost_features;
 mod cost_map;
 mod height_map;
 mod plane;
 
+pub use boxes::{BoxSpec, Boxes};
 pub use cost_features::{CellAssessment, CellFeatures, CostParams, FeatureSaturation, FeatureWeights};
 pub use cost_map::{
     standard_normal, CellRect, CellView, MapUpdate, SensorConfig, TerrainMap, TerrainMapConfig, TerrainMapError,
@@ -70,6 +74,8 @@ pub enum TerrainSpec {
     Plane { elevation: f64, normal: [f64; 3] },
     /// A height map (see [`HeightMap`]).
     HeightMap(HeightMapFile),
+    /// Flat ground at `ground` with boxes on it (see [`Boxes`]).
+    Boxes { ground: f64, boxes: Vec<BoxSpec> },
 }
 
 impl TerrainSpec {
@@ -89,6 +95,9 @@ impl TerrainSpec {
                 })?)
             }
             TerrainSpec::HeightMap(file) => Box::new(HeightMap::from_file_data(file.clone(), origin)?),
+            TerrainSpec::Boxes { ground, boxes } => Box::new(
+                Boxes::new(*ground, boxes.clone()).map_err(|(field, problem)| TerrainError::Invalid { origin: origin.into(), field, problem })?,
+            ),
         })
     }
 }

@@ -21,6 +21,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod jump;
 pub mod plots;
 pub mod replay;
 mod signals;

@@ -149,7 +149,7 @@ pub(super) fn time_range(t: &[f64]) -> Range<f64> {
 
 /// One figure of stacked panels over the times `t`; `shade[i]`, when given, are time
 /// intervals shaded behind panel `i` (contact phases).
-fn draw_panels(path: &Path, t: &[f64], panels: &[Panel], shade: &[Vec<(f64, f64)>]) -> Result<(), VizError> {
+pub(super) fn draw_panels(path: &Path, t: &[f64], panels: &[Panel], shade: &[Vec<(f64, f64)>]) -> Result<(), VizError> {
     let err = |e: &dyn std::fmt::Display| plot_error(path, e);
     let height = PANEL_HEIGHT * panels.len().max(1) as u32;
     let root = SVGBackend::new(path, (WIDTH, height)).into_drawing_area();

@@ -269,6 +269,8 @@ struct TerrainPatch {
     nx: usize,
     ny: usize,
     z: Vec<f64>,
+    /// Boxes on the ground, `[x0, x1, y0, y1, z0, z1]` (drawn as solids over the grid).
+    boxes: Vec<[f64; 6]>,
 }
 
 #[derive(Serialize)]
@@ -507,8 +509,13 @@ fn terrain_patch(terrain: &dyn Terrain, spec: &crate::terrain::TerrainSpec, lo: 
     let extent = (x_hi - x_lo).max(y_hi - y_lo);
     let checker = nice_floor(extent / 20.0);
     let (kind, dx) = match spec {
-        TerrainSpec::Plane { .. } => ("plane", checker),
+        TerrainSpec::Plane { .. } | TerrainSpec::Boxes { .. } => ("plane", checker),
         TerrainSpec::HeightMap(map) => ("height_map", map.resolution.max(extent / MAX_TERRAIN_CELLS as f64)),
+    };
+    // Boxes: the grid is their ground, the boxes are drawn as solids with sharp edges.
+    let (ground, boxes) = match spec {
+        TerrainSpec::Boxes { ground, boxes } => (Some(*ground), boxes.iter().map(|b| [b.x[0], b.x[1], b.y[0], b.y[1], *ground, b.top].map(|v| round(v, 4))).collect()),
+        _ => (None, Vec::new()),
     };
     // Snap the grid to multiples of the step, so the checkerboard stays put on the ground.
     let (x0, y0) = ((x_lo / dx).floor() * dx, (y_lo / dx).floor() * dx);
@@ -517,10 +524,10 @@ fn terrain_patch(terrain: &dyn Terrain, spec: &crate::terrain::TerrainSpec, lo: 
     let mut z = Vec::with_capacity(nx * ny);
     for j in 0..ny {
         for i in 0..nx {
-            z.push(round(terrain.height(x0 + i as f64 * dx, y0 + j as f64 * dx), 3));
+            z.push(round(ground.unwrap_or_else(|| terrain.height(x0 + i as f64 * dx, y0 + j as f64 * dx)), 3));
         }
     }
-    TerrainPatch { kind, checker, x0: round(x0, 4), y0: round(y0, 4), dx: round(dx, 5), nx, ny, z }
+    TerrainPatch { kind, checker, x0: round(x0, 4), y0: round(y0, 4), dx: round(dx, 5), nx, ny, z, boxes }
 }
 
 #[cfg(test)]

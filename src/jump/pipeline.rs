@@ -1,0 +1,394 @@
+//! The jump pipeline of Nguyen 2022 (Fig. 2): the contact-timing optimization on the single
+//! rigid body (sec. II-B), the full-body trajectory optimization from its result (sec.
+//! II-C), the jump and landing controllers in legwork's simulator (sec. III).
+//!
+//! Each stage reports what it did, or why it did not run ([`StageState`]): the contact timing
+//! ([`crate::srb`]), the full-body optimization ([`crate::fullbody`]), the controllers
+//! ([`super::control`]) and the robustness trials ([`super::trials`]) are their modules';
+//! this file chains them and reads their results into one [`JumpReport`].
+
+use super::control::{run_jump, JumpRun, JumpSettings};
+use super::spec::{Jump, StanceConflict};
+use super::trials::{run_trials, SuccessCriteria, TrialSettings, TrialsReport};
+use crate::control::whole_body::{leg_chains, legs_inverse_kinematics};
+use crate::dynamics::Data;
+use crate::fullbody::{initial_guess, BoxObstacle, FullBodyPlan, FullBodyProblem, FullBodySettings};
+use crate::io::{Knot, Trajectory};
+use crate::ipocp::{Settings as SolverSettings, Status};
+use crate::model::Model;
+use crate::srb::{ContactTimingError, ContactTimingProblem, ContactTimingSettings, SrbKnot, SrbParams, SrbParamsError, SrbTrajectory};
+use crate::terrain::Terrain;
+use nalgebra::{DVector, Rotation3, UnitQuaternion, Vector3};
+use serde_json::json;
+use std::time::Instant;
+
+/// What went wrong before a stage could report.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    #[error("jump '{jump}': the robot is '{robot}', the jump is for '{expected}'")]
+    Robot { jump: String, robot: String, expected: String },
+    #[error(transparent)]
+    Params(#[from] SrbParamsError),
+    #[error(transparent)]
+    ContactTiming(#[from] ContactTimingError),
+    #[error("contact timing: {0}")]
+    Solver(String),
+    #[error("the robot's legs: {0}")]
+    Legs(String),
+}
+
+/// The contact-timing optimization's result.
+#[derive(Clone, Debug)]
+pub struct ContactTimingStage {
+    pub status: Status,
+    pub iterations: usize,
+    pub objective: f64,
+    /// Largest constraint violation at the result.
+    pub primal_infeasibility: f64,
+    /// Phase durations `T_i` (s).
+    pub durations: Vec<f64>,
+    /// Wall time of the solve (problem set-up excluded), s.
+    pub solve_time_s: f64,
+    /// Knots per phase `N_i` of the solve.
+    pub knots_per_phase: usize,
+    /// The solution, knot by knot.
+    pub srb: SrbTrajectory,
+}
+
+impl ContactTimingStage {
+    pub fn solved(&self) -> bool {
+        self.status == Status::Solved
+    }
+    pub fn knots(&self) -> &[SrbKnot] {
+        &self.srb.knots
+    }
+}
+
+/// Whether a stage ran.
+#[derive(Clone, Debug, PartialEq)]
+pub enum StageState {
+    Done,
+    Failed(String),
+    /// Not run: an earlier stage failed (the reason).
+    Skipped(String),
+}
+
+impl std::fmt::Display for StageState {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        match self {
+            StageState::Done => write!(f, "done"),
+            StageState::Failed(reason) => write!(f, "failed: {reason}"),
+            StageState::Skipped(reason) => write!(f, "not run: {reason}"),
+        }
+    }
+}
+
+/// The jump's outcome, with `legwork jump`'s exit code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    /// The re-run met the target (upright, position and yaw within the tolerances).
+    Landed,
+    /// The contact-timing optimization did not converge.
+    ContactTimingFailed,
+    /// The full-body trajectory optimization did not converge or its plan breaks a limit.
+    FullBodyFailed,
+    /// The re-run landed upright, away from the target.
+    MissedTarget,
+    /// The re-run fell (or the controllers could not run).
+    Fell,
+}
+
+impl Verdict {
+    /// 0 for a landed jump; 1 is any error before the pipeline runs (bad file, no robot).
+    pub fn exit_code(self) -> u8 {
+        match self {
+            Verdict::Landed => 0,
+            Verdict::ContactTimingFailed => 2,
+            Verdict::FullBodyFailed => 3,
+            Verdict::MissedTarget => 4,
+            Verdict::Fell => 5,
+        }
+    }
+    pub fn describe(self) -> &'static str {
+        match self {
+            Verdict::Landed => "landed on target",
+            Verdict::ContactTimingFailed => "the contact-timing optimization failed",
+            Verdict::FullBodyFailed => "the full-body trajectory optimization failed",
+            Verdict::MissedTarget => "landed, off target or tilted",
+            Verdict::Fell => "fell",
+        }
+    }
+}
+
+/// Options of [`run`] beyond the jump file.
+#[derive(Clone, Debug)]
+pub struct PipelineOptions {
+    pub contact_timing: ContactTimingSettings,
+    pub full_body: FullBodySettings,
+    pub controllers: JumpSettings,
+    pub criteria: SuccessCriteria,
+    /// Robustness trials after the nominal re-run (0: none).
+    pub trials: usize,
+}
+
+impl PipelineOptions {
+    /// The jump file's contact-timing settings, every other setting its default.
+    pub fn of(jump: &Jump) -> Self {
+        Self {
+            contact_timing: jump.contact_timing.clone(),
+            full_body: FullBodySettings::default(),
+            controllers: JumpSettings::default(),
+            criteria: SuccessCriteria::default(),
+            trials: 0,
+        }
+    }
+}
+
+/// Everything a jump's run reports.
+#[derive(Clone, Debug)]
+pub struct JumpReport {
+    pub contact_timing: ContactTimingStage,
+    pub full_body: StageState,
+    pub full_body_plan: Option<FullBodyPlan>,
+    pub controllers: StageState,
+    /// The nominal re-run in legwork's simulator and whether it met the criteria.
+    pub rerun: Option<JumpRun>,
+    pub landed: Option<bool>,
+    pub trials: Option<TrialsReport>,
+    /// Start feet off the box and landing feet over it (see [`Jump::stance_conflicts`]).
+    pub stance_conflicts: Vec<StanceConflict>,
+}
+
+impl JumpReport {
+    pub fn verdict(&self) -> Verdict {
+        if !self.contact_timing.solved() {
+            return Verdict::ContactTimingFailed;
+        }
+        if self.full_body != StageState::Done {
+            return Verdict::FullBodyFailed;
+        }
+        match (&self.rerun, self.landed) {
+            (Some(_), Some(true)) => Verdict::Landed,
+            (Some(run), Some(false)) if !run.fell => Verdict::MissedTarget,
+            _ => Verdict::Fell,
+        }
+    }
+
+    /// The figures of the run as JSON (the trajectory file's summary).
+    pub fn summary(&self, jump: &Jump) -> serde_json::Map<String, serde_json::Value> {
+        let ct = &self.contact_timing;
+        let full_body = self.full_body_plan.as_ref().map(|p| {
+            json!({
+                "status": format!("{:?}", p.report.status),
+                "iterations": p.report.iterations,
+                "cost": p.report.objective,
+                "constraint_violation": p.report.primal_infeasibility,
+                "solve_time_s": p.report.time.as_secs_f64(),
+                "evaluation_time_s": p.report.evaluation_time.as_secs_f64(),
+                "kkt_time_s": p.report.kkt_time.as_secs_f64(),
+                "phase_durations_s": p.phase_durations,
+                "knots": p.trajectory.knots.len(),
+                "limits_met": p.limits.all_met(1e-6),
+                "binding_limits": p.limits.binding(1e-3),
+                "pre_landing_joints": p.pre_landing_joints,
+            })
+        });
+        let rerun = self.rerun.as_ref().map(|r| {
+            json!({
+                "landed_on_target": self.landed,
+                "lift_off_s": r.lift_off,
+                "touch_down_s": r.touch_down,
+                "landing_switch_s": r.switch,
+                "position_error_m": r.position_error,
+                "yaw_error_deg": r.yaw_error.to_degrees(),
+                "roll_deg": r.roll.to_degrees(),
+                "pitch_deg": r.pitch.to_degrees(),
+                "fell": r.fell,
+                "failure": r.failure,
+                "max_torque_nm": r.max_torque,
+                "saturated_controls": r.saturated_controls,
+            })
+        });
+        let trials = self.trials.as_ref().map(|t| {
+            json!({
+                "trials": t.outcomes.len(),
+                "successes": t.successes(),
+                "success_rate": t.success_rate(),
+                "position_errors_m": t.outcomes.iter().map(|o| o.run.position_error).collect::<Vec<_>>(),
+            })
+        });
+        let value = json!({
+            "jump": jump.name,
+            "origin": jump.origin,
+            "verdict": format!("{:?}", self.verdict()),
+            "exit_code": self.verdict().exit_code(),
+            "contact_timing": {
+                "status": format!("{:?}", ct.status),
+                "iterations": ct.iterations,
+                "cost": ct.objective,
+                "constraint_violation": ct.primal_infeasibility,
+                "phase_durations_s": ct.durations,
+                "phase_durations_10ms": ct.durations.iter().map(|t| (t * 1000.0).round() / 10.0).collect::<Vec<_>>(),
+                "solve_time_s": ct.solve_time_s,
+                "knots_per_phase": ct.knots_per_phase,
+            },
+            "full_body_stage": self.full_body.to_string(),
+            "full_body": full_body,
+            "controllers_stage": self.controllers.to_string(),
+            "rerun": rerun,
+            "trials": trials,
+            "stance_conflicts": self.stance_conflicts.iter().map(|c| c.to_string()).collect::<Vec<_>>(),
+            "paper": jump.paper,
+        });
+        match value {
+            serde_json::Value::Object(map) => map,
+            _ => serde_json::Map::new(),
+        }
+    }
+}
+
+/// Solves the contact-timing problem of `jump` (sec. II-B) for the body `params`.
+pub fn plan_contact_timing(jump: &Jump, params: &SrbParams, settings: &ContactTimingSettings, solver: SolverSettings) -> Result<ContactTimingStage, PipelineError> {
+    let problem = ContactTimingProblem::new(&jump.srb(), params, settings)?;
+    let mut solver = problem.solver(solver).map_err(|e| PipelineError::Solver(e.to_string()))?;
+    let started = Instant::now();
+    let result = problem.solve(&mut solver).map_err(|e| PipelineError::Solver(e.to_string()))?;
+    let solve_time_s = started.elapsed().as_secs_f64();
+    Ok(ContactTimingStage {
+        status: result.status.clone(),
+        iterations: result.iterations,
+        objective: result.objective,
+        primal_infeasibility: result.primal_infeasibility,
+        durations: problem.durations(&result.last.primal),
+        solve_time_s,
+        knots_per_phase: settings.knots_per_phase,
+        srb: SrbTrajectory::from_solution(&problem, &result.last.primal).map_err(|e| PipelineError::Solver(e.to_string()))?,
+    })
+}
+
+/// The jump's box as the full-body optimization's obstacle: its extent, the top lowered by
+/// the foot radius (the optimizer's foot points are the spheres' centres, `top` bounds them
+/// from below over the box).
+pub fn box_obstacle(jump: &Jump, foot_radius: f64) -> Option<BoxObstacle> {
+    jump.platform.as_ref().map(|p| BoxObstacle { top: p.height - foot_radius, x: p.x, y: p.y })
+}
+
+/// The full-body stage (sec. II-C): the contact-timing solution resampled at `dt`, the
+/// initial guess, the solve; `Err` says why there is no plan.
+pub fn plan_full_body(model: &Model, jump: &Jump, srb: &SrbTrajectory, settings: &FullBodySettings) -> Result<FullBodyPlan, String> {
+    let radius = model.feet.iter().map(|f| f.radius).fold(0.0, f64::max);
+    let srb = srb.resample(settings.dt).map_err(|e| e.to_string())?;
+    let guess = initial_guess(model, &srb, settings.pre_landing_knots).map_err(|e| e.to_string())?;
+    let problem = FullBodyProblem::new(model, &srb, &guess, settings, box_obstacle(jump, radius)).map_err(|e| e.to_string())?;
+    problem.solve().map_err(|e| e.to_string())
+}
+
+/// Stages of [`run`], for progress reports.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    ContactTiming,
+    FullBody,
+    Controllers,
+    Trials,
+}
+
+/// Runs the pipeline on `model` (the jump's robot); `progress` hears when each stage starts
+/// (`false`) and ends (`true`).
+pub fn run(jump: &Jump, model: &Model, options: &PipelineOptions, mut progress: impl FnMut(Stage, bool)) -> Result<JumpReport, PipelineError> {
+    if model.name != jump.robot {
+        return Err(PipelineError::Robot { jump: jump.name.clone(), robot: model.name.clone(), expected: jump.robot.clone() });
+    }
+    let params = SrbParams::from_model(model, "standing")?;
+    let radius = model.feet.iter().map(|f| f.radius).fold(0.0, f64::max);
+    let terrain = jump.terrain();
+    progress(Stage::ContactTiming, false);
+    let contact_timing = plan_contact_timing(jump, &params, &options.contact_timing, SolverSettings::default())?;
+    progress(Stage::ContactTiming, true);
+    let mut report = JumpReport {
+        full_body: StageState::Skipped("the contact timing did not converge".into()),
+        full_body_plan: None,
+        controllers: StageState::Skipped("no full-body plan".into()),
+        rerun: None,
+        landed: None,
+        trials: None,
+        stance_conflicts: jump.stance_conflicts(&params, radius),
+        contact_timing,
+    };
+    if !report.contact_timing.solved() {
+        return Ok(report);
+    }
+    progress(Stage::FullBody, false);
+    match plan_full_body(model, jump, &report.contact_timing.srb, &options.full_body) {
+        Ok(plan) => {
+            report.full_body = if plan.report.status != Status::Solved {
+                StageState::Failed(format!("{:?} after {} iterations", plan.report.status, plan.report.iterations))
+            } else if !plan.limits.all_met(1e-6) {
+                StageState::Failed(format!("the plan breaks a limit: {}", plan.limits))
+            } else {
+                StageState::Done
+            };
+            report.full_body_plan = Some(plan);
+        }
+        Err(reason) => report.full_body = StageState::Failed(reason),
+    }
+    progress(Stage::FullBody, true);
+    let Some(plan) = report.full_body_plan.as_ref().filter(|_| report.full_body == StageState::Done) else {
+        return Ok(report);
+    };
+    progress(Stage::Controllers, false);
+    match run_jump(model, &terrain, &plan.trajectory, &options.controllers) {
+        Ok(run) => {
+            report.landed = Some(options.criteria.met_by(&run));
+            report.controllers = StageState::Done;
+            report.rerun = Some(run);
+        }
+        Err(e) => report.controllers = StageState::Failed(e.to_string()),
+    }
+    progress(Stage::Controllers, true);
+    if options.trials > 0 && report.rerun.is_some() {
+        progress(Stage::Trials, false);
+        let settings = TrialSettings { trials: options.trials, criteria: options.criteria, ..TrialSettings::default() };
+        report.trials = run_trials(model, &terrain, &plan.trajectory, &options.controllers, &settings).ok();
+        progress(Stage::Trials, true);
+    }
+    Ok(report)
+}
+
+/// The single-rigid-body plan as a trajectory of the robot: the base where the body's CoM
+/// and rotation put it (`base = p - R c`, `c` the CoM in the base frame of the standing
+/// pose), the legs by inverse kinematics to the plan's feet (the SRB's nominal foot points,
+/// the foot frames), the plan's ground forces. The SRB plan has no joint torques: `tau` is
+/// zero and the summary says so.
+pub fn srb_plan_trajectory(model: &Model, jump: &Jump, params: &SrbParams, knots: &[SrbKnot]) -> Result<Trajectory, PipelineError> {
+    let legs = leg_chains(model).map_err(|e| PipelineError::Legs(e.to_string()))?;
+    let mut q = model.reference_configuration("standing").ok_or_else(|| PipelineError::Legs(format!("robot '{}' has no standing configuration", model.name)))?.clone();
+    let mut data = Data::new(model);
+    let terrain = jump.terrain();
+    let dt = knots.get(1).map_or(0.01, |k| k.t - knots[0].t);
+    let mut traj = Trajectory::new(model, format!("jump {}: contact-timing plan (single rigid body; legs by inverse kinematics to its feet)", jump.name), dt, terrain.spec());
+    let nj = model.nv - 6;
+    for (k, knot) in knots.iter().enumerate() {
+        let rotation = Rotation3::from_matrix(&knot.rotation);
+        let quat = UnitQuaternion::from_rotation_matrix(&rotation);
+        let base = knot.com - rotation * params.com_in_base;
+        q.rows_mut(0, 3).copy_from(&base);
+        q.rows_mut(3, 4).copy_from_slice(&[quat.i, quat.j, quat.k, quat.w]);
+        let targets: Vec<Vector3<f64>> = knot.feet.to_vec();
+        legs_inverse_kinematics(model, &mut data, &legs, &targets, &mut q, 1e-6, 20);
+        let mut v = DVector::zeros(model.nv);
+        v.rows_mut(0, 3).copy_from(&(rotation.transpose() * knot.com_velocity));
+        v.rows_mut(3, 3).copy_from(&knot.omega);
+        // Knots of a zero-length phase share their time: keep the times increasing.
+        let t = if k > 0 { knot.t.max(traj.knots[k - 1].t + 1e-9) } else { knot.t };
+        traj.knots.push(Knot {
+            t,
+            q: q.as_slice().to_vec(),
+            v: v.as_slice().to_vec(),
+            tau: vec![0.0; nj],
+            contact_force: knot.forces.iter().map(|f| [f.x, f.y, f.z]).collect(),
+            in_contact: knot.contacts.to_vec(),
+            feedback_gain: None,
+        });
+    }
+    Ok(traj)
+}

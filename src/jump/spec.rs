@@ -1,0 +1,446 @@
+//! Jump files: the seven jumps of Nguyen 2022 (Table I) and any other, as TOML.
+//!
+//! ```toml
+//! name = "lateral_down"
+//! summary = "jump 0.3 m sideways off a 0.3 m box"
+//! robot = "a1"
+//! phases = [["LF", "RF", "LH", "RH"], []]   # feet in contact per phase; [] = flight
+//! total_time = [0.5, 1.5]            # [T_min, T_max] of (2j), s
+//!
+//! [target]
+//! displacement = [0.0, 0.3, -0.3]    # CoM displacement, world, m
+//! axis = [0.0, 0.0, 1.0]             # unit axis of the base's rotation over the jump
+//! angle_deg = 0.0                    # or `turns = -2.0`: exactly one of the two
+//!
+//! [box]                              # optional: the start box (absent: flat ground)
+//! height = 0.3                       # top above the ground (z = 0), m
+//! x = [-0.5, 0.5]                    # extent, world, m
+//! y = [-0.5, 0.147]
+//!
+//! [contact_timing]                   # optional overrides of ContactTimingSettings
+//! knots_per_phase = 30
+//!
+//! [paper]                            # optional: the paper's Table I row
+//! timings_10ms = [52, 35]
+//! contact_timing_s = 5.02
+//! full_body_s = 32.0
+//! ```
+//!
+//! Every table refuses unknown fields; every error names the file, the field and what was
+//! expected. The jump starts standing on the box (or the ground) and lands on the ground:
+//! `displacement[2] = -box.height`.
+
+use crate::srb::{ContactTimingError, ContactTimingSettings, Contacts, ExpMap, JumpSpec, SrbParams};
+use crate::terrain::{BoxSpec, Boxes};
+use nalgebra::{Matrix3, Vector3};
+use serde::Deserialize;
+use std::f64::consts::PI;
+use std::path::Path;
+
+/// The embedded jumps (Nguyen 2022, Table I), as `(name, the jump's name in the reference
+/// script ../shared/anchors/nguyen2022/contact_timing.py and its results, TOML text)`, in the
+/// table's order.
+pub const EMBEDDED_JUMPS: &[(&str, &str, &str)] = &[
+    ("lateral", "lateral30", include_str!("../../jumps/lateral.toml")),
+    ("lateral_down", "lateral_down", include_str!("../../jumps/lateral_down.toml")),
+    ("spin_90", "spin90", include_str!("../../jumps/spin_90.toml")),
+    ("diagonal", "diagonal", include_str!("../../jumps/diagonal.toml")),
+    ("barrel_roll", "barrel_roll", include_str!("../../jumps/barrel_roll.toml")),
+    ("double_barrel_roll", "double_barrel_roll", include_str!("../../jumps/double_barrel_roll.toml")),
+    ("double_backflip", "double_backflip", include_str!("../../jumps/double_backflip.toml")),
+];
+
+/// Foot names of the `phases` lists, in the contact-timing formulation's order.
+pub const FOOT_NAMES: [&str; 4] = ["LF", "RF", "LH", "RH"];
+
+/// A jump file that cannot be used; names the file and the field.
+#[derive(Debug, thiserror::Error)]
+pub enum JumpError {
+    #[error("{path}: cannot read the jump file: {error}")]
+    Io { path: String, error: std::io::Error },
+    #[error("{origin}: {message}")]
+    Parse { origin: String, message: String },
+    #[error("{origin}: field `{field}`: expected {expected}, got {got}")]
+    Invalid { origin: String, field: String, expected: String, got: String },
+    #[error("no embedded jump named '{name}' (embedded jumps: {known})")]
+    Unknown { name: String, known: String },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JumpFile {
+    name: String,
+    summary: String,
+    robot: String,
+    phases: Vec<Vec<String>>,
+    total_time: [f64; 2],
+    target: TargetFile,
+    #[serde(default, rename = "box")]
+    platform: Option<PlatformFile>,
+    #[serde(default)]
+    contact_timing: ContactTimingOverrides,
+    #[serde(default)]
+    paper: Option<PaperRow>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TargetFile {
+    displacement: [f64; 3],
+    axis: [f64; 3],
+    #[serde(default)]
+    angle_deg: Option<f64>,
+    #[serde(default)]
+    turns: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PlatformFile {
+    height: f64,
+    x: [f64; 2],
+    y: [f64; 2],
+}
+
+/// Overrides of [`ContactTimingSettings`]; an absent field keeps the setting's default.
+#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactTimingOverrides {
+    pub knots_per_phase: Option<usize>,
+    pub mu: Option<f64>,
+    pub f_min: Option<f64>,
+    pub f_max: Option<f64>,
+    pub radius: Option<f64>,
+    pub t_lo: Option<f64>,
+    pub t_hi: Option<f64>,
+    pub eps_omega: Option<f64>,
+    pub eps_r: Option<f64>,
+    pub eps_f: Option<f64>,
+    pub cost_dt: Option<bool>,
+    pub exp_map: Option<ExpMap>,
+}
+
+impl ContactTimingOverrides {
+    /// The defaults with these overrides applied.
+    pub fn apply(&self, defaults: ContactTimingSettings) -> ContactTimingSettings {
+        let d = defaults;
+        ContactTimingSettings {
+            knots_per_phase: self.knots_per_phase.unwrap_or(d.knots_per_phase),
+            mu: self.mu.unwrap_or(d.mu),
+            f_min: self.f_min.unwrap_or(d.f_min),
+            f_max: self.f_max.unwrap_or(d.f_max),
+            radius: self.radius.unwrap_or(d.radius),
+            t_lo: self.t_lo.unwrap_or(d.t_lo),
+            t_hi: self.t_hi.unwrap_or(d.t_hi),
+            eps_omega: self.eps_omega.unwrap_or(d.eps_omega),
+            eps_r: self.eps_r.unwrap_or(d.eps_r),
+            eps_f: self.eps_f.unwrap_or(d.eps_f),
+            cost_dt: self.cost_dt.unwrap_or(d.cost_dt),
+            exp_map: self.exp_map.unwrap_or(d.exp_map),
+        }
+    }
+}
+
+/// The paper's Table I row of a jump.
+#[derive(Clone, Debug, PartialEq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PaperRow {
+    /// Optimal phase durations, in 10 ms.
+    pub timings_10ms: Vec<f64>,
+    /// Solve times of the contact-timing and the full-body optimization (s, MATLAB + CasADi +
+    /// IPOPT on the authors' machine).
+    pub contact_timing_s: f64,
+    pub full_body_s: f64,
+}
+
+/// The start box: from the ground (z = 0) up to `height`, over `x` times `y` (world).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Platform {
+    pub height: f64,
+    pub x: [f64; 2],
+    pub y: [f64; 2],
+}
+
+/// A validated jump.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Jump {
+    pub name: String,
+    pub summary: String,
+    pub robot: String,
+    /// An embedded jump's name in `../shared/anchors/nguyen2022/contact_timing.py` (and its
+    /// results files).
+    pub anchor: Option<&'static str>,
+    /// The name [`JumpSpec`] carries (a `&'static str`): an embedded jump's table name; a
+    /// file's name, kept for the rest of the program (one small allocation per file read).
+    srb_name: &'static str,
+    /// Feet in contact per phase (order [`FOOT_NAMES`]).
+    pub phases: Vec<Contacts>,
+    /// `[T_min, T_max]` of (2j), s.
+    pub total_time: (f64, f64),
+    /// CoM displacement (world, m).
+    pub displacement: Vector3<f64>,
+    /// Unit axis and angle (rad) of the base's rotation over the jump.
+    pub axis: Vector3<f64>,
+    pub angle: f64,
+    pub platform: Option<Platform>,
+    /// The formulation's settings: defaults with the file's overrides.
+    pub contact_timing: ContactTimingSettings,
+    pub paper: Option<PaperRow>,
+    /// Where the jump came from (a path or `embedded jump NAME`).
+    pub origin: String,
+}
+
+/// A foot whose start is off the box or whose landing is over it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StanceConflict {
+    pub foot: &'static str,
+    /// `true`: the foot starts off the box top; `false`: it lands over (or within a foot
+    /// radius of) the box.
+    pub at_start: bool,
+    /// The foot's contact point (world, m).
+    pub point: Vector3<f64>,
+}
+
+impl std::fmt::Display for StanceConflict {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        let (x, y) = (self.point.x, self.point.y);
+        if self.at_start {
+            write!(f, "{} starts at ({x:.3}, {y:.3}), off the box top", self.foot)
+        } else {
+            write!(f, "{} lands at ({x:.3}, {y:.3}), over the box or within a foot radius of it", self.foot)
+        }
+    }
+}
+
+impl Jump {
+    /// Parses and validates TOML text; `origin` goes into errors.
+    pub fn from_toml(text: &str, origin: &str) -> Result<Self, JumpError> {
+        let file: JumpFile = toml::from_str(text).map_err(|e| JumpError::Parse { origin: origin.into(), message: e.to_string() })?;
+        let name: &'static str = Box::leak(file.name.clone().into_boxed_str());
+        Self::validate(file, origin, name, None)
+    }
+
+    /// Reads a jump file.
+    pub fn load_file(path: impl AsRef<Path>) -> Result<Self, JumpError> {
+        let path = path.as_ref();
+        let name = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|error| JumpError::Io { path: name.clone(), error })?;
+        Self::from_toml(&text, &name)
+    }
+
+    /// An embedded jump by name.
+    pub fn embedded(name: &str) -> Result<Self, JumpError> {
+        let &(key, anchor, text) = EMBEDDED_JUMPS.iter().find(|(n, _, _)| *n == name).ok_or_else(|| JumpError::Unknown {
+            name: name.into(),
+            known: EMBEDDED_JUMPS.iter().map(|(n, _, _)| *n).collect::<Vec<_>>().join(", "),
+        })?;
+        let origin = format!("embedded jump {name}");
+        let file: JumpFile = toml::from_str(text).map_err(|e| JumpError::Parse { origin: origin.clone(), message: e.to_string() })?;
+        if file.name != key {
+            return Err(JumpError::Invalid { origin, field: "name".into(), expected: format!("'{key}' (the table's name)"), got: format!("'{}'", file.name) });
+        }
+        Self::validate(file, &origin, key, Some(anchor))
+    }
+
+    /// A file when `spec` ends in `.toml` or names an existing path, else an embedded jump.
+    pub fn load(spec: &str) -> Result<Self, JumpError> {
+        let path = Path::new(spec);
+        if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml")) || path.exists() {
+            Self::load_file(path)
+        } else {
+            Self::embedded(spec)
+        }
+    }
+
+    fn validate(file: JumpFile, origin: &str, srb_name: &'static str, anchor: Option<&'static str>) -> Result<Self, JumpError> {
+        let bad = |field: &str, expected: &str, got: String| Err(JumpError::Invalid { origin: origin.into(), field: field.into(), expected: expected.into(), got });
+        let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+        let mut phases = Vec::with_capacity(file.phases.len());
+        for (i, names) in file.phases.iter().enumerate() {
+            let mut contacts = [false; 4];
+            for name in names {
+                match FOOT_NAMES.iter().position(|f| f == name) {
+                    Some(f) if !contacts[f] => contacts[f] = true,
+                    Some(_) => return bad(&format!("phases[{i}]"), "each foot at most once", format!("{name} twice")),
+                    None => return bad(&format!("phases[{i}]"), "foot names LF, RF, LH, RH", format!("'{name}'")),
+                }
+            }
+            phases.push(contacts);
+        }
+        let shape = "at least two phases, the first with all four feet, the last a flight phase ([]), none other a flight phase";
+        let middle_flight = phases.len() >= 2 && phases[1..phases.len() - 1].iter().any(|c| !c.iter().any(|&f| f));
+        if phases.len() < 2 || phases[0] != [true; 4] || phases.last() != Some(&[false; 4]) || middle_flight {
+            return bad("phases", shape, format!("{:?}", file.phases));
+        }
+        let [t_min, t_max] = file.total_time;
+        if !(finite(&file.total_time) && t_min > 0.0 && t_min <= t_max) {
+            return bad("total_time", "[T_min, T_max] with 0 < T_min <= T_max (s)", format!("{:?}", file.total_time));
+        }
+        let t = &file.target;
+        if !finite(&t.displacement) {
+            return bad("target.displacement", "three finite numbers (m)", format!("{:?}", t.displacement));
+        }
+        let axis = Vector3::from(t.axis);
+        if !finite(&t.axis) || (axis.norm() - 1.0).abs() > 1e-9 {
+            return bad("target.axis", "a unit vector", format!("{:?} (length {})", t.axis, axis.norm()));
+        }
+        let angle = match (t.angle_deg, t.turns) {
+            (Some(deg), None) if deg.is_finite() => deg * PI / 180.0,
+            (None, Some(turns)) if turns.is_finite() => turns * 2.0 * PI,
+            (Some(_), Some(_)) | (None, None) => return bad("target", "exactly one of `angle_deg` and `turns`", format!("angle_deg {:?}, turns {:?}", t.angle_deg, t.turns)),
+            _ => return bad("target.angle_deg / target.turns", "a finite number", format!("angle_deg {:?}, turns {:?}", t.angle_deg, t.turns)),
+        };
+        let platform = match &file.platform {
+            None => None,
+            Some(p) => {
+                if !(p.height.is_finite() && p.height > 0.0) {
+                    return bad("box.height", "a positive height (m)", p.height.to_string());
+                }
+                for (field, range) in [("box.x", p.x), ("box.y", p.y)] {
+                    if !(finite(&range) && range[0] < range[1]) {
+                        return bad(field, "[min, max] with min < max (m)", format!("{range:?}"));
+                    }
+                }
+                Some(Platform { height: p.height, x: p.x, y: p.y })
+            }
+        };
+        let box_height = platform.as_ref().map_or(0.0, |p| p.height);
+        if (t.displacement[2] + box_height).abs() > 1e-9 {
+            return bad("target.displacement[2]", &format!("-box.height = {} (the landing is on the ground, z = 0)", -box_height), t.displacement[2].to_string());
+        }
+        let contact_timing = file.contact_timing.apply(ContactTimingSettings::default());
+        if let Err(ContactTimingError::Setting { field, value, expected }) = contact_timing.validate() {
+            return bad(&format!("contact_timing.{field}"), expected, value.to_string());
+        }
+        if let Some(p) = &file.paper {
+            if p.timings_10ms.len() != phases.len() || !finite(&p.timings_10ms) {
+                return bad("paper.timings_10ms", &format!("{} finite durations (one per phase)", phases.len()), format!("{:?}", p.timings_10ms));
+            }
+        }
+        Ok(Self {
+            name: file.name,
+            summary: file.summary,
+            robot: file.robot,
+            anchor,
+            srb_name,
+            phases,
+            total_time: (t_min, t_max),
+            displacement: Vector3::from(t.displacement),
+            axis,
+            angle,
+            platform,
+            contact_timing,
+            paper: file.paper,
+            origin: origin.into(),
+        })
+    }
+
+    /// Height of the start box (0 on flat ground).
+    pub fn box_height(&self) -> f64 {
+        self.platform.as_ref().map_or(0.0, |p| p.height)
+    }
+
+    /// The jump as the contact-timing formulation takes it.
+    pub fn srb(&self) -> JumpSpec {
+        JumpSpec {
+            name: self.srb_name,
+            displacement: self.displacement,
+            axis: self.axis,
+            angle: self.angle,
+            box_height: self.box_height(),
+            phases: self.phases.clone(),
+            total_time: self.total_time,
+        }
+    }
+
+    /// The ground (z = 0) with the start box.
+    pub fn terrain(&self) -> Boxes {
+        let boxes = self.platform.iter().map(|p| BoxSpec { x: p.x, y: p.y, top: p.height }).collect();
+        // The numbers were checked in `validate`: finite, ordered, the top above the ground.
+        Boxes::new(0.0, boxes).unwrap_or_else(|_| Boxes::flat(0.0))
+    }
+
+    /// The goal rotation `exp(hat(axis * angle))`.
+    pub fn goal_rotation(&self) -> Matrix3<f64> {
+        crate::srb::exp_map::exp(ExpMap::Exact, &(self.axis * self.angle))
+    }
+
+    /// Feet of the start stance off the box top and feet of the landing stance over the box
+    /// (or closer to it than `foot_radius`), with the stances of the contact-timing problem
+    /// (the body's nominal feet `params.foot_rel_com` at the start and the goal pose).
+    pub fn stance_conflicts(&self, params: &SrbParams, foot_radius: f64) -> Vec<StanceConflict> {
+        let Some(p) = &self.platform else { return Vec::new() };
+        let h0 = -params.foot_rel_com.iter().map(|f| f[2]).sum::<f64>() / 4.0;
+        let com_start = Vector3::new(0.0, 0.0, p.height + h0);
+        let com_goal = com_start + self.displacement;
+        let rg = self.goal_rotation();
+        let distance = |q: &Vector3<f64>| {
+            let dx = (p.x[0] - q.x).max(q.x - p.x[1]).max(0.0);
+            let dy = (p.y[0] - q.y).max(q.y - p.y[1]).max(0.0);
+            dx.hypot(dy)
+        };
+        let inside = |q: &Vector3<f64>| q.x >= p.x[0] && q.x <= p.x[1] && q.y >= p.y[0] && q.y <= p.y[1];
+        let mut conflicts = Vec::new();
+        for (f, rel) in params.foot_rel_com.iter().enumerate() {
+            let pbar = Vector3::new(rel.x, rel.y, -h0);
+            let start = com_start + pbar;
+            if !inside(&start) {
+                conflicts.push(StanceConflict { foot: FOOT_NAMES[f], at_start: true, point: start });
+            }
+            let landing = com_goal + rg * pbar;
+            if distance(&landing) < foot_radius {
+                conflicts.push(StanceConflict { foot: FOOT_NAMES[f], at_start: false, point: landing });
+            }
+        }
+        conflicts
+    }
+}
+
+/// The seven embedded jumps, in Table I's order.
+pub fn embedded_jumps() -> Result<Vec<Jump>, JumpError> {
+    EMBEDDED_JUMPS.iter().map(|(name, _, _)| Jump::embedded(name)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LATERAL: &str = include_str!("../../jumps/lateral.toml");
+
+    fn error_of(text: &str) -> String {
+        Jump::from_toml(text, "test.toml").unwrap_err().to_string()
+    }
+
+    #[test]
+    fn errors_name_the_file_the_field_and_the_expectation() {
+        let e = error_of(&LATERAL.replace("angle_deg = 0.0", "angle_deg = 0.0\ncolour = 1"));
+        assert!(e.starts_with("test.toml:") && e.contains("colour"), "{e}");
+        let e = error_of(&LATERAL.replace("angle_deg = 0.0", "turns = 1.0\nangle_deg = 0.0"));
+        assert!(e.contains("field `target`: expected exactly one of `angle_deg` and `turns`"), "{e}");
+        let e = error_of(&LATERAL.replace("\"RH\"], []]", "\"XX\"], []]"));
+        assert!(e.contains("field `phases[0]`: expected foot names LF, RF, LH, RH, got 'XX'"), "{e}");
+        let e = error_of(&LATERAL.replace("[[\"LF\", \"RF\", \"LH\", \"RH\"], []]", "[[\"LF\", \"RF\", \"LH\", \"RH\"]]"));
+        assert!(e.contains("field `phases`: expected at least two phases"), "{e}");
+        let e = error_of(&LATERAL.replace("axis = [0.0, 0.0, 1.0]", "axis = [0.0, 0.0, 2.0]"));
+        assert!(e.contains("field `target.axis`: expected a unit vector, got [0.0, 0.0, 2.0] (length 2)"), "{e}");
+        let e = error_of(&LATERAL.replace("total_time = [0.5, 1.5]", "total_time = [1.5, 0.5]"));
+        assert!(e.contains("field `total_time`: expected [T_min, T_max] with 0 < T_min <= T_max"), "{e}");
+        let e = error_of(&LATERAL.replace("[paper]", "[box]\nheight = 0.3\nx = [-1.0, 1.0]\ny = [-1.0, 1.0]\n\n[paper]"));
+        assert!(e.contains("field `target.displacement[2]`: expected -box.height = -0.3"), "{e}");
+        let e = error_of(&LATERAL.replace("[paper]", "[contact_timing]\nmu = -1.0\n\n[paper]"));
+        assert!(e.contains("field `contact_timing.mu`: expected > 0, got -1"), "{e}");
+        let e = error_of(&LATERAL.replace("[paper]", "[contact_timing]\nknots = 3\n\n[paper]"));
+        assert!(e.contains("knots"), "{e}");
+        let e = error_of(&LATERAL.replace("timings_10ms = [50, 28]", "timings_10ms = [50]"));
+        assert!(e.contains("field `paper.timings_10ms`: expected 2 finite durations"), "{e}");
+        let e = Jump::embedded("moonwalk").unwrap_err().to_string();
+        assert!(e.contains("'moonwalk'") && e.contains("double_backflip"), "{e}");
+    }
+
+    #[test]
+    fn overrides_replace_only_the_given_settings() {
+        let j = Jump::from_toml(&LATERAL.replace("[paper]", "[contact_timing]\nknots_per_phase = 4\nexp_map = \"taylor4\"\n\n[paper]"), "t").unwrap();
+        let expected = ContactTimingSettings { knots_per_phase: 4, exp_map: ExpMap::Taylor4, ..Default::default() };
+        assert_eq!(j.contact_timing, expected);
+    }
+}

@@ -1,0 +1,85 @@
+//! The seven embedded jump files: they load, and they are the jumps of the reference
+//! script (`../shared/anchors/nguyen2022/contact_timing.py`, its `JUMPS`); their boxes.
+
+use legwork::jump::{embedded_jumps, Jump};
+use legwork::srb::SrbParams;
+use legwork::terrain::Terrain;
+use nalgebra::Vector3;
+use std::f64::consts::PI;
+
+const ALL: [bool; 4] = [true; 4];
+const NONE: [bool; 4] = [false; 4];
+const RIGHT: [bool; 4] = [false, true, false, true];
+const REAR: [bool; 4] = [false, false, true, true];
+
+/// `(file, script name, displacement, axis, angle, box, phases, [T_min, T_max], paper's T)`
+/// as the script defines them.
+#[allow(clippy::type_complexity)]
+fn reference() -> Vec<(&'static str, &'static str, [f64; 3], [f64; 3], f64, f64, Vec<[bool; 4]>, (f64, f64), Vec<f64>)> {
+    vec![
+        ("lateral", "lateral30", [0.0, 0.3, 0.0], [0.0, 0.0, 1.0], 0.0, 0.0, vec![ALL, NONE], (0.5, 1.5), vec![50.0, 28.0]),
+        ("lateral_down", "lateral_down", [0.0, 0.3, -0.3], [0.0, 0.0, 1.0], 0.0, 0.3, vec![ALL, NONE], (0.5, 1.5), vec![52.0, 35.0]),
+        ("spin_90", "spin90", [0.0, 0.0, 0.0], [0.0, 0.0, 1.0], PI / 2.0, 0.0, vec![ALL, NONE], (0.5, 1.5), vec![56.0, 31.0]),
+        ("diagonal", "diagonal", [0.4, -0.3, 0.0], [0.0, 0.0, 1.0], PI / 4.0, 0.0, vec![ALL, REAR, NONE], (1.0, 2.0), vec![54.0, 30.0, 33.0]),
+        ("barrel_roll", "barrel_roll", [0.0, 0.2, -0.4], [1.0, 0.0, 0.0], -2.0 * PI, 0.4, vec![ALL, RIGHT, NONE], (1.0, 2.0), vec![51.0, 32.0, 35.0]),
+        ("double_barrel_roll", "double_barrel_roll", [0.0, 0.3, -0.9], [1.0, 0.0, 0.0], -4.0 * PI, 0.9, vec![ALL, RIGHT, NONE], (1.0, 2.0), vec![52.0, 34.0, 55.0]),
+        ("double_backflip", "double_backflip", [-0.3, 0.0, -2.0], [0.0, 1.0, 0.0], -4.0 * PI, 2.0, vec![ALL, REAR, NONE], (1.0, 2.0), vec![50.0, 33.0, 69.0]),
+    ]
+}
+
+#[test]
+fn the_seven_files_are_the_reference_jumps() {
+    let jumps = embedded_jumps().unwrap();
+    assert_eq!(jumps.len(), 7);
+    for (jump, (name, anchor, d, axis, angle, height, phases, total, paper)) in jumps.iter().zip(reference()) {
+        assert_eq!(jump.name, name);
+        assert_eq!(jump.anchor, Some(anchor));
+        assert_eq!(jump.robot, "a1");
+        let s = jump.srb();
+        assert_eq!(s.displacement, Vector3::from(d), "{name}");
+        assert_eq!(s.axis, Vector3::from(axis), "{name}");
+        // Degrees and turns convert to radians within one rounding.
+        assert!((s.angle - angle).abs() <= 4.0 * f64::EPSILON * angle.abs(), "{name}: {} vs {angle}", s.angle);
+        assert_eq!(s.box_height, height, "{name}");
+        assert_eq!(s.phases, phases, "{name}");
+        assert_eq!(s.total_time, total, "{name}");
+        assert_eq!(jump.paper.as_ref().unwrap().timings_10ms, paper, "{name}");
+        // The formulation's settings are the defaults: no file overrides them.
+        assert_eq!(jump.contact_timing, Default::default(), "{name}");
+    }
+}
+
+#[test]
+fn srb_jumps_are_the_files_under_the_script_names() {
+    let names: Vec<&str> = legwork::srb::jumps().iter().map(|j| j.name).collect();
+    assert_eq!(names, ["lateral30", "lateral_down", "spin90", "diagonal", "barrel_roll", "double_barrel_roll", "double_backflip"]);
+    for (spec, file) in legwork::srb::jumps().into_iter().zip(embedded_jumps().unwrap()) {
+        assert_eq!(legwork::srb::JumpSpec { name: file.srb().name, ..spec }, file.srb());
+    }
+}
+
+#[test]
+fn boxes_carry_the_start_stance_and_the_conflicting_landings_are_named() {
+    let params = SrbParams::a1().unwrap();
+    let radius = 0.02;
+    for jump in embedded_jumps().unwrap() {
+        let terrain = jump.terrain();
+        assert_eq!(terrain.height(0.0, 0.0), jump.box_height(), "{}", jump.name);
+        assert_eq!(terrain.height(5.0, 5.0), 0.0);
+        let conflicts = jump.stance_conflicts(&params, radius);
+        // Every start foot stands on the box; the landing over it is the script's choice of
+        // offset for the barrel roll (0.2 m to the side) and the backflip (0.3 m back).
+        assert!(conflicts.iter().all(|c| !c.at_start), "{}: {conflicts:?}", jump.name);
+        let landing: Vec<&str> = conflicts.iter().map(|c| c.foot).collect();
+        let expected: &[&str] = match jump.name.as_str() {
+            "barrel_roll" => &["RF", "RH"],
+            "double_backflip" => &["LF", "RF"],
+            _ => &[],
+        };
+        assert_eq!(landing, expected, "{}: {conflicts:?}", jump.name);
+    }
+    // The double barrel roll's right feet land 2.04 cm beyond the box edge (one foot radius).
+    let j = Jump::embedded("double_barrel_roll").unwrap();
+    assert!(j.stance_conflicts(&params, 0.020).is_empty());
+    assert_eq!(j.stance_conflicts(&params, 0.021).len(), 2);
+}

@@ -1,0 +1,116 @@
+"""A legwork jump in MuJoCo under legwork's own jump and landing controllers (Nguyen 2022,
+sec. III): MuJoCo steps at 1 kHz, `legwork control serve` computes the torques, one JSON
+line each way per step over a pipe (the controller is not ported to Python).
+
+Usage:
+  .venv-mujoco/bin/python tools/mujoco_jump.py --legwork target/release/legwork \
+      --mjcf robot.xml --reference out/jump/lateral/trajectory.json [--settle 1.0] [--output run.json]
+
+`robot.xml` is `legwork export mjcf --robot a1 --terrain <the plan's trajectory.json>` (the
+plan's terrain, its box included). Prints and writes (JSON) the landing figures (position
+and yaw error against the plan's last knot, roll and pitch, a fall) and the pipe's cost:
+the round trip per step (write the state, read the torques) against MuJoCo's own step.
+"""
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+
+import mujoco
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from mujoco_check import Robot, load_json, quat_xyzw_to_matrix  # noqa: E402
+
+
+def yaw_of(r):
+    return math.atan2(r[1, 0], r[0, 0])
+
+
+def roll_pitch(r):
+    return math.atan2(r[2, 1], r[2, 2]), math.asin(max(-1.0, min(1.0, -r[2, 0])))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--legwork", required=True, help="the legwork binary")
+    parser.add_argument("--mjcf", required=True)
+    parser.add_argument("--reference", required=True, help="the full-body plan (trajectory.json)")
+    parser.add_argument("--settle", type=float, default=1.0, help="seconds simulated after the plan's end")
+    parser.add_argument("--output")
+    args = parser.parse_args()
+
+    model = mujoco.MjModel.from_xml_path(args.mjcf)
+    data = mujoco.MjData(model)
+    plan = load_json(args.reference)
+    meta = plan["metadata"]
+    robot = Robot(model, meta["joint_names"], meta["foot_names"])
+    knots = plan["knots"]
+    q0, v0 = np.array(knots[0]["q"]), np.array(knots[0]["v"])
+    q_end = np.array(knots[-1]["q"])
+    robot.set_state(data, q0, v0)
+    mujoco.mj_forward(model, data)
+    t0 = knots[0]["t"]
+    dt = model.opt.timestep
+    steps = int(round((knots[-1]["t"] - t0 + args.settle) / dt))
+
+    server = subprocess.Popen([args.legwork, "control", "serve", "--reference", args.reference], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1)
+    round_trips, mujoco_steps = [], []
+    failed = None
+    landing_at = None
+    for step in range(steps):
+        t = t0 + step * dt
+        q, v = robot.state(data)
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            failed = f"the state is not finite at t = {t:.3f} s"
+            break
+        forces, _ = robot.contact_forces(data)
+        request = json.dumps({"t": t, "q": q.tolist(), "v": v.tolist(), "forces": forces.tolist()})
+        start = time.perf_counter()
+        server.stdin.write(request + "\n")
+        server.stdin.flush()
+        reply = json.loads(server.stdout.readline() or '{"error": "the server ended"}')
+        round_trips.append(time.perf_counter() - start)
+        if "error" in reply:
+            failed = f"legwork control serve: {reply['error']}"
+            break
+        if reply["landing"] and landing_at is None:
+            landing_at = t
+        data.ctrl[robot.actuator] = np.clip(np.array(reply["tau"]), -robot.effort, robot.effort)
+        start = time.perf_counter()
+        mujoco.mj_step(model, data)
+        mujoco_steps.append(time.perf_counter() - start)
+        if data.qpos[2] < 0.05 or abs(roll_pitch(quat_xyzw_to_matrix(robot.state(data)[0][3:7]))[0]) > math.radians(60):
+            failed = f"fell at t = {t:.3f} s"
+            break
+    server.stdin.close()
+    server.wait(timeout=10)
+    q, _ = robot.state(data)
+    r, r_end = quat_xyzw_to_matrix(q[3:7]), quat_xyzw_to_matrix(q_end[3:7])
+    yaw_error = (yaw_of(r) - yaw_of(r_end) + math.pi) % (2 * math.pi) - math.pi
+    roll, pitch = roll_pitch(r)
+    us = lambda v: 1e6 * float(v)  # noqa: E731
+    result = {
+        "mujoco_version": mujoco.__version__,
+        "steps": len(round_trips),
+        "landing_switch_s": landing_at,
+        "failed": failed,
+        "position_error_m": float(np.linalg.norm(q[:2] - q_end[:2])),
+        "yaw_error_deg": math.degrees(yaw_error),
+        "roll_deg": math.degrees(roll),
+        "pitch_deg": math.degrees(pitch),
+        "round_trip_us": {"mean": us(np.mean(round_trips)), "median": us(np.median(round_trips)), "p99": us(np.percentile(round_trips, 99))} if round_trips else None,
+        "mujoco_step_us": {"mean": us(np.mean(mujoco_steps)), "median": us(np.median(mujoco_steps))} if mujoco_steps else None,
+    }
+    text = json.dumps(result, indent=1)
+    print(text)
+    if args.output:
+        with open(args.output, "w") as f:
+            f.write(text)
+
+
+if __name__ == "__main__":
+    main()
