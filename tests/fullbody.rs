@@ -4,10 +4,14 @@
 
 use legwork::dynamics::{center_of_mass, forward_kinematics, frame_position, Data};
 use legwork::fullbody::{initial_guess, BoxObstacle, FullBodyError, FullBodyProblem, FullBodySettings};
-use legwork::ipocp::{Settings, Stage, StageJacobians, StageMultipliers, StageValues, Status};
+use legwork::ipocp::{Settings, Stage, StageMultipliers, Status};
 use legwork::model::embedded;
 use legwork::srb::{jumps, ContactTimingProblem, ContactTimingSettings, SrbParams, SrbSolutionError, SrbTrajectory};
 use nalgebra::{DMatrix, DVector};
+
+#[path = "support/stage_fd.rs"]
+mod stage_fd;
+use stage_fd::assert_jacobians_match_central_differences;
 
 /// The contact-timing solution of `name` (exact exponential, the default settings).
 fn srb_solution(name: &str) -> SrbTrajectory {
@@ -135,29 +139,7 @@ fn check_stage(stage: &dyn Stage, z0: &DVector<f64>, rng: &mut Lcg) {
     let d = stage.dims();
     let nz = d.nz();
     let z = DVector::from_fn(nz, |i, _| z0[i] + if i < 36 { 0.02 } else { 0.5 } * rng.next());
-    let mut jac = StageJacobians::zeros(d);
-    stage.jacobians(z.as_slice(), &mut jac);
-    let h = 1e-6;
-    for i in 0..nz {
-        let (mut zp, mut zm) = (z.clone(), z.clone());
-        zp[i] += h;
-        zm[i] -= h;
-        let (mut vp, mut vm) = (StageValues::zeros(d), StageValues::zeros(d));
-        stage.evaluate(zp.as_slice(), &mut vp);
-        stage.evaluate(zm.as_slice(), &mut vm);
-        let fd = |a: &DVector<f64>, b: &DVector<f64>| (a - b) / (2.0 * h);
-        let close = |fd: f64, an: f64, what: &str| assert!((fd - an).abs() < 2e-5 * (1.0 + an.abs()), "{what} column {i}: fd {fd} analytic {an}");
-        close((vp.cost - vm.cost) / (2.0 * h), jac.cost_gradient[i], "cost gradient");
-        for (r, v) in fd(&vp.dynamics, &vm.dynamics).iter().enumerate() {
-            close(*v, jac.dynamics[(r, i)], &format!("dynamics row {r}"));
-        }
-        for (r, v) in fd(&vp.equalities, &vm.equalities).iter().enumerate() {
-            close(*v, jac.equalities[(r, i)], &format!("equality row {r}"));
-        }
-        for (r, v) in fd(&vp.inequalities, &vm.inequalities).iter().enumerate() {
-            close(*v, jac.inequalities[(r, i)], &format!("inequality row {r}"));
-        }
-    }
+    assert_jacobians_match_central_differences(stage, &z, 1e-6, 2e-5);
     let mut hess = DMatrix::zeros(nz, nz);
     let none = vec![0.0; d.nx_next.max(d.ng).max(d.nh)];
     let m = StageMultipliers { cost: 1.0, dynamics: &none[..d.nx_next], equalities: &none[..d.ng], inequalities: &none[..d.nh] };

@@ -60,8 +60,7 @@ enum Command {
     /// Plan and run one of Nguyen 2022's 3D jumps: contact timing, full-body trajectory
     /// optimization, controllers in legwork's simulator. Writes the trajectory, a replay with
     /// the box, plots and a summary. Exit code 0: landed on target; 2: contact timing failed;
-    /// 3: full-body optimization failed; 4: landed off target; 5: fell; 6: a stage is not in
-    /// this build.
+    /// 3: full-body optimization failed; 4: landed off target; 5: fell; 1: bad input.
     Jump(jump::JumpArgs),
     /// List the embedded jumps.
     Jumps,
