@@ -9,7 +9,7 @@ mod tracking;
 pub mod whole_body;
 
 pub use feedback_policy::FeedbackPolicy;
-pub use interpolation::interpolate_state;
+pub use interpolation::{interpolate_state, knot_bracket, KnotBracket};
 pub use joint_pd::{JointPd, PdGains};
 pub use tracking::{BaseGains, TrackingController};
 pub use whole_body::{

@@ -3,7 +3,7 @@
 //! base pose (eq. 12) whose wrench is distributed to the stance feet of the planned contact
 //! schedule and mapped to joint torques by `J_c^T`.
 
-use super::interpolation::interpolate_state;
+use super::interpolation::{interpolate_state, knot_bracket, KnotBracket};
 use super::joint_pd::PdGains;
 use crate::dynamics::{base_orientation, compute_joint_jacobians, crba, frame_jacobian, frame_position, Data, ReferenceFrame};
 use crate::io::Trajectory;
@@ -135,17 +135,16 @@ impl TrackingController {
     /// `v*`, `tau_ff` linear, the stance of the nearer knot.
     fn sample(&mut self, model: &Model, t: f64) {
         let r = &self.reference;
-        let n = r.t.len();
-        let k = r.t.partition_point(|&tk| tk <= t).saturating_sub(1).min(n - 1);
-        if k + 1 >= n || t <= r.t[0] {
-            let k = if t <= r.t[0] { 0 } else { n - 1 };
-            self.q_ref.copy_from(&r.q[k]);
-            self.v_ref.copy_from(&r.v[k]);
-            self.tau_ff.copy_from(&r.tau[k]);
-            self.stance.copy_from_slice(&r.stance[k]);
-            return;
-        }
-        let s = ((t - r.t[k]) / (r.t[k + 1] - r.t[k])).clamp(0.0, 1.0);
+        let (k, s) = match knot_bracket(&r.t, t) {
+            KnotBracket::Hold(k) => {
+                self.q_ref.copy_from(&r.q[k]);
+                self.v_ref.copy_from(&r.v[k]);
+                self.tau_ff.copy_from(&r.tau[k]);
+                self.stance.copy_from_slice(&r.stance[k]);
+                return;
+            }
+            KnotBracket::Between(k, s) => (k, s),
+        };
         interpolate_state(model, (&r.q[k], &r.v[k]), (&r.q[k + 1], &r.v[k + 1]), s, &mut self.dq, &mut self.q_ref, &mut self.v_ref);
         self.tau_ff.copy_from(&r.tau[k]);
         self.tau_ff.axpy(s, &r.tau[k + 1], 1.0 - s);

@@ -9,7 +9,7 @@
 
 use super::feet::BaseFrameFeet;
 use super::JumpControlError;
-use crate::control::interpolate_state;
+use crate::control::{interpolate_state, knot_bracket, KnotBracket};
 use crate::dynamics::base_orientation;
 use crate::io::Trajectory;
 use crate::model::Model;
@@ -198,18 +198,17 @@ impl JumpReference {
     /// the last knot, the pre-landing configuration with zero joint velocity). Configurations
     /// are interpolated on the manifold ([`interpolate_state`]).
     pub fn sample(&self, model: &Model, t: f64, out: &mut ReferenceSample) {
-        let n = self.t.len();
-        let k = self.t.partition_point(|&tk| tk <= t).saturating_sub(1);
-        if t <= self.t[0] || k + 1 >= n {
-            let k = if t <= self.t[0] { 0 } else { n - 1 };
-            out.q.copy_from(&self.q[k]);
-            out.v.copy_from(&self.v[k]);
-            out.tau.copy_from(&self.tau[k]);
-            out.foot_position.copy_from_slice(&self.foot_position[k]);
-            out.foot_velocity.copy_from_slice(&self.foot_velocity[k]);
-            return;
-        }
-        let s = ((t - self.t[k]) / (self.t[k + 1] - self.t[k])).clamp(0.0, 1.0);
+        let (k, s) = match knot_bracket(&self.t, t) {
+            KnotBracket::Hold(k) => {
+                out.q.copy_from(&self.q[k]);
+                out.v.copy_from(&self.v[k]);
+                out.tau.copy_from(&self.tau[k]);
+                out.foot_position.copy_from_slice(&self.foot_position[k]);
+                out.foot_velocity.copy_from_slice(&self.foot_velocity[k]);
+                return;
+            }
+            KnotBracket::Between(k, s) => (k, s),
+        };
         interpolate_state(model, (&self.q[k], &self.v[k]), (&self.q[k + 1], &self.v[k + 1]), s, &mut out.dq, &mut out.q, &mut out.v);
         out.tau.copy_from(&self.tau[k]);
         out.tau.axpy(s, &self.tau[k + 1], 1.0 - s);
