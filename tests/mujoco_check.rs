@@ -128,7 +128,7 @@ fn the_checkers_controllers_are_legworks() {
     std::fs::write(&mjcf, mjcf_model(&model, &TerrainSpec::flat(), &MjcfSettings::default()).unwrap()).unwrap();
     let reference_path = dir.join("reference.json");
     reference.save_file(&reference_path).unwrap();
-    // States near the reference: between knots for `track`, at knots for `policy`.
+    // States near the reference (perturbed from the knot at or after t).
     let perturbed = |t: f64, u: &mut dyn FnMut() -> f64| {
         let k = reference.knots.iter().position(|k| k.t >= t).unwrap();
         let mut q = DVector::from_column_slice(&reference.knots[k].q);
@@ -155,22 +155,22 @@ fn the_checkers_controllers_are_legworks() {
         // (condition about 1e8): the two solves' round-off differs by some 1e-8 relative.
         assert!(d < 1e-7 * tau.amax().max(1.0), "track at t = {t}: legwork {:?}, checker {theirs:?}", &tau.as_slice()[6..]);
     }
-    let policy_states: Vec<(f64, DVector<f64>, DVector<f64>)> = [20usize, 351, 444, 600].iter().map(|&k| {
-        let t = reference.knots[k].t;
-        let (q, v) = perturbed(t, &mut u);
+    // The policy at knots and between them (the feedforward and gain held over the interval,
+    // the reference state interpolated), against legwork's own `FeedbackPolicy`.
+    let dt = reference.metadata.dt;
+    let policy_states: Vec<(f64, DVector<f64>, DVector<f64>)> = [(20usize, 0.0), (351, 0.37), (444, 0.0), (600, 0.81)].iter().map(|&(k, s)| {
+        let t = reference.knots[k].t + s * dt;
+        let (q, v) = perturbed(reference.knots[k].t, &mut u);
         (t, q, v)
     }).collect();
     let theirs = check.torques(&dir, &mjcf, &reference_path, legwork::export::CheckController::Policy, &legwork::export::ControllerSettings::Policy {}, &policy_states).unwrap();
+    let mut ours = legwork::control::FeedbackPolicy::new(&model, &reference).unwrap();
     for ((t, q, v), theirs) in policy_states.iter().zip(&theirs) {
-        let knot = reference.knots.iter().find(|k| k.t == *t).unwrap();
-        let mut dx = DVector::zeros(2 * model.nv);
-        legwork::dynamics::difference_into(&model, &DVector::from_column_slice(&knot.q), q, &mut dx.as_mut_slice()[..model.nv]);
-        for i in 0..model.nv {
-            dx[model.nv + i] = v[i] - knot.v[i];
-        }
-        let gain = knot.feedback_gain.as_ref().unwrap();
-        let tau: Vec<f64> = (0..model.nv - 6).map(|r| knot.tau[r] + gain[r].iter().zip(dx.iter()).map(|(g, x)| g * x).sum::<f64>()).collect();
-        let d = max_abs_diff(&tau, theirs);
+        let mut tau = DVector::zeros(model.nv);
+        let state = legwork::sim::SimState { t: *t, q: q.clone(), v: v.clone(), anchors: vec![None; model.feet.len()] };
+        legwork::sim::Controller::compute(&mut ours, &model, &state, &mut tau).unwrap();
+        let tau = &tau.as_slice()[6..];
+        let d = max_abs_diff(tau, theirs);
         println!("policy at t = {t}: |tau_legwork - tau_checker|_max = {d:.2e}");
         assert!(d < 1e-9 * tau.iter().fold(1.0f64, |a, x| a.max(x.abs())), "policy at t = {t}: legwork {tau:?}, checker {theirs:?}");
     }

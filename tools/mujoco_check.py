@@ -15,9 +15,10 @@ Commands:
         track   Neunert 2017 sec. IV-B / eq. 12, as legwork's src/control/tracking.rs:
                 tau = tau_ff + Kp (q* - q) + Kd (v* - v) - sum_i J_i^T f_i over the planned
                 stance feet, f = G^T (G G^T + eps I)^-1 [F; T] the base PD wrench of eq. 12.
-        policy  the exported feedback policy: tau = tau_ff + K_k [q (-) q*; v - v*], the
-                reference (q*, v*, tau_ff) interpolated between knots as the tracking
-                controller does, K_k the gain of the knot interval.
+        policy  the exported feedback policy: tau = tau_k + K_k [q (-) q*; v - v*], the
+                reference (q*, v*) interpolated between knots as the tracking controller
+                does, the feedforward tau_k and gain K_k of the knot interval held over it
+                (legwork's src/control/feedback_policy.rs).
         stand   joint PD to a fixed pose (legwork's `--controller stand`).
       Writes the run as a legwork trajectory.json (legwork's conventions: quaternion
       x, y, z, w; base velocities in the base frame), the contact force on each foot from
@@ -320,13 +321,14 @@ class Policy:
 
     def torques(self, d, t):
         nj = self.robot.nj
-        q_ref, v_ref, tau_ff, _, _ = self.ref.sample(t)
-        # The gain of the knot interval, as legwork's SLQ policy re-run picks it.
+        q_ref, v_ref, _, _, _ = self.ref.sample(t)
+        # The feedforward and the gain of the knot interval, held over it as the optimizer
+        # holds its input (src/control/feedback_policy.rs); only (q*, v*) are interpolated.
         n = len(self.ref.gain)
-        k = min(int(math.floor((t - self.ref.t[0]) / self.dt + 1e-9)), n - 1)
+        k = max(min(int(math.floor((t - self.ref.t[0]) / self.dt + 1e-9)), n - 1), 0)
         q, v = self.robot.state(d)
         dx = np.concatenate([LegworkState.difference(q_ref, q, nj), v - v_ref])
-        return tau_ff + self.ref.gain[max(k, 0)] @ dx
+        return self.ref.tau[k] + self.ref.gain[k] @ dx
 
 
 class Stand:
