@@ -154,7 +154,8 @@ fn stage_derivatives_match_finite_differences() {
     let (fb, _) = lateral_problem(Some(obstacle));
     let mut rng = Lcg(7);
     let n = fb.problem.len();
-    let lift_off = fb.anchors().iter().rposition(|a| a[0].is_some()).unwrap() + 1;
+    // The last knot a foot is held at is its lift-off knot (the end of its last push).
+    let lift_off = fb.anchors().iter().rposition(|a| a[0].is_some()).unwrap();
     let a = FullBodySettings::default().pre_landing_knots;
     for k in [0, 1, lift_off - 1, lift_off, lift_off + 2, n - 1 - a, n - 2, n - 1] {
         check_stage(fb.problem.stage(k), &fb.start[k], &mut rng);

@@ -4,12 +4,20 @@ line each way per step over a pipe (the controller is not ported to Python).
 
 Usage:
   .venv-mujoco/bin/python tools/mujoco_jump.py --legwork target/release/legwork \
-      --mjcf robot.xml --reference out/jump/lateral/trajectory.json [--settle 1.0] [--output run.json]
+      --mjcf robot.xml --reference out/jump/lateral/trajectory.json [--settle 1.0] [--output run.json] \
+      [--trials 20]
 
 `robot.xml` is `legwork export mjcf --robot a1 --terrain <the plan's trajectory.json>` (the
 plan's terrain, its box included). Prints and writes (JSON) the landing figures (position
 and yaw error against the plan's last knot, roll and pitch, a fall) and the pipe's cost:
 the round trip per step (write the state, read the torques) against MuJoCo's own step.
+
+`--trials N` then runs issue 17's robustness trials in MuJoCo as legwork's `jump::trials` does
+in its own simulator: trial `i` (seed 17 + i) scales every body's mass and rotational inertia
+by independent factors uniform in 1 +- 5 % (the controller keeps the nominal model) and moves
+the initial base uniformly within +-2 cm in x and y; success = no fall, |roll|, |pitch| < 10
+deg, within 5 cm and 5 deg of yaw of the plan's last knot (measured at the plan's end +
+`--settle`).
 """
 import argparse
 import json
@@ -41,15 +49,51 @@ def main():
     parser.add_argument("--reference", required=True, help="the full-body plan (trajectory.json)")
     parser.add_argument("--settle", type=float, default=1.0, help="seconds simulated after the plan's end")
     parser.add_argument("--output")
+    parser.add_argument("--trials", type=int, default=0, help="robustness trials after the nominal run")
     args = parser.parse_args()
 
-    model = mujoco.MjModel.from_xml_path(args.mjcf)
-    data = mujoco.MjData(model)
     plan = load_json(args.reference)
+    result = run(args, plan)
+    if args.trials > 0:
+        outcomes = []
+        for i in range(args.trials):
+            rng = np.random.default_rng(17 + i)
+            model = mujoco.MjModel.from_xml_path(args.mjcf)
+            for b in range(1, model.nbody):
+                model.body_mass[b] *= rng.uniform(0.95, 1.05)
+                model.body_inertia[b] *= rng.uniform(0.95, 1.05)
+            offset = rng.uniform(-0.02, 0.02, size=2)
+            r = run(args, plan, model=model, base_offset=offset)
+            r["success"] = r["failed"] is None and abs(r["roll_deg"]) < 10 and abs(r["pitch_deg"]) < 10 and r["position_error_m"] < 0.05 and abs(r["yaw_error_deg"]) < 5
+            r["base_offset_m"] = offset.tolist()
+            outcomes.append({k: r[k] for k in ("success", "failed", "position_error_m", "yaw_error_deg", "roll_deg", "pitch_deg", "base_offset_m")})
+            print(f"trial {i}: {'ok' if r['success'] else 'FAIL'} {r['position_error_m'] * 1e3:.1f} mm, yaw {r['yaw_error_deg']:.2f}, roll {r['roll_deg']:.1f}, pitch {r['pitch_deg']:.1f} deg {r['failed'] or ''}", flush=True)
+        errors = [o["position_error_m"] for o in outcomes]
+        result["trials"] = {
+            "successes": sum(o["success"] for o in outcomes),
+            "count": len(outcomes),
+            "position_error_m": {"mean": float(np.mean(errors)), "max": float(np.max(errors))},
+            "yaw_error_deg_max": float(max(abs(o["yaw_error_deg"]) for o in outcomes)),
+            "outcomes": outcomes,
+        }
+    text = json.dumps(result, indent=1)
+    print(text)
+    if args.output:
+        with open(args.output, "w") as f:
+            f.write(text)
+
+
+def run(args, plan, model=None, base_offset=(0.0, 0.0)):
+    """One run of the plan in MuJoCo under `legwork control serve`; the landing figures."""
+    if model is None:
+        model = mujoco.MjModel.from_xml_path(args.mjcf)
+    data = mujoco.MjData(model)
     meta = plan["metadata"]
     robot = Robot(model, meta["joint_names"], meta["foot_names"])
     knots = plan["knots"]
     q0, v0 = np.array(knots[0]["q"]), np.array(knots[0]["v"])
+    q0[0] += base_offset[0]
+    q0[1] += base_offset[1]
     q_end = np.array(knots[-1]["q"])
     robot.set_state(data, q0, v0)
     mujoco.mj_forward(model, data)
@@ -105,11 +149,7 @@ def main():
         "round_trip_us": {"mean": us(np.mean(round_trips)), "median": us(np.median(round_trips)), "p99": us(np.percentile(round_trips, 99))} if round_trips else None,
         "mujoco_step_us": {"mean": us(np.mean(mujoco_steps)), "median": us(np.median(mujoco_steps))} if mujoco_steps else None,
     }
-    text = json.dumps(result, indent=1)
-    print(text)
-    if args.output:
-        with open(args.output, "w") as f:
-            f.write(text)
+    return result
 
 
 if __name__ == "__main__":

@@ -9,7 +9,8 @@
 //! ```
 //!
 //! Equalities: the initial state at rest (`dq_0 = 0`, `v_0 = 0`), each stance foot at its
-//! contact point on the knots whose interval it pushes in (`k >= 1`), the pre-landing joint
+//! contact point at the end of every interval it pushes over (`k >= 1`, the lift-off knot
+//! included: the foot leaves its point only with no load on it), the pre-landing joint
 //! angles over the last `a` knots with zero joint velocity at the first of them (the rest
 //! follows from the dynamics), the final base pose. Inequalities: joint angle, velocity and
 //! torque limits, the friction pyramid and minimum normal force, knees and feet below the
@@ -63,7 +64,8 @@ pub(crate) struct KnotSpec {
     pub force_ref: [Vector3<f64>; 4],
     /// Feet pushing over this knot's interval (their forces are controls).
     pub contacts: [bool; 4],
-    /// Feet held at a contact point at this knot.
+    /// Feet held at a contact point at this knot (pushing over this knot's interval or the one
+    /// before it).
     pub pinned: [Option<Vector3<f64>>; 4],
     /// Feet that must keep clear of the box at this knot (in the air since before it).
     pub airborne: [bool; 4],

@@ -194,9 +194,10 @@ impl JumpReference {
         self.impact_velocity
     }
 
-    /// Linear interpolation between the knots around `t` into `out` (held at the ends; after
-    /// the last knot, the pre-landing configuration with zero joint velocity). Configurations
-    /// are interpolated on the manifold ([`interpolate_state`]).
+    /// Linear interpolation of the state between the knots around `t` into `out` (held at the
+    /// ends; after the last knot, the pre-landing configuration with zero joint velocity),
+    /// the feed-forward torque held from the knot at or before `t`. Configurations are
+    /// interpolated on the manifold ([`interpolate_state`]).
     pub fn sample(&self, model: &Model, t: f64, out: &mut ReferenceSample) {
         let (k, s) = match knot_bracket(&self.t, t) {
             KnotBracket::Hold(k) => {
@@ -210,8 +211,11 @@ impl JumpReference {
             KnotBracket::Between(k, s) => (k, s),
         };
         interpolate_state(model, (&self.q[k], &self.v[k]), (&self.q[k + 1], &self.v[k + 1]), s, &mut out.dq, &mut out.q, &mut out.v);
+        // The feed-forward is held over the interval, as the plan applied it: the full-body
+        // optimization's torques and forces are piecewise constant (`u_k` acts over
+        // `[t_k, t_k+1)`, semi-implicit Euler). Interpolated, the last stance interval's
+        // push would fade towards the flight torques and deliver half its impulse.
         out.tau.copy_from(&self.tau[k]);
-        out.tau.axpy(s, &self.tau[k + 1], 1.0 - s);
         for f in 0..out.foot_position.len() {
             out.foot_position[f] = self.foot_position[k][f].lerp(&self.foot_position[k + 1][f], s);
             out.foot_velocity[f] = self.foot_velocity[k][f].lerp(&self.foot_velocity[k + 1][f], s);

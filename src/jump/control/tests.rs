@@ -210,6 +210,26 @@ fn eq5_is_the_feed_forward_on_the_reference_and_its_jacobian_off_it() {
 }
 
 #[test]
+fn the_feed_forward_is_held_over_each_interval_as_the_plan_applied_it() {
+    // The plan's torques are piecewise constant (semi-implicit Euler, `u_k` over
+    // `[t_k, t_k+1)`): sampled anywhere in an interval, the feed-forward is its knot's,
+    // not a blend towards the next (which would halve a last stance push).
+    let (model, _, mut trajectory) = a1_standing_reference();
+    let dt = trajectory.knots[1].t - trajectory.knots[0].t;
+    for (k, knot) in trajectory.knots.iter_mut().enumerate() {
+        knot.tau.iter_mut().for_each(|t| *t = if k % 2 == 0 { 10.0 } else { -10.0 });
+    }
+    let reference = JumpReference::new(&model, &trajectory, PosingTolerance::default()).unwrap();
+    let mut sample = ReferenceSample::new(&model);
+    for (k, s) in [(10, 0.0), (10, 0.5), (11, 0.25), (11, 0.999)] {
+        let t = trajectory.knots[k].t + s * dt;
+        reference.sample(&model, t, &mut sample);
+        let expected = trajectory.knots[k].tau[0];
+        assert!(sample.tau.rows(6, 12).iter().all(|&x| x == expected), "t = {t}: {:?}, expected {expected}", sample.tau.rows(6, 12));
+    }
+}
+
+#[test]
 fn posing_starts_where_the_joints_stop_moving() {
     let (model, _, mut trajectory) = a1_standing_reference();
     // The joints move until knot 60, then hold the final configuration.
