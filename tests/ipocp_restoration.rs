@@ -4,13 +4,17 @@
 //! Programming 88, eq. 1 with a = -1, b = 1/2):
 //!
 //! ```text
-//! min x1   s.t.   x1^2 - x2 - 1 = 0,   x1 - x3 - 1/2 = 0,   x2, x3 >= 0,   from x = (-2, 1, 1)
+//! min x1   s.t.   x1^2 - x2 - 1 = 0,   x1 - x3 - 1/2 = 0,   x2, x3 >= 0
 //! ```
 //!
-//! The steps from the start keep `x2, x3 >= 0` only by shrinking towards zero and the
-//! iterates stall at an infeasible point; the optimum is `x = (1, 0, 1/2)`. Solved as an
-//! NLP (one stage) and as an optimal-control problem whose stages share `x1` through their
-//! dynamics (the elastic variables of the last stage's rows are then carried as states).
+//! with the optimum `x = (1, 0, 1/2)`. From `(0.5, 1, 1)` ipocp's filter line search fails
+//! (the bounds are inequality rows with slacks, the steps towards `x1 = 1` are cut by the
+//! fraction to the boundary while the violation grows); the restoration gets past that.
+//! (From the paper's start `(-2, 1, 1)` the iterates go to `x1 = -1`, a local minimizer of
+//! the l1 violation over `x2, x3 >= 0` (1.5); the restoration converges there and the solve
+//! reports `LocallyInfeasible`, as it should from there.) Solved as an NLP (one stage) and
+//! as an optimal-control problem whose stages share `x1` through their dynamics (the
+//! elastic variables of the last stage's rows are then carried as states).
 
 use legwork::ipocp::{nlp_problem, Nlp, Problem, Settings, Solver, Stage, StageDims, StageJacobians, StageMultipliers, StageValues, Status};
 use nalgebra::{DMatrix, DVector};
@@ -47,7 +51,7 @@ impl Nlp for WaechterBiegler {
 fn solve_nlp(restoration: bool) -> legwork::ipocp::SolveResult {
     let problem = nlp_problem(WaechterBiegler).unwrap();
     let mut solver = Solver::new(&problem, Settings { restoration, ..Settings::default() }).unwrap();
-    solver.solve(&problem, &[DVector::from_column_slice(&[-2.0, 1.0, 1.0])]).unwrap()
+    solver.solve(&problem, &[DVector::from_column_slice(&[0.5, 1.0, 1.0])]).unwrap()
 }
 
 #[test]
@@ -64,7 +68,8 @@ fn nlp_fails_without_restoration_and_solves_with_it() {
     assert!(with.primal_infeasibility < 1e-8);
 }
 
-/// The same problem spread over stages: stage `k` has the state `x1` (copied to the next
+/// The same problem spread over stages (from `x = (0.3, 1, 1)` on every stage, where the
+/// line search fails without restoration): stage `k` has the state `x1` (copied to the next
 /// stage) and the controls `(x2_k, x3_k)` with the two equalities of the NLP; the last stage
 /// has the objective `x1`. Every stage meets the same obstacle.
 struct ChainStage {
@@ -115,7 +120,7 @@ impl Stage for ChainStage {
 
 fn solve_chain(restoration: bool, stages: usize) -> legwork::ipocp::SolveResult {
     let problem = Problem::new((0..=stages).map(|k| Box::new(ChainStage { last: k == stages }) as Box<dyn Stage>).collect()).unwrap();
-    let guess: Vec<DVector<f64>> = (0..=stages).map(|k| if k == stages { DVector::from_element(1, -2.0) } else { DVector::from_column_slice(&[-2.0, 1.0, 1.0]) }).collect();
+    let guess: Vec<DVector<f64>> = (0..=stages).map(|k| if k == stages { DVector::from_element(1, 0.3) } else { DVector::from_column_slice(&[0.3, 1.0, 1.0]) }).collect();
     let mut solver = Solver::new(&problem, Settings { restoration, ..Settings::default() }).unwrap();
     solver.solve(&problem, &guess).unwrap()
 }
@@ -169,3 +174,5 @@ impl Stage for Infeasible {
         out.fill_diagonal(2.0 * m.cost + 2.0 * m.equalities[0]);
     }
 }
+
+

@@ -76,7 +76,7 @@ fn boxes_carry_the_start_stance_and_the_conflicting_landings_are_named() {
         assert!(conflicts.is_empty(), "{}: {conflicts:?}", jump.name);
         // The script's own targets land the barrel roll (0.2 m to the side) and the backflip
         // (0.3 m back) over the box.
-        let reference = Jump { displacement: jump.reference_srb().displacement, ..jump.clone() };
+        let reference = jump.reference();
         let landing: Vec<&str> = reference.stance_conflicts(&params, radius).iter().map(|c| c.foot).collect();
         let expected: &[&str] = match jump.name.as_str() {
             "barrel_roll" => &["RF", "RH"],
@@ -90,7 +90,7 @@ fn boxes_carry_the_start_stance_and_the_conflicting_landings_are_named() {
     let j = Jump::embedded("double_barrel_roll").unwrap();
     assert!(j.stance_conflicts(&params, 0.050).is_empty());
     assert_eq!(j.stance_conflicts(&params, 0.051).len(), 2);
-    let script = Jump { displacement: j.reference_srb().displacement, ..j };
+    let script = j.reference();
     assert!(script.stance_conflicts(&params, 0.020).is_empty());
     assert_eq!(script.stance_conflicts(&params, 0.021).len(), 2);
 }

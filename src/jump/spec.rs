@@ -379,6 +379,11 @@ impl Jump {
         JumpSpec { displacement: self.reference_displacement.unwrap_or(self.displacement), ..self.srb() }
     }
 
+    /// This jump with the reference script's target (see [`Self::reference_srb`]).
+    pub fn reference(&self) -> Jump {
+        Jump { displacement: self.reference_displacement.unwrap_or(self.displacement), reference_displacement: None, ..self.clone() }
+    }
+
     /// The ground (z = 0) with the start box.
     pub fn terrain(&self) -> Boxes {
         let boxes = self.platform.iter().map(|p| BoxSpec { x: p.x, y: p.y, top: p.height }).collect();
