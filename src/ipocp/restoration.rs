@@ -351,16 +351,25 @@ pub(super) fn restore(problem: &Problem, it: &Iterate, mu: f64, settings: &Setti
     // Return as soon as the original problem's filter accepts the point and the violation
     // has dropped enough (IPOPT's restoration convergence check).
     let mut accepted = false;
+    // The original slacks and next states of a restoration iterate (buffers: the test runs
+    // once per restoration iteration).
+    let mut slacks: Vec<DVector<f64>> = dims.iter().map(|d| DVector::zeros(d.nh)).collect();
+    let mut nexts: Vec<DVector<f64>> = dims.iter().map(|d| DVector::zeros(d.nx_next)).collect();
     let mut exit = |r: &Iterate| -> bool {
         let (mut theta, mut phi) = (0.0, 0.0);
         for k in 0..n_stages {
             let d = dims[k];
             let (lo, up) = problem.bounds(k);
             problem.stage(k).evaluate(&r.primal[k].as_slice()[..d.nz()], &mut values[k]);
-            let slack = r.slack[k].rows(0, d.nh).clone_owned();
-            let next = if k + 1 < n_stages { Some(r.primal[k + 1].rows(0, d.nx_next).clone_owned()) } else { None };
-            theta += violation_1(&values[k], next.as_ref(), d.nx_next, &slack);
-            phi += values[k].cost + barrier(&slack, lo, up, mu);
+            slacks[k].copy_from(&r.slack[k].rows(0, d.nh));
+            let next = if k + 1 < n_stages {
+                nexts[k].copy_from(&r.primal[k + 1].rows(0, d.nx_next));
+                Some(&nexts[k])
+            } else {
+                None
+            };
+            theta += violation_1(&values[k], next, d.nx_next, &slacks[k]);
+            phi += values[k].cost + barrier(&slacks[k], lo, up, mu);
         }
         accepted = theta <= settings.restoration_reduction * theta_r && filter.acceptable(theta, phi);
         accepted
