@@ -41,7 +41,8 @@ fn main() -> anyhow::Result<()> {
     let selected: Vec<_> = if names.is_empty() { all.clone() } else { all.iter().filter(|j| names.contains(&j.name)).cloned().collect() };
     println!("jump                 status      iters  cost          ref cost      rel.diff   T (10 ms)        ref T          viol      median s  (min s)  eval s  kkt s  solves");
     for file in &selected {
-        let jump = file.srb();
+        // With a results file: the script's own problem, to compare like with like.
+        let jump = if reference.is_some() { file.reference_srb() } else { file.srb() };
         let settings = ContactTimingSettings { exp_map, ..file.contact_timing.clone() };
         let ct = ContactTimingProblem::new(&jump, &params, &settings)?;
         let mut solver = ct.solver(Settings { verbose, ..Settings::default() })?;

@@ -4,16 +4,21 @@
 //!
 //! ```text
 //! cargo run --release --example fullbody -- [--repeats 3] [--no-box] [--overhang 0.01]
-//!     [--pre-landing 10] [--parallel] [--max-iterations 300] [--verbose] [--limits] [jump ...]
+//!     [--pre-landing 10] [--parallel] [--max-iterations 300] [--verbose] [--limits]
+//!     [--no-restoration] [--plain-guess] [--reference-targets] [jump ...]
 //! ```
 //!
-//! The box of a jump from a platform is the start feet's footprint grown by `--overhang`
-//! (0.01 m) in x and y, its top under the feet's spheres.
+//! The box of a jump from a platform is the jump file's (as `legwork jump` has it), or with
+//! `--overhang` the start feet's footprint grown by that much in x and y; its top under the
+//! feet's spheres. `--no-restoration` turns ipocp's feasibility restoration off,
+//! `--plain-guess` the box-aware initial guess, `--reference-targets` solves the reference
+//! script's landing targets instead of the files'.
 
-use legwork::fullbody::{initial_guess, BoxObstacle, FullBodyProblem, FullBodySettings};
+use legwork::fullbody::{initial_guess_clear_of, BoxObstacle, FullBodyProblem, FullBodySettings};
 use legwork::ipocp::Settings;
+use legwork::jump::{box_obstacle, embedded_jumps};
 use legwork::model::embedded;
-use legwork::srb::{jumps, ContactTimingProblem, ContactTimingSettings, SrbParams, SrbTrajectory};
+use legwork::srb::{ContactTimingProblem, ContactTimingSettings, JumpSpec, SrbParams, SrbTrajectory};
 
 fn main() -> anyhow::Result<()> {
     let mut args = std::env::args().skip(1);
@@ -21,7 +26,10 @@ fn main() -> anyhow::Result<()> {
     let mut with_box = true;
     let mut verbose = false;
     let mut show_limits = false;
-    let mut overhang = 0.01;
+    let mut overhang = None;
+    let mut restoration = true;
+    let mut plain_guess = false;
+    let mut reference_targets = false;
     let mut pre_landing = None;
     let mut parallel = false;
     let mut max_iterations = None;
@@ -29,7 +37,10 @@ fn main() -> anyhow::Result<()> {
     while let Some(a) = args.next() {
         match a.as_str() {
             "--repeats" => repeats = args.next().ok_or_else(|| anyhow::anyhow!("--repeats: a number"))?.parse()?,
-            "--overhang" => overhang = args.next().ok_or_else(|| anyhow::anyhow!("--overhang: metres"))?.parse()?,
+            "--overhang" => overhang = Some(args.next().ok_or_else(|| anyhow::anyhow!("--overhang: metres"))?.parse::<f64>()?),
+            "--no-restoration" => restoration = false,
+            "--plain-guess" => plain_guess = true,
+            "--reference-targets" => reference_targets = true,
             "--no-box" => with_box = false,
             "--pre-landing" => pre_landing = Some(args.next().ok_or_else(|| anyhow::anyhow!("--pre-landing: knots"))?.parse()?),
             "--verbose" => verbose = true,
@@ -43,25 +54,36 @@ fn main() -> anyhow::Result<()> {
     let params = SrbParams::a1()?;
     let defaults = FullBodySettings::default();
     let settings = FullBodySettings {
-        solver: Settings { verbose, parallel, max_iterations: max_iterations.unwrap_or(defaults.solver.max_iterations), ..defaults.solver.clone() },
+        solver: Settings { verbose, parallel, restoration, max_iterations: max_iterations.unwrap_or(defaults.solver.max_iterations), ..defaults.solver.clone() },
         pre_landing_knots: pre_landing.unwrap_or(defaults.pre_landing_knots),
         ..defaults
     };
-    let all = jumps();
-    let selected: Vec<_> = if names.is_empty() { all.clone() } else { all.iter().filter(|j| names.iter().any(|n| n == j.name)).cloned().collect() };
-    println!("jump                 T (10 ms)     box     status             iters  median s   (min s)  eval s  kkt s   viol      limits  binding");
-    for jump in &selected {
+    // The files' jumps under the reference script's names.
+    let all: Vec<(JumpSpec, Option<BoxObstacle>)> = embedded_jumps()?
+        .iter()
+        .map(|file| {
+            let spec = if reference_targets { file.reference_srb() } else { file.srb() };
+            (JumpSpec { name: file.anchor.unwrap_or(spec.name), ..spec }, box_obstacle(file, model.feet[0].radius))
+        })
+        .collect();
+    let selected: Vec<_> = if names.is_empty() { all.clone() } else { all.iter().filter(|(j, _)| names.iter().any(|n| n == j.name)).cloned().collect() };
+    println!("jump                 T (10 ms)     box     status             iters (resto)  median s   (min s)  eval s  kkt s   viol      limits  binding");
+    for (jump, file_box) in &selected {
         let ct = ContactTimingProblem::new(jump, &params, &ContactTimingSettings::default())?;
         let mut solver = ct.solver(Settings::default())?;
         let r = ct.solve(&mut solver)?;
         let srb = SrbTrajectory::from_solution(&ct, &r.last.primal)?.resample(settings.dt)?;
-        let guess = initial_guess(&model, &srb, settings.pre_landing_knots)?;
-        let obstacle = (with_box && jump.box_height > 0.0).then(|| {
-            let feet = &ct.feet_start;
-            let lo = |a: usize| feet.iter().map(|f| f[a]).fold(f64::INFINITY, f64::min) - overhang;
-            let hi = |a: usize| feet.iter().map(|f| f[a]).fold(f64::NEG_INFINITY, f64::max) + overhang;
-            BoxObstacle { top: jump.box_height - model.feet[0].radius, x: [lo(0), hi(0)], y: [lo(1), hi(1)] }
-        });
+        let obstacle = match overhang {
+            _ if !with_box || jump.box_height <= 0.0 => None,
+            None => *file_box,
+            Some(overhang) => {
+                let feet = &ct.feet_start;
+                let lo = |a: usize| feet.iter().map(|f| f[a]).fold(f64::INFINITY, f64::min) - overhang;
+                let hi = |a: usize| feet.iter().map(|f| f[a]).fold(f64::NEG_INFINITY, f64::max) + overhang;
+                Some(BoxObstacle { top: jump.box_height - model.feet[0].radius, x: [lo(0), hi(0)], y: [lo(1), hi(1)] })
+            }
+        };
+        let guess = initial_guess_clear_of(&model, &srb, settings.pre_landing_knots, if plain_guess { None } else { obstacle.as_ref() })?;
         let fb = FullBodyProblem::new(&model, &srb, &guess, &settings, obstacle)?;
         let mut times = Vec::new();
         let mut plan = None;
@@ -74,12 +96,13 @@ fn main() -> anyhow::Result<()> {
         times.sort_by(f64::total_cmp);
         let rep = &plan.report;
         println!(
-            "{:20} {:13} {:7} {:18} {:5}  {:.4}    ({:.4})  {:.3}   {:.3}   {:.1e}   {:7} {}",
+            "{:20} {:13} {:7} {:18} {:5} {:7}  {:.4}    ({:.4})  {:.3}   {:.3}   {:.1e}   {:7} {}",
             jump.name,
             format!("{:?}", srb.phase_knots),
             obstacle.map_or("-".to_string(), |b| format!("{:.2} m", b.top)),
             format!("{:?}", rep.status),
             rep.iterations,
+            format!("({})", rep.restoration_iterations),
             times[times.len() / 2],
             times[0],
             rep.evaluation_time.as_secs_f64(),

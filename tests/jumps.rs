@@ -35,7 +35,8 @@ fn the_seven_files_are_the_reference_jumps() {
         assert_eq!(jump.name, name);
         assert_eq!(jump.anchor, Some(anchor));
         assert_eq!(jump.robot, "a1");
-        let s = jump.srb();
+        // The script's problem is the reference variant (the files land clear of the box).
+        let s = jump.reference_srb();
         assert_eq!(s.displacement, Vector3::from(d), "{name}");
         assert_eq!(s.axis, Vector3::from(axis), "{name}");
         // Degrees and turns convert to radians within one rounding.
@@ -56,6 +57,9 @@ fn srb_jumps_are_the_files_under_the_script_names() {
     for (spec, file) in legwork::srb::jumps().into_iter().zip(embedded_jumps().unwrap()) {
         assert_eq!(legwork::srb::JumpSpec { name: file.srb().name, ..spec }, file.srb());
     }
+    for (spec, file) in legwork::srb::reference_jumps().into_iter().zip(embedded_jumps().unwrap()) {
+        assert_eq!(legwork::srb::JumpSpec { name: file.srb().name, ..spec }, file.reference_srb());
+    }
 }
 
 #[test]
@@ -66,20 +70,27 @@ fn boxes_carry_the_start_stance_and_the_conflicting_landings_are_named() {
         let terrain = jump.terrain();
         assert_eq!(terrain.height(0.0, 0.0), jump.box_height(), "{}", jump.name);
         assert_eq!(terrain.height(5.0, 5.0), 0.0);
-        let conflicts = jump.stance_conflicts(&params, radius);
-        // Every start foot stands on the box; the landing over it is the script's choice of
-        // offset for the barrel roll (0.2 m to the side) and the backflip (0.3 m back).
-        assert!(conflicts.iter().all(|c| !c.at_start), "{}: {conflicts:?}", jump.name);
-        let landing: Vec<&str> = conflicts.iter().map(|c| c.foot).collect();
+        // Every start foot stands on the box and every landing foot is at least ~5 cm clear
+        // of it (the files' landing offsets).
+        let conflicts = jump.stance_conflicts(&params, 0.049);
+        assert!(conflicts.is_empty(), "{}: {conflicts:?}", jump.name);
+        // The script's own targets land the barrel roll (0.2 m to the side) and the backflip
+        // (0.3 m back) over the box.
+        let reference = jump.reference();
+        let landing: Vec<&str> = reference.stance_conflicts(&params, radius).iter().map(|c| c.foot).collect();
         let expected: &[&str] = match jump.name.as_str() {
             "barrel_roll" => &["RF", "RH"],
             "double_backflip" => &["LF", "RF"],
             _ => &[],
         };
-        assert_eq!(landing, expected, "{}: {conflicts:?}", jump.name);
+        assert_eq!(landing, expected, "{}", jump.name);
     }
-    // The double barrel roll's right feet land 2.04 cm beyond the box edge (one foot radius).
+    // The double barrel roll's right feet land 5.0 cm beyond the box edge (the script's:
+    // 2.04 cm, one foot radius).
     let j = Jump::embedded("double_barrel_roll").unwrap();
-    assert!(j.stance_conflicts(&params, 0.020).is_empty());
-    assert_eq!(j.stance_conflicts(&params, 0.021).len(), 2);
+    assert!(j.stance_conflicts(&params, 0.050).is_empty());
+    assert_eq!(j.stance_conflicts(&params, 0.051).len(), 2);
+    let script = j.reference();
+    assert!(script.stance_conflicts(&params, 0.020).is_empty());
+    assert_eq!(script.stance_conflicts(&params, 0.021).len(), 2);
 }

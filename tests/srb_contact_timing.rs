@@ -99,7 +99,7 @@ fn lateral_jump_reaches_the_reference_optimum() {
     let cost_ref = r0["runs"][0]["cost"].as_f64().unwrap();
     let t_ref: Vec<f64> = r0["T_opt_s"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
     let params = SrbParams::a1().unwrap();
-    let jump = Jump::embedded("lateral").unwrap().srb();
+    let jump = Jump::embedded("lateral").unwrap().reference_srb();
     // The script's exponential is the paper's 4th-order Taylor polynomial.
     let settings = ContactTimingSettings { exp_map: ExpMap::Taylor4, ..Default::default() };
     let ct = ContactTimingProblem::new(&jump, &params, &settings).unwrap();

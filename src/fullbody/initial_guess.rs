@@ -11,14 +11,20 @@
 //! - joint velocities by backward differences (`q_k = q_{k-1} (+) dt v_k`, the semi-implicit
 //!   Euler step of the full-body dynamics), `v_0 = 0`;
 //! - torques `tau_leg = -J_leg^T f` of each stance foot's SRB force `f` (a massless leg in
-//!   equilibrium with the ground force), zero in the air.
+//!   equilibrium with the ground force), zero in the air;
+//! - with a start box ([`initial_guess_clear_of`]): an airborne foot that the blend puts
+//!   closer to the box than its radius plus a margin is moved out along the box's
+//!   signed-distance gradient (up above the top while over it, out past the edge beside
+//!   it) by inverse kinematics, so the guess starts the box-clearance rows satisfied
+//!   where the leg reaches.
 
 // Index loops over legs and joints read like the equations they implement.
 #![allow(clippy::needless_range_loop)]
 
-use super::kinematics::{leg_inverse_kinematics, legs, point_jacobian, Leg};
+use super::kinematics::{foot_position, leg_inverse_kinematics, legs, point_jacobian, Leg};
+use super::settings::BoxObstacle;
 use super::FullBodyError;
-use crate::dynamics::{compute_joint_jacobians, difference, frame_position, Data};
+use crate::dynamics::{compute_joint_jacobians, difference, forward_kinematics, frame_position, Data};
 use crate::io::{Knot, Trajectory};
 use crate::model::Model;
 use crate::srb::{SrbParams, SrbTrajectory};
@@ -77,9 +83,21 @@ fn smoothstep(s: f64) -> f64 {
     s * s * (3.0 - 2.0 * s)
 }
 
+/// Margin (m) beyond the foot's radius by which the guess keeps airborne feet off the box.
+pub const BOX_MARGIN: f64 = 0.03;
+
+/// Half-width (knots) of the window over which the guess smooths the feet's lift off the box.
+pub const BOX_SMOOTHING: usize = 5;
+
 /// The initial guess on the grid of `srb` (uniform, as [`SrbTrajectory::resample`] makes
 /// it), with the pre-landing angles over the last `pre_landing_knots` knots (and the last).
 pub fn initial_guess(model: &Model, srb: &SrbTrajectory, pre_landing_knots: usize) -> Result<Trajectory, FullBodyError> {
+    initial_guess_clear_of(model, srb, pre_landing_knots, None)
+}
+
+/// [`initial_guess`] with the airborne feet kept off the box `obstacle` (the one the
+/// full-body problem gets: the same geometry as its clearance rows).
+pub fn initial_guess_clear_of(model: &Model, srb: &SrbTrajectory, pre_landing_knots: usize, obstacle: Option<&BoxObstacle>) -> Result<Trajectory, FullBodyError> {
     let n = srb.knots.len();
     if n < 2 {
         return Err(FullBodyError::Guess(format!("the SRB trajectory needs at least 2 knots, it has {n}")));
@@ -110,6 +128,8 @@ pub fn initial_guess(model: &Model, srb: &SrbTrajectory, pre_landing_knots: usiz
     let mut qs: Vec<DVector<f64>> = Vec::with_capacity(n);
     let mut q = nominal(model)?;
     let mut lift_off_angles = [[0.0; 3]; 4];
+    // Per knot and leg, the joint-angle change that lifts an airborne foot off the box.
+    let mut box_lift = vec![[[0.0f64; 3]; 4]; n];
     for (k, knot) in srb.knots.iter().enumerate() {
         set_base(&mut q, &knot.com, &knot.rotation, &params.com_in_base);
         // Stance legs, with the base moved towards the feet where the SRB's foot sphere (2d)
@@ -159,7 +179,48 @@ pub fn initial_guess(model: &Model, srb: &SrbTrajectory, pre_landing_knots: usiz
                 }
             }
         }
+        if let Some(b) = obstacle {
+            // Airborne feet out of the box's clearance: moved along the signed distance's
+            // gradient to `radius + BOX_MARGIN` (as far as the leg reaches); the change of
+            // the leg's angles is kept apart and smoothed over time below.
+            forward_kinematics(model, &mut data, &q);
+            let mut lifted = q.clone();
+            for f in (0..4).filter(|&f| k > lift_off[f]) {
+                let clearance = model.feet[f].radius + BOX_MARGIN;
+                let p = foot_position(model, &data, &legs[f]);
+                let (distance, gradient) = b.signed_distance(&p);
+                if distance < clearance {
+                    let target = p + gradient * (clearance - distance);
+                    leg_inverse_kinematics(model, &mut data, &legs[f], &target, &mut lifted);
+                    for a in 0..3 {
+                        let i = legs[f].q_index[a];
+                        box_lift[k][f][a] = lifted[i] - q[i];
+                    }
+                }
+            }
+        }
         qs.push(q.clone());
+    }
+    if obstacle.is_some() {
+        // A lift applied knot by knot would start and stop within one step (a velocity
+        // jump the dynamics rows cannot follow): each leg gets the largest lift within
+        // +-BOX_SMOOTHING knots, averaged over the same window, so the foot rises before
+        // it needs to and comes down after it has passed the edge.
+        let w = BOX_SMOOTHING;
+        let norm = |l: &[f64; 3]| l.iter().map(|x| x * x).sum::<f64>();
+        for f in 0..4 {
+            let widest: Vec<[f64; 3]> = (0..n).map(|k| (k.saturating_sub(w)..(k + w + 1).min(n)).map(|j| box_lift[j][f]).max_by(|a, b| norm(a).total_cmp(&norm(b))).unwrap_or_default()).collect();
+            for k in (0..n).filter(|&k| k > lift_off[f] && k < prelanding_start) {
+                let window = k.saturating_sub(w)..(k + w + 1).min(n);
+                let count = window.len() as f64;
+                for a in 0..3 {
+                    let i = legs[f].q_index[a];
+                    let lift = window.clone().map(|j| widest[j][a]).sum::<f64>() / count;
+                    let jnt = &model.joints[model.joint_of_dof[legs[f].v_index[a]]];
+                    qs[k][i] = (qs[k][i] + lift).clamp(jnt.limits.lower[0], jnt.limits.upper[0]);
+                }
+            }
+        }
     }
     let mut traj = Trajectory::new(model, "fullbody initial guess (Nguyen 2022, sec. II-C)", dt, TerrainSpec::flat());
     let mut v = DVector::zeros(model.nv);

@@ -17,7 +17,7 @@ mod problem;
 mod settings;
 mod stage;
 
-pub use initial_guess::{initial_guess, pre_landing_configuration, IK_TOLERANCE, NOMINAL_POSE};
+pub use initial_guess::{initial_guess, initial_guess_clear_of, pre_landing_configuration, BOX_MARGIN, IK_TOLERANCE, NOMINAL_POSE};
 pub use limits::{check_limits, LimitReport, LimitRow, STANCE_DRIFT};
 pub use problem::{FullBodyPlan, FullBodyProblem, SolveReport};
 pub use settings::{BoxObstacle, FullBodySettings};

@@ -36,6 +36,9 @@ pub struct FullBodyProblem {
 pub struct SolveReport {
     pub status: Status,
     pub iterations: usize,
+    /// ipocp's feasibility restorations and their iterations (not in `iterations`).
+    pub restorations: usize,
+    pub restoration_iterations: usize,
     /// Wall time of the solve, and its parts in function evaluations and KKT solves.
     pub time: Duration,
     pub evaluation_time: Duration,
@@ -201,6 +204,8 @@ impl FullBodyProblem {
             report: SolveReport {
                 status: result.status.clone(),
                 iterations: result.iterations,
+                restorations: result.restorations,
+                restoration_iterations: result.restoration_iterations,
                 time,
                 evaluation_time: result.timings.evaluation,
                 kkt_time: result.timings.kkt,

@@ -66,8 +66,9 @@ pub enum Status {
     MaxIterations,
     /// The filter line search could not reduce the constraint violation, which is above
     /// `constraint_violation_tolerance`: the problem is (locally) infeasible from here.
-    /// There is no feasibility-restoration phase: this is reported where IPOPT would
-    /// start one.
+    /// With [`super::Settings::restoration`], the feasibility restoration found no point
+    /// the filter accepts either (it converged to a local minimum of the violation, or hit
+    /// its limits).
     LocallyInfeasible,
     /// The line search failed at a point that is feasible but not optimal (a search
     /// direction that the barrier objective cannot follow, usually bad derivatives).
@@ -117,6 +118,9 @@ pub struct SolveResult {
     /// Times the Hessian needed regularization, and the last regularization used.
     pub regularizations: usize,
     pub last_regularization: f64,
+    /// Feasibility restorations entered, and the iterations they took (not in `iterations`).
+    pub restorations: usize,
+    pub restoration_iterations: usize,
     /// Riccati solves of the search directions (inertia corrections included, second-order
     /// corrections not).
     pub kkt_solves: usize,

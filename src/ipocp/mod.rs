@@ -10,8 +10,10 @@
 //! - **Algorithm** ([`Solver`]): IPOPT's (Wächter & Biegler 2006): slacks and a log barrier
 //!   for the inequalities, primal-dual steps with the fraction-to-the-boundary rule, the
 //!   monotone barrier update, a filter line search with second-order corrections, inertia
-//!   correction by regularizing the Hessian. No feasibility restoration: where IPOPT would
-//!   start one, the solve stops with [`Status::LocallyInfeasible`].
+//!   correction by regularizing the Hessian, and the feasibility restoration of sec. 3.3
+//!   ([`restoration`], stage-wise: the elastic variables of a stage's rows are its own) where
+//!   the filter line search fails from an infeasible point; if that finds no acceptable
+//!   point either, the solve stops with [`Status::LocallyInfeasible`].
 //! - **Linear algebra** ([`riccati`]): each KKT system is solved by a Riccati recursion
 //!   over the stages that eliminates the stage equalities inside the recursion (FATROP's
 //!   approach), so the cost of a step grows linearly with the number of stages; the
@@ -25,6 +27,7 @@ mod iterate;
 pub mod nlp;
 mod problem;
 pub mod riccati;
+mod restoration;
 mod settings;
 mod solver;
 mod stage;

@@ -2,6 +2,7 @@
 //! stage `k + 1`; the last stage has no control and no dynamics).
 
 use super::stage::{Stage, StageDims};
+use std::sync::Arc;
 
 /// What is wrong with a problem's stages.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -26,7 +27,8 @@ pub enum ProblemError {
 
 /// An optimal-control problem: stages `0..N`.
 pub struct Problem {
-    stages: Vec<Box<dyn Stage>>,
+    /// Shared so that the feasibility restoration's stages can wrap them.
+    stages: Vec<Arc<dyn Stage>>,
     dims: Vec<StageDims>,
     lower: Vec<Vec<f64>>,
     upper: Vec<Vec<f64>>,
@@ -64,6 +66,7 @@ impl Problem {
             lower.push(lo);
             upper.push(up);
         }
+        let stages = stages.into_iter().map(Arc::from).collect();
         Ok(Self { stages, dims, lower, upper })
     }
 
@@ -83,6 +86,11 @@ impl Problem {
 
     pub fn stage(&self, k: usize) -> &dyn Stage {
         self.stages[k].as_ref()
+    }
+
+    /// Stage `k`, shared (the restoration problem wraps it).
+    pub(crate) fn stage_shared(&self, k: usize) -> Arc<dyn Stage> {
+        self.stages[k].clone()
     }
 
     /// Lower and upper bounds of stage `k`'s inequality rows.

@@ -69,6 +69,17 @@ pub struct Settings {
     /// [`kappa_soc`].
     pub max_second_order_corrections: usize,
     pub kappa_soc: f64,
+    /// Feasibility restoration (sec. 3.3; [`super::restoration`]) where the filter line
+    /// search fails from an infeasible point (true): minimize the l1 violation plus a
+    /// proximity term, return once the filter accepts. Its penalty `rho` (1000)
+    /// [`resto_penalty_parameter`], the reduction of the violation it must reach before it
+    /// returns (0.9) [`required_infeasibility_reduction`], its iteration limit per call (500)
+    /// and the number of calls per solve (10).
+    pub restoration: bool,
+    pub restoration_penalty: f64,
+    pub restoration_reduction: f64,
+    pub restoration_max_iterations: usize,
+    pub max_restorations: usize,
     /// Evaluate the stages (values, Jacobians, Hessians) on rayon's threads (false: worth it
     /// when a stage's evaluation costs more than a thread hand-off, as full-body dynamics do).
     pub parallel: bool,
@@ -113,6 +124,11 @@ impl Default for Settings {
             backtracking_factor: 0.5,
             max_second_order_corrections: 4,
             kappa_soc: 0.99,
+            restoration: true,
+            restoration_penalty: 1e3,
+            restoration_reduction: 0.9,
+            restoration_max_iterations: 500,
+            max_restorations: 10,
             parallel: false,
             verbose: false,
         }
@@ -144,6 +160,8 @@ impl Settings {
         check("kappa_sigma", self.kappa_sigma, self.kappa_sigma >= 1.0, ">= 1")?;
         check("pivot_tolerance", self.pivot_tolerance, self.pivot_tolerance > 0.0 && self.pivot_tolerance < 1.0, "in (0, 1)")?;
         check("regularization_first", self.regularization_first, self.regularization_first > 0.0, "> 0")?;
+        check("restoration_penalty", self.restoration_penalty, self.restoration_penalty > 0.0, "> 0")?;
+        check("restoration_reduction", self.restoration_reduction, self.restoration_reduction > 0.0 && self.restoration_reduction < 1.0, "in (0, 1)")?;
         check("regularization_increase", self.regularization_increase, self.regularization_increase > 1.0, "> 1")?;
         Ok(())
     }

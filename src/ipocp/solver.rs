@@ -20,6 +20,7 @@
 use super::filter::Filter;
 use super::iterate::{Duals, Iterate, SolveResult, Status, Timings};
 use super::problem::{Problem, ProblemError};
+use super::restoration;
 use super::riccati::{RiccatiSolver, StageQp, StageStep};
 use super::settings::{Settings, SettingsError};
 use super::stage::{StageJacobians, StageMultipliers, StageValues};
@@ -141,6 +142,12 @@ impl Solver {
     /// Solves from a primal guess and, optionally, dual values (a warm start; set a small
     /// `mu_init` in the settings when the guess is close to the optimum).
     pub fn solve_warm(&mut self, problem: &Problem, primal: &[DVector<f64>], duals: Option<&Duals>) -> Result<SolveResult, SolveError> {
+        self.solve_with_exit(problem, primal, duals, None)
+    }
+
+    /// [`Self::solve_warm`] that also stops, reporting [`Status::Solved`], at the first
+    /// iterate after the start that `exit` accepts (the restoration phase's return test).
+    pub(super) fn solve_with_exit(&mut self, problem: &Problem, primal: &[DVector<f64>], duals: Option<&Duals>, mut exit: Option<&mut dyn FnMut(&Iterate) -> bool>) -> Result<SolveResult, SolveError> {
         let start = Instant::now();
         self.check_layout(problem, primal, duals)?;
         let s = self.settings.clone();
@@ -150,6 +157,7 @@ impl Solver {
         let mut regularization_last = 0.0;
         let mut regularizations = 0;
         let mut kkt_solves = 0;
+        let (mut restorations, mut restoration_iterations) = (0, 0);
 
         let mut best = it.clone();
         let mut best_stats = (0usize, f64::INFINITY, f64::NAN, f64::NAN);
@@ -190,6 +198,10 @@ impl Solver {
                 && errors.primal <= s.constraint_violation_tolerance
                 && errors.complementarity_0 <= s.complementarity_tolerance
             {
+                status = Status::Solved;
+                break;
+            }
+            if iteration > 0 && exit.as_mut().is_some_and(|exit| exit(&it)) {
                 status = Status::Solved;
                 break;
             }
@@ -256,6 +268,23 @@ impl Solver {
             // 4. Filter line search.
             match self.line_search(problem, &mut it, mu, tau, alpha_max, alpha_z, theta_min, delta, &mut timings) {
                 Ok(()) => {}
+                Err(theta) if theta > s.constraint_violation_tolerance && s.restoration && restorations < s.max_restorations => {
+                    // Feasibility restoration (sec. 3.3), then on from the restored point.
+                    restorations += 1;
+                    let restoration = restoration::restore(problem, &it, mu, &s, &mut self.filter);
+                    restoration_iterations += restoration.iterations;
+                    timings.evaluation += restoration.timings.evaluation;
+                    timings.kkt += restoration.timings.kkt;
+                    let Some(restored) = restoration.iterate else {
+                        status = Status::LocallyInfeasible;
+                        break;
+                    };
+                    it = restored;
+                    if s.least_squares_multipliers {
+                        self.least_squares_multipliers(problem, &mut it, &mut timings);
+                    }
+                    self.evaluate_values_at(problem, &it, &mut timings);
+                }
                 Err(theta) => {
                     status = if theta > s.constraint_violation_tolerance { Status::LocallyInfeasible } else { Status::LineSearchFailed };
                     break;
@@ -287,6 +316,8 @@ impl Solver {
             regularizations,
             last_regularization: regularization_last,
             kkt_solves,
+            restorations,
+            restoration_iterations,
             timings,
         })
     }
@@ -859,7 +890,7 @@ fn acceptance(filter: &Filter, s: &Settings, theta: f64, phi: f64, dphi: f64, al
 }
 
 /// `-mu sum ln(s - l) + ln(u - s)`; `+inf` outside the interior.
-fn barrier(slack: &DVector<f64>, lo: &[f64], up: &[f64], mu: f64) -> f64 {
+pub(super) fn barrier(slack: &DVector<f64>, lo: &[f64], up: &[f64], mu: f64) -> f64 {
     let mut b = 0.0;
     for i in 0..slack.len() {
         let s = slack[i];
@@ -882,7 +913,7 @@ fn barrier(slack: &DVector<f64>, lo: &[f64], up: &[f64], mu: f64) -> f64 {
 }
 
 /// `|f - x_next|_1 + |g|_1 + |h - s|_1` of one stage.
-fn violation_1(v: &StageValues, next_primal: Option<&DVector<f64>>, nx_next: usize, slack: &DVector<f64>) -> f64 {
+pub(super) fn violation_1(v: &StageValues, next_primal: Option<&DVector<f64>>, nx_next: usize, slack: &DVector<f64>) -> f64 {
     let mut t = 0.0;
     if let Some(xn) = next_primal {
         for i in 0..nx_next {

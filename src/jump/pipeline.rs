@@ -12,7 +12,7 @@ use super::spec::{Jump, StanceConflict};
 use super::trials::{run_trials, SuccessCriteria, TrialSettings, TrialsReport};
 use crate::control::whole_body::{leg_chains, legs_inverse_kinematics};
 use crate::dynamics::Data;
-use crate::fullbody::{initial_guess, BoxObstacle, FullBodyPlan, FullBodyProblem, FullBodySettings};
+use crate::fullbody::{initial_guess_clear_of, BoxObstacle, FullBodyPlan, FullBodyProblem, FullBodySettings};
 use crate::io::{Knot, Trajectory};
 use crate::ipocp::{Settings as SolverSettings, Status};
 use crate::model::Model;
@@ -278,8 +278,9 @@ pub fn box_obstacle(jump: &Jump, foot_radius: f64) -> Option<BoxObstacle> {
 pub fn plan_full_body(model: &Model, jump: &Jump, srb: &SrbTrajectory, settings: &FullBodySettings) -> Result<FullBodyPlan, String> {
     let radius = model.feet.iter().map(|f| f.radius).fold(0.0, f64::max);
     let srb = srb.resample(settings.dt).map_err(|e| e.to_string())?;
-    let guess = initial_guess(model, &srb, settings.pre_landing_knots).map_err(|e| e.to_string())?;
-    let problem = FullBodyProblem::new(model, &srb, &guess, settings, box_obstacle(jump, radius)).map_err(|e| e.to_string())?;
+    let obstacle = box_obstacle(jump, radius);
+    let guess = initial_guess_clear_of(model, &srb, settings.pre_landing_knots, obstacle.as_ref()).map_err(|e| e.to_string())?;
+    let problem = FullBodyProblem::new(model, &srb, &guess, settings, obstacle).map_err(|e| e.to_string())?;
     problem.solve().map_err(|e| e.to_string())
 }
 

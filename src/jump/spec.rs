@@ -17,6 +17,9 @@
 //! x = [-0.5, 0.5]                    # extent, world, m
 //! y = [-0.5, 0.147]
 //!
+//! [reference]                        # optional: the reference script's own target, where
+//! displacement = [0.0, 0.3, -0.3]    # the file's differs (its contact-timing optimum check)
+//!
 //! [contact_timing]                   # optional overrides of ContactTimingSettings
 //! knots_per_phase = 30
 //!
@@ -78,9 +81,17 @@ struct JumpFile {
     #[serde(default, rename = "box")]
     platform: Option<PlatformFile>,
     #[serde(default)]
+    reference: Option<ReferenceFile>,
+    #[serde(default)]
     contact_timing: ContactTimingOverrides,
     #[serde(default)]
     paper: Option<PaperRow>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ReferenceFile {
+    displacement: [f64; 3],
 }
 
 #[derive(Deserialize)]
@@ -183,6 +194,9 @@ pub struct Jump {
     pub axis: Vector3<f64>,
     pub angle: f64,
     pub platform: Option<Platform>,
+    /// The CoM displacement of the reference script's problem (`[reference]`), where it
+    /// differs from the file's target (the script's landings over the start box).
+    pub reference_displacement: Option<Vector3<f64>>,
     /// The formulation's settings: defaults with the file's overrides.
     pub contact_timing: ContactTimingSettings,
     pub paper: Option<PaperRow>,
@@ -308,6 +322,11 @@ impl Jump {
         if (t.displacement[2] + box_height).abs() > 1e-9 {
             return bad("target.displacement[2]", &format!("-box.height = {} (the landing is on the ground, z = 0)", -box_height), t.displacement[2].to_string());
         }
+        let reference_displacement = match &file.reference {
+            None => None,
+            Some(r) if finite(&r.displacement) && (r.displacement[2] + box_height).abs() <= 1e-9 => Some(Vector3::from(r.displacement)),
+            Some(r) => return bad("reference.displacement", &format!("three finite numbers (m), the last -box.height = {}", -box_height), format!("{:?}", r.displacement)),
+        };
         let contact_timing = file.contact_timing.apply(ContactTimingSettings::default());
         if let Err(ContactTimingError::Setting { field, value, expected }) = contact_timing.validate() {
             return bad(&format!("contact_timing.{field}"), expected, value.to_string());
@@ -329,6 +348,7 @@ impl Jump {
             axis,
             angle,
             platform,
+            reference_displacement,
             contact_timing,
             paper: file.paper,
             origin: origin.into(),
@@ -351,6 +371,17 @@ impl Jump {
             phases: self.phases.clone(),
             total_time: self.total_time,
         }
+    }
+
+    /// The reference script's problem (`../shared/anchors/nguyen2022/contact_timing.py`):
+    /// [`Self::srb`] with the script's own displacement where the file's differs.
+    pub fn reference_srb(&self) -> JumpSpec {
+        JumpSpec { displacement: self.reference_displacement.unwrap_or(self.displacement), ..self.srb() }
+    }
+
+    /// This jump with the reference script's target (see [`Self::reference_srb`]).
+    pub fn reference(&self) -> Jump {
+        Jump { displacement: self.reference_displacement.unwrap_or(self.displacement), reference_displacement: None, ..self.clone() }
     }
 
     /// The ground (z = 0) with the start box.

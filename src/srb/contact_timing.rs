@@ -43,13 +43,24 @@ pub struct JumpSpec {
 
 /// The seven jumps of the paper's Table I under the reference script's names (`lateral30`,
 /// `spin90`, ...: its `JUMPS` keys and results), read from the embedded jump files
-/// ([`crate::jump::EMBEDDED_JUMPS`]).
+/// ([`crate::jump::EMBEDDED_JUMPS`]): the files' targets, which land clear of the box.
 pub fn jumps() -> Vec<JumpSpec> {
+    embedded_specs(|jump| jump.srb())
+}
+
+/// The reference script's own problems (its `JUMPS`, whose targets land barrel_roll and
+/// double_backflip over the start box: [`crate::jump::Jump::reference_srb`]), for the
+/// comparison with its optima.
+pub fn reference_jumps() -> Vec<JumpSpec> {
+    embedded_specs(|jump| jump.reference_srb())
+}
+
+fn embedded_specs(spec: impl Fn(&crate::jump::Jump) -> JumpSpec) -> Vec<JumpSpec> {
     crate::jump::EMBEDDED_JUMPS
         .iter()
         .map(|&(name, script_name, _)| {
             let jump = crate::jump::Jump::embedded(name).unwrap_or_else(|e| panic!("the embedded jump files are checked by tests/jumps.rs: {e}"));
-            JumpSpec { name: script_name, ..jump.srb() }
+            JumpSpec { name: script_name, ..spec(&jump) }
         })
         .collect()
 }
