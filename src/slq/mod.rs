@@ -286,6 +286,9 @@ impl<'p, P: Problem> Slq<'p, P> {
         if settings.alpha_divisor.is_nan() || settings.alpha_divisor <= 1.0 {
             return Err(SlqError::Settings { field: "alpha_divisor", problem: format!("expected a number > 1, got {}", settings.alpha_divisor) });
         }
+        if !((0.0..=1.0).contains(&settings.short_step) && settings.short_step_regularization_growth >= 1.0 && settings.short_step_regularization_growth.is_finite()) {
+            return Err(SlqError::Settings { field: "short_step", problem: format!("expected a step in [0, 1] and a finite growth >= 1, got {} and {}", settings.short_step, settings.short_step_regularization_growth) });
+        }
         let (nx, nu, n) = (problem.nx(), problem.nu(), problem.horizon());
         if n == 0 {
             return Err(SlqError::Settings { field: "horizon", problem: "the problem has no knots".into() });
