@@ -294,9 +294,17 @@ fn substepped_knot_is_the_simulators_steps_and_its_linearization_matches_finite_
 /// penetration, joint limits and speeds) is exact: with heavy penalties and a state that
 /// violates each kind (feet pressed 6 mm deeper and dragged sideways, a knee past its
 /// limit, a hip too fast), the knot's `l_x` matches central differences of its cost along
-/// random tangent directions, anchors included.
+/// random tangent directions, anchors included; the friction residual in both of its
+/// forms (a force in the robot's weight, and the ratio), the joints' bounds with a margin.
 #[test]
 fn feasibility_constraint_gradients_match_finite_differences() {
+    use legwork::ocp::FrictionForm;
+    for (friction_form, joint_limit_margin) in [(FrictionForm::Demand, 0.0), (FrictionForm::Ratio, 0.02)] {
+        feasibility_gradient_case(friction_form, joint_limit_margin);
+    }
+}
+
+fn feasibility_gradient_case(friction_form: legwork::ocp::FrictionForm, joint_limit_margin: f64) {
     use legwork::ocp::{settled_stance, FeasibilityConstraints, FeasibilitySettings, TaskSpec};
     use legwork::slq::KnotDerivatives;
     let text = "name = \"fd\"\nsummary = \"fd\"\nrobot = \"hyq\"\nduration = 0.01\ndt = 0.002\n[running]\nbase_position = [1.0, 1.0, 1.0]\n[final]\n[input]\nweight = 1e-4\n";
@@ -305,7 +313,7 @@ fn feasibility_constraint_gradients_match_finite_differences() {
     let ground = Plane::flat(0.0);
     let initial = settled_stance(&model, &ground, 0.3).unwrap();
     let mut problem = spec.problem(&model, &ground, initial.clone(), "fd.toml").unwrap();
-    let settings = FeasibilitySettings { friction_penalty: 1e6, penetration_penalty: 1e4, joint_limit_penalty: 1e4, joint_speed_penalty: 1e4, ..Default::default() };
+    let settings = FeasibilitySettings { friction_penalty: 1e6, penetration_penalty: 1e4, joint_limit_penalty: 1e4, joint_speed_penalty: 1e4, friction_form, joint_limit_margin, ..Default::default() };
     problem.feasibility = Some(FeasibilityConstraints::new(&model, problem.knots, settings).unwrap());
     let mut x = initial.clone();
     x.q[2] -= 0.006;
@@ -350,6 +358,6 @@ fn feasibility_constraint_gradients_match_finite_differences() {
         let h = 1e-7;
         let fd = (cost(&perturbed(&dx, h)) - cost(&perturbed(&dx, -h))) / (2.0 * h);
         let analytic = d.l_x.dot(&dx);
-        assert!((fd - analytic).abs() < 1e-4 * (1.0 + analytic.abs()), "direction {trial}: finite differences {fd} against l_x . dx = {analytic}");
+        assert!((fd - analytic).abs() < 1e-4 * (1.0 + analytic.abs()), "{friction_form:?}, direction {trial}: finite differences {fd} against l_x . dx = {analytic}");
     }
 }

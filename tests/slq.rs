@@ -320,6 +320,8 @@ fn a_diverging_initial_policy_is_reported() {
     assert!(err.to_string().contains("initial rollout"), "{err}");
     let bad = SlqSettings { alpha_divisor: 1.0, ..Default::default() };
     assert!(Slq::new(&p, bad).err().unwrap().to_string().contains("alpha_divisor"));
+    let bad = SlqSettings { short_step: 0.1, short_step_regularization_growth: 0.5, ..Default::default() };
+    assert!(Slq::new(&p, bad).err().unwrap().to_string().contains("short_step"));
 }
 
 /// A warm start from a solution reproduces that solution on its own problem (the first

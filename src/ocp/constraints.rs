@@ -55,11 +55,38 @@ pub struct FeasibilitySettings {
     /// each left squat_jump at apex 0.789 m and rearing 38 deg past a knee limit, the
     /// inner solves too short to converge (docs/experiments/feasible-slq.md).
     pub outer_rounds: usize,
+    /// The penalties are multiplied by this after each round's multiplier update (1: held).
+    pub penalty_growth: f64,
+    /// Grow only the penalties of the constraints violated at the update (per knot and
+    /// constraint), not all of them.
+    pub local_penalty_growth: bool,
+    /// The friction residual's unit ([`FrictionForm::Demand`]).
+    pub friction_form: FrictionForm,
+    /// The joint-limit constraints hold this far inside each limit (0 rad).
+    pub joint_limit_margin: f64,
+    /// The polish: after the task's own iterations, when the plan still violates a
+    /// constraint, one more augmented-Lagrangian round from the plan, its multipliers
+    /// updated first, of at most this share of the iterations spent so far (0.5; 0: none),
+    /// so a solve costs at most `1 + polish_share` times the iterations it did without
+    /// (docs/experiments/feasible-slq-3.md).
+    pub polish_share: f64,
+}
+
+/// How the friction residual is normalized.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrictionForm {
+    /// `(|T| - eta mu F_n) / (m g)`: a force, in the robot's weight.
+    Demand,
+    /// `(|T| - eta mu F_n) / (eta mu max(F_n, F_load))`, `F_load` a tenth of a foot's share
+    /// of the weight (the metrics' "loaded"): above `F_load` the ratio `|T| / (eta mu F_n) - 1`,
+    /// so a lightly loaded foot at the cone's edge costs what a heavily loaded one does (the
+    /// target counts knots, not newtons).
+    Ratio,
 }
 
 impl Default for FeasibilitySettings {
     fn default() -> Self {
-        Self { friction_margin: 0.75, max_penetration: 0.01, friction_penalty: 1e4, penetration_penalty: 1e3, joint_limit_penalty: 1e4, joint_speed_penalty: 1e3, outer_rounds: 1 }
+        Self { friction_margin: 0.75, max_penetration: 0.01, friction_penalty: 1e4, penetration_penalty: 1e3, joint_limit_penalty: 1e4, joint_speed_penalty: 1e3, outer_rounds: 1, penalty_growth: 1.0, local_penalty_growth: false, friction_form: FrictionForm::Demand, joint_limit_margin: 0.0, polish_share: 0.5 }
     }
 }
 
@@ -91,6 +118,15 @@ impl FeasibilitySettings {
         if self.outer_rounds == 0 {
             return bad("outer_rounds", "at least 1", 0.0);
         }
+        if !(self.penalty_growth.is_finite() && self.penalty_growth >= 1.0) {
+            return bad("penalty_growth", "a finite factor >= 1", self.penalty_growth);
+        }
+        if !(self.polish_share.is_finite() && self.polish_share >= 0.0) {
+            return bad("polish_share", "a finite share >= 0 of the iterations", self.polish_share);
+        }
+        if !(self.joint_limit_margin.is_finite() && self.joint_limit_margin >= 0.0) {
+            return bad("joint_limit_margin", "a finite angle >= 0 (rad)", self.joint_limit_margin);
+        }
         Ok(())
     }
 }
@@ -114,6 +150,9 @@ pub struct FeasibilityConstraints {
     /// `lambda`, knot-major: per knot the feet's friction and penetration, then each limited
     /// coordinate's upper and lower side, then the speeds.
     multipliers: Vec<f64>,
+    /// `rho` of each constraint (same order): the kind's penalty of `settings`, grown by
+    /// the outer rounds (all of them, or with `local_penalty_growth` those still violated).
+    penalties: Vec<f64>,
 }
 
 /// The largest violation of each kind over a trajectory (in the constraints' units:
@@ -140,7 +179,14 @@ impl FeasibilityConstraints {
         let speeds: Vec<SpeedLimit> = model.actuated_joints().filter(|j| j.limits.velocity[0].is_finite() && j.limits.velocity[0] > 0.0).map(|j| SpeedLimit { idx_v: j.idx_v, limit: j.limits.velocity[0] }).collect();
         let feet = model.feet.len();
         let per_knot = 2 * feet + 2 * coordinates.len() + speeds.len();
-        Ok(Self { settings, weight: model.total_mass() * 9.81, feet, coordinates, speeds, multipliers: vec![0.0; per_knot * (knots + 1)] })
+        let mut penalty_of_knot = Vec::with_capacity(per_knot);
+        for _ in 0..feet {
+            penalty_of_knot.extend([settings.friction_penalty, settings.penetration_penalty]);
+        }
+        penalty_of_knot.extend(std::iter::repeat_n(settings.joint_limit_penalty, 2 * coordinates.len()));
+        penalty_of_knot.extend(std::iter::repeat_n(settings.joint_speed_penalty, speeds.len()));
+        let penalties = penalty_of_knot.iter().copied().cycle().take(per_knot * (knots + 1)).collect();
+        Ok(Self { settings, weight: model.total_mass() * 9.81, feet, coordinates, speeds, multipliers: vec![0.0; per_knot * (knots + 1)], penalties })
     }
 
     fn per_knot(&self) -> usize {
@@ -156,8 +202,22 @@ impl FeasibilityConstraints {
         }
         let demand = tangential_demand(params, foot, anchor);
         let norm = demand.norm();
-        let residual = (norm - self.settings.friction_margin * params.friction * c.normal_force) / self.weight;
+        let residual = (norm - self.settings.friction_margin * params.friction * c.normal_force) / self.friction_unit(params, c.normal_force);
         Some((residual, demand))
+    }
+
+    /// The friction residual's denominator `D` at normal force `F_n` ([`FrictionForm`]).
+    fn friction_unit(&self, params: &ContactParams, normal_force: f64) -> f64 {
+        match self.settings.friction_form {
+            FrictionForm::Demand => self.weight,
+            FrictionForm::Ratio => self.settings.friction_margin * params.friction * normal_force.max(self.loaded_force()),
+        }
+    }
+
+    /// A tenth of a foot's share of the weight: a foot under this is not "loaded" (the
+    /// metrics' threshold).
+    fn loaded_force(&self) -> f64 {
+        0.1 * self.weight / self.feet.max(1) as f64
     }
 
     /// The residuals of knot `k`'s state, each with its multiplier and penalty, to `f(index,
@@ -167,23 +227,24 @@ impl FeasibilityConstraints {
         let s = &self.settings;
         let base = k * self.per_knot();
         let lambda = |i: usize| self.multipliers.get(base + i).copied().unwrap_or(0.0);
+        let rho = |i: usize| self.penalties.get(base + i).copied().unwrap_or(0.0);
         for (i, foot) in feet.iter().enumerate() {
             if let Some((c, _)) = self.friction_residual(params, foot, anchors[i].as_ref()) {
-                f(Residual::Friction(i), c, lambda(2 * i), s.friction_penalty);
+                f(Residual::Friction(i), c, lambda(2 * i), rho(2 * i));
             }
             if foot.contact.penetration > 0.0 {
-                f(Residual::Penetration(i), (foot.contact.penetration - s.max_penetration) / s.max_penetration, lambda(2 * i + 1), s.penetration_penalty);
+                f(Residual::Penetration(i), (foot.contact.penetration - s.max_penetration) / s.max_penetration, lambda(2 * i + 1), rho(2 * i + 1));
             }
         }
         let offset = 2 * self.feet;
         for (j, b) in self.coordinates.iter().enumerate() {
             let x = q[b.idx_q];
-            f(Residual::Upper(j), x - b.upper, lambda(offset + 2 * j), s.joint_limit_penalty);
-            f(Residual::Lower(j), b.lower - x, lambda(offset + 2 * j + 1), s.joint_limit_penalty);
+            f(Residual::Upper(j), x - (b.upper - s.joint_limit_margin), lambda(offset + 2 * j), rho(offset + 2 * j));
+            f(Residual::Lower(j), (b.lower + s.joint_limit_margin) - x, lambda(offset + 2 * j + 1), rho(offset + 2 * j + 1));
         }
         let offset = offset + 2 * self.coordinates.len();
         for (j, sp) in self.speeds.iter().enumerate() {
-            f(Residual::Speed(j), (v[sp.idx_v].abs() - sp.limit) / sp.limit, lambda(offset + j), s.joint_speed_penalty);
+            f(Residual::Speed(j), (v[sp.idx_v].abs() - sp.limit) / sp.limit, lambda(offset + j), rho(offset + j));
         }
     }
 
@@ -229,6 +290,14 @@ impl FeasibilityConstraints {
                 }
                 Residual::Friction(i) => {
                     scratch.fill(0.0);
+                    // c = (|T| - eta mu F_n) / D: dc = (d|T| - eta mu dF_n) / D, and where D
+                    // is eta mu F_n (the ratio form above F_load) also - c dD / D =
+                    // - c eta mu dF_n / D: together - eta mu (1 + c) dF_n / D.
+                    let unit = self.friction_unit(params, feet[i].contact.normal_force);
+                    let normal_factor = match self.settings.friction_form {
+                        FrictionForm::Ratio if feet[i].contact.normal_force > self.loaded_force() => 1.0 + c,
+                        _ => 1.0,
+                    };
                     let foot = &feet[i];
                     let Some((_, demand)) = self.friction_residual(params, foot, anchors[i].as_ref()) else { return };
                     let norm = demand.norm();
@@ -241,14 +310,14 @@ impl FeasibilityConstraints {
                     let n_t = foot.normal.transpose();
                     let eta_mu = self.settings.friction_margin * params.friction;
                     // dc/dp, dc/dpdot (rows), then through the foot Jacobians.
-                    let a_p: RowVector3<f64> = (dir * d.position - n_t * foot.contact.d_position * eta_mu) / self.weight;
-                    let a_v: RowVector3<f64> = (dir * d.velocity - n_t * foot.contact.d_velocity * eta_mu) / self.weight;
+                    let a_p: RowVector3<f64> = (dir * d.position - n_t * foot.contact.d_position * (eta_mu * normal_factor)) / unit;
+                    let a_v: RowVector3<f64> = (dir * d.velocity - n_t * foot.contact.d_velocity * (eta_mu * normal_factor)) / unit;
                     for j in 0..nv {
                         scratch[j] = a_p.dot(&jp.column(j).transpose()) + a_v.dot(&jd.column(j).transpose());
                         scratch[nv + j] = a_v.dot(&jp.column(j).transpose());
                     }
                     if anchor_states && anchors[i].is_some() {
-                        let a_a = dir * d.anchor / self.weight;
+                        let a_a = dir * d.anchor / unit;
                         for r in 0..ANCHOR_DIM {
                             scratch[2 * nv + ANCHOR_DIM * i + r] = a_a[r];
                         }
@@ -293,7 +362,7 @@ impl FeasibilityConstraints {
             Residual::Speed(j) => 2 * feet + 2 * coordinates + j,
         };
         let (nf, nc) = (self.feet, self.coordinates.len());
-        self.for_each_residual(k, at, |which, c, lambda, rho| updates.push((index(which, nf, nc), (lambda + rho * c).max(0.0))));
+        self.for_each_residual(k, at, |which, c, lambda, rho| updates.push((index(which, nf, nc), (lambda + rho * c).max(0.0), c > 0.0)));
         // A constraint not evaluated at this state (a foot off the ground) releases its
         // multiplier.
         for (i, foot) in feet.iter().enumerate() {
@@ -304,8 +373,12 @@ impl FeasibilityConstraints {
                 self.multipliers[base + 2 * i + 1] = 0.0;
             }
         }
-        for (i, lambda) in updates {
+        let grow_here = self.settings.local_penalty_growth;
+        for (i, lambda, violated) in updates {
             self.multipliers[base + i] = lambda;
+            if grow_here && violated {
+                self.penalties[base + i] *= self.settings.penalty_growth;
+            }
         }
     }
 
@@ -322,11 +395,22 @@ impl FeasibilityConstraints {
         });
     }
 
+    /// The penalties after an outer round: each multiplied by
+    /// [`FeasibilitySettings::penalty_growth`] (ALTRO's schedule).
+    pub fn grow_penalties(&mut self) {
+        if self.settings.local_penalty_growth {
+            return; // grown constraint by constraint in `update_multipliers`
+        }
+        let g = self.settings.penalty_growth;
+        self.penalties.iter_mut().for_each(|rho| *rho *= g);
+    }
+
     /// Multipliers of knots `0 .. knots` from a solution of another horizon with the same
     /// robot (a continuation stage): knot for knot, zero past its end.
     pub fn carry_multipliers_from(&mut self, other: &Self) {
         let n = self.multipliers.len().min(other.multipliers.len());
         self.multipliers[..n].copy_from_slice(&other.multipliers[..n]);
+        self.penalties[..n].copy_from_slice(&other.penalties[..n]);
     }
 }
 

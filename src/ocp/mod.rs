@@ -28,7 +28,7 @@ mod physical_gains;
 mod run;
 mod task;
 
-pub use constraints::{tangential_demand, FeasibilityConstraints, FeasibilitySettings, FeasibilitySettingsError, KnotContacts, Violation};
+pub use constraints::{tangential_demand, FeasibilityConstraints, FeasibilitySettings, FrictionForm, FeasibilitySettingsError, KnotContacts, Violation};
 pub use continuation::ContinuationSpec;
 pub use deviation::StateDeviation;
 pub use limit_cost::{JointLimitCost, JointLimitCostSpec};

@@ -264,7 +264,28 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
         }
         rounds.push(StageReport::of(spec.duration, &solution));
         problem.update_multipliers(&solution.states);
+        if let Some(constraints) = problem.feasibility.as_mut() {
+            constraints.grow_penalties();
+        }
         warm = Some(solution);
+    };
+    // The polish: one more round from the finished plan, the multipliers updated at its
+    // violations (and the penalties grown, if the settings grow them), of at most
+    // `polish_share` of the iterations spent so far. Unlike a split of the budget into
+    // rounds, the task's own solve is untouched and its target kept as the starting point.
+    let spent = stages.iter().chain(&rounds).map(|s| s.iterations).sum::<usize>() + solution.iterations.len();
+    let polish = problem.feasibility.as_ref().map_or(0, |c| (c.settings.polish_share * spent as f64).floor() as usize);
+    let violated = problem.constraint_violation(&solution.states).is_some_and(|v| v.max() > 0.0);
+    let solution = if polish > 0 && violated {
+        rounds.push(StageReport::of(spec.duration, &solution));
+        problem.update_multipliers(&solution.states);
+        if let Some(constraints) = problem.feasibility.as_mut() {
+            constraints.grow_penalties();
+        }
+        let report = |log: &IterationLog| on_iteration(SolveProgress { stage: None, log });
+        solve_from(&problem, settings(polish, flat_cost_tolerance), Some(&solution), &standing, report)?
+    } else {
+        solution
     };
     let violation = problem.constraint_violation(&solution.states);
     let plan = solution_trajectory(&problem, &solution, &format!("solve {}", spec.name));

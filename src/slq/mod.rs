@@ -63,6 +63,10 @@ pub struct SlqSettings {
     pub convergence_regularization: f64,
     /// Threads for the linearization (0 = rayon's default: one per core).
     pub threads: usize,
+    /// An accepted step shorter than this raises the regularization by
+    /// `short_step_regularization_growth` instead of lowering it tenfold (0: never).
+    pub short_step: f64,
+    pub short_step_regularization_growth: f64,
     /// How the input box of [`Problem::input_bounds`] is kept ([`ControlLimits::ProjectedRollout`]).
     pub control_limits: ControlLimits,
     /// The projected-Newton QP of [`ControlLimits::BoxQp`] ([`BoxQpSettings`]'s defaults).
@@ -104,6 +108,8 @@ impl Default for SlqSettings {
             min_regularization: 1e-10,
             max_regularization: 1e10,
             convergence_regularization: 1e-6,
+            short_step: 0.0,
+            short_step_regularization_growth: 10.0,
             threads: 0,
             control_limits: ControlLimits::ProjectedRollout,
             box_qp: BoxQpSettings::default(),
@@ -279,6 +285,9 @@ impl<'p, P: Problem> Slq<'p, P> {
     pub fn new(problem: &'p P, settings: SlqSettings) -> Result<Self, SlqError> {
         if settings.alpha_divisor.is_nan() || settings.alpha_divisor <= 1.0 {
             return Err(SlqError::Settings { field: "alpha_divisor", problem: format!("expected a number > 1, got {}", settings.alpha_divisor) });
+        }
+        if !((0.0..=1.0).contains(&settings.short_step) && settings.short_step_regularization_growth >= 1.0 && settings.short_step_regularization_growth.is_finite()) {
+            return Err(SlqError::Settings { field: "short_step", problem: format!("expected a step in [0, 1] and a finite growth >= 1, got {} and {}", settings.short_step, settings.short_step_regularization_growth) });
         }
         let (nx, nu, n) = (problem.nx(), problem.nu(), problem.horizon());
         if n == 0 {
@@ -641,7 +650,14 @@ impl<'p, P: Problem> Slq<'p, P> {
             let change = (cost - new_cost).abs() / cost.abs().max(1e-300);
             cost = new_cost;
             cost_history.push(cost);
-            self.regularization = (self.regularization / 10.0).max(self.settings.min_regularization);
+            // Levenberg-Marquardt on the accepted step: a full step says the local model holds
+            // (less regularization); a short one that it does not (more), so the poorly
+            // determined directions of `H` shrink instead of the whole step.
+            self.regularization = if alpha < self.settings.short_step {
+                (self.regularization * self.settings.short_step_regularization_growth).max(self.settings.min_regularization * 10.0)
+            } else {
+                (self.regularization / 10.0).max(self.settings.min_regularization)
+            };
             if small_step {
                 termination = Termination::Converged;
                 break;
