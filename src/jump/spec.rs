@@ -376,7 +376,7 @@ impl Jump {
     /// The reference script's problem (`../shared/anchors/nguyen2022/contact_timing.py`):
     /// [`Self::srb`] with the script's own displacement where the file's differs.
     pub fn reference_srb(&self) -> JumpSpec {
-        JumpSpec { displacement: self.reference_displacement.unwrap_or(self.displacement), ..self.srb() }
+        self.reference().srb()
     }
 
     /// This jump with the reference script's target (see [`Self::reference_srb`]).

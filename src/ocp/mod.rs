@@ -318,6 +318,16 @@ impl WholeBodyProblem<'_> {
         self.for_each_knot_contact(states, |k, x, params, feet| constraints.update_multipliers(k, KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params, feet }));
         self.feasibility = Some(constraints);
     }
+
+    /// The augmented-Lagrangian update between two rounds on the same horizon: the
+    /// multipliers at `states` ([`Self::update_multipliers`]), then the penalties grown
+    /// ([`FeasibilityConstraints::grow_penalties`]).
+    pub fn next_outer_round(&mut self, states: &[RobotState]) {
+        self.update_multipliers(states);
+        if let Some(constraints) = self.feasibility.as_mut() {
+            constraints.grow_penalties();
+        }
+    }
 }
 
 impl<'a> Problem for WholeBodyProblem<'a> {

@@ -263,10 +263,7 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
             break solution;
         }
         rounds.push(StageReport::of(spec.duration, &solution));
-        problem.update_multipliers(&solution.states);
-        if let Some(constraints) = problem.feasibility.as_mut() {
-            constraints.grow_penalties();
-        }
+        problem.next_outer_round(&solution.states);
         warm = Some(solution);
     };
     // The polish: one more round from the finished plan, the multipliers updated at its
@@ -278,10 +275,7 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     let violated = problem.constraint_violation(&solution.states).is_some_and(|v| v.max() > 0.0);
     let solution = if polish > 0 && violated {
         rounds.push(StageReport::of(spec.duration, &solution));
-        problem.update_multipliers(&solution.states);
-        if let Some(constraints) = problem.feasibility.as_mut() {
-            constraints.grow_penalties();
-        }
+        problem.next_outer_round(&solution.states);
         let report = |log: &IterationLog| on_iteration(SolveProgress { stage: None, log });
         solve_from(&problem, settings(polish, flat_cost_tolerance), Some(&solution), &standing, report)?
     } else {
