@@ -43,7 +43,9 @@ fn main() -> anyhow::Result<()> {
     for file in &selected {
         // With a results file: the script's own problem, to compare like with like.
         let jump = if reference.is_some() { file.reference_srb() } else { file.srb() };
-        let settings = ContactTimingSettings { exp_map, ..file.contact_timing.clone() };
+        // The script has no stance-speed bound.
+        let max_stance_speed = if reference.is_some() { f64::INFINITY } else { file.contact_timing.max_stance_speed };
+        let settings = ContactTimingSettings { exp_map, max_stance_speed, ..file.contact_timing.clone() };
         let ct = ContactTimingProblem::new(&jump, &params, &settings)?;
         let mut solver = ct.solver(Settings { verbose, ..Settings::default() })?;
         let mut times = Vec::new();

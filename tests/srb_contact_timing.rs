@@ -100,8 +100,9 @@ fn lateral_jump_reaches_the_reference_optimum() {
     let t_ref: Vec<f64> = r0["T_opt_s"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
     let params = SrbParams::a1().unwrap();
     let jump = Jump::embedded("lateral").unwrap().reference_srb();
-    // The script's exponential is the paper's 4th-order Taylor polynomial.
-    let settings = ContactTimingSettings { exp_map: ExpMap::Taylor4, ..Default::default() };
+    // The script's exponential is the paper's 4th-order Taylor polynomial; it has no
+    // stance-speed bound.
+    let settings = ContactTimingSettings { exp_map: ExpMap::Taylor4, max_stance_speed: f64::INFINITY, ..Default::default() };
     let ct = ContactTimingProblem::new(&jump, &params, &settings).unwrap();
     let mut solver = ct.solver(Settings::default()).unwrap();
     let r = ct.solve(&mut solver).unwrap();
@@ -112,4 +113,27 @@ fn lateral_jump_reaches_the_reference_optimum() {
     for (a, b) in t.iter().zip(&t_ref) {
         assert!((a - b).abs() < 1e-4, "T {t:?} vs {t_ref:?}");
     }
+}
+
+/// spin_90 leaves the ground within the stance-speed bound; without it the cost (a smaller
+/// `Omega` over a longer flight) sends the flight to the time bound with a take-off no A1
+/// leg delivers within its joint limits.
+#[test]
+fn the_stance_speed_bound_holds_the_take_off_of_spin_90() {
+    let params = SrbParams::a1().unwrap();
+    let jump = Jump::embedded("spin_90").unwrap().srb();
+    let lift_off_speed = |max_stance_speed: f64| {
+        let settings = ContactTimingSettings { knots_per_phase: 15, max_stance_speed, ..Default::default() };
+        let ct = ContactTimingProblem::new(&jump, &params, &settings).unwrap();
+        let mut solver = ct.solver(Settings::default()).unwrap();
+        let r = ct.solve(&mut solver).unwrap();
+        assert_eq!(r.status, Status::Solved, "max_stance_speed {max_stance_speed}: after {} iterations", r.iterations);
+        let speeds: Vec<f64> = (0..=ct.knots_per_phase).map(|k| r.last.primal[k].rows(3, 3).amax()).collect();
+        (speeds.iter().copied().fold(0.0, f64::max), ct.durations(&r.last.primal))
+    };
+    let (bounded, t_bounded) = lift_off_speed(ContactTimingSettings::default().max_stance_speed);
+    let (free, t_free) = lift_off_speed(f64::INFINITY);
+    assert!(bounded <= 1.5 + 1e-6, "stance speed {bounded} m/s over the 1.5 m/s bound (T {t_bounded:?})");
+    assert!(free > 2.5, "without the bound the take-off is {free} m/s (T {t_free:?})");
+    assert!(t_bounded[1] < t_free[1] - 0.1, "flight {t_bounded:?} vs {t_free:?}");
 }
