@@ -5,8 +5,13 @@
 //! ```text
 //! cargo run --release --example fullbody -- [--repeats 3] [--no-box] [--overhang 0.01]
 //!     [--pre-landing 10] [--parallel] [--max-iterations 300] [--verbose] [--limits]
-//!     [--no-restoration] [--plain-guess] [--reference-targets] [jump ...]
+//!     [--no-restoration] [--plain-guess] [--reference-targets] [--w-acceleration W]
+//!     [--max-acceleration A] [--w-velocity W] [--max-stance-speed V] [--out DIR] [jump ...]
 //! ```
+//!
+//! `--w-acceleration`, `--max-acceleration`, `--w-velocity` override the settings' joint
+//! acceleration weight and bound and velocity weight; `--out DIR` writes each plan to
+//! `DIR/<jump>.json` (for `jump_trials` and `jump_momentum`).
 //!
 //! The box of a jump from a platform is the jump file's (as `legwork jump` has it), or with
 //! `--overhang` the start feet's footprint grown by that much in x and y; its top under the
@@ -34,6 +39,11 @@ fn main() -> anyhow::Result<()> {
     let mut parallel = false;
     let mut max_iterations = None;
     let mut names = Vec::new();
+    let mut w_acceleration = None;
+    let mut max_acceleration = None;
+    let mut w_velocity = None;
+    let mut out_dir: Option<String> = None;
+    let mut max_stance_speed = None;
     while let Some(a) = args.next() {
         match a.as_str() {
             "--repeats" => repeats = args.next().ok_or_else(|| anyhow::anyhow!("--repeats: a number"))?.parse()?,
@@ -47,6 +57,11 @@ fn main() -> anyhow::Result<()> {
             "--parallel" => parallel = true,
             "--max-iterations" => max_iterations = Some(args.next().ok_or_else(|| anyhow::anyhow!("--max-iterations: a number"))?.parse()?),
             "--limits" => show_limits = true,
+            "--w-acceleration" => w_acceleration = Some(args.next().ok_or_else(|| anyhow::anyhow!("--w-acceleration: a weight"))?.parse::<f64>()?),
+            "--max-acceleration" => max_acceleration = Some(args.next().ok_or_else(|| anyhow::anyhow!("--max-acceleration: rad/s^2"))?.parse::<f64>()?),
+            "--w-velocity" => w_velocity = Some(args.next().ok_or_else(|| anyhow::anyhow!("--w-velocity: a weight"))?.parse::<f64>()?),
+            "--max-stance-speed" => max_stance_speed = Some(args.next().ok_or_else(|| anyhow::anyhow!("--max-stance-speed: m/s"))?.parse::<f64>()?),
+            "--out" => out_dir = Some(args.next().ok_or_else(|| anyhow::anyhow!("--out: a directory"))?),
             _ => names.push(a),
         }
     }
@@ -56,6 +71,9 @@ fn main() -> anyhow::Result<()> {
     let settings = FullBodySettings {
         solver: Settings { verbose, parallel, restoration, max_iterations: max_iterations.unwrap_or(defaults.solver.max_iterations), ..defaults.solver.clone() },
         pre_landing_knots: pre_landing.unwrap_or(defaults.pre_landing_knots),
+        w_acceleration: w_acceleration.unwrap_or(defaults.w_acceleration),
+        max_joint_acceleration: max_acceleration.unwrap_or(defaults.max_joint_acceleration),
+        w_velocity: w_velocity.unwrap_or(defaults.w_velocity),
         ..defaults
     };
     // The files' jumps under the reference script's names.
@@ -69,7 +87,9 @@ fn main() -> anyhow::Result<()> {
     let selected: Vec<_> = if names.is_empty() { all.clone() } else { all.iter().filter(|(j, _)| names.iter().any(|n| n == j.name)).cloned().collect() };
     println!("jump                 T (10 ms)     box     status             iters (resto)  median s   (min s)  eval s  kkt s   viol      limits  binding");
     for (jump, file_box) in &selected {
-        let ct = ContactTimingProblem::new(jump, &params, &ContactTimingSettings::default())?;
+        let ct_defaults = ContactTimingSettings::default();
+        let ct_settings = ContactTimingSettings { max_stance_speed: max_stance_speed.unwrap_or(ct_defaults.max_stance_speed), ..ct_defaults };
+        let ct = ContactTimingProblem::new(jump, &params, &ct_settings)?;
         let mut solver = ct.solver(Settings::default())?;
         let r = ct.solve(&mut solver)?;
         let srb = SrbTrajectory::from_solution(&ct, &r.last.primal)?.resample(settings.dt)?;
@@ -111,6 +131,10 @@ fn main() -> anyhow::Result<()> {
             if plan.limits.all_met(1e-6) { "met" } else { "VIOLATED" },
             plan.limits.binding(1e-3).join(", ")
         );
+        if let Some(dir) = &out_dir {
+            std::fs::create_dir_all(dir)?;
+            plan.trajectory.save_file(format!("{dir}/{}.json", jump.name))?;
+        }
         if show_limits {
             println!("{}", plan.limits);
             for (kind, v) in &rep.max_violation {

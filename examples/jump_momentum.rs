@@ -3,8 +3,10 @@
 //! CoM, world axes) of the plan and of the nominal run under the jump controllers.
 //!
 //! ```text
-//! cargo run --release --example jump_momentum -- PLAN.json [FROM_S TO_S]
+//! cargo run --release --example jump_momentum -- PLAN.json [FROM_S TO_S] [--jump NAME]
 //! ```
+//!
+//! `--jump NAME` runs on the embedded jump's terrain (its box); flat ground otherwise.
 
 use anyhow::Context;
 use legwork::dynamics::{base_orientation, centroidal_momentum, Data};
@@ -15,12 +17,20 @@ use legwork::terrain::Plane;
 use nalgebra::DVector;
 
 fn main() -> anyhow::Result<()> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let terrain: Box<dyn legwork::terrain::Terrain> = match args.iter().position(|a| a == "--jump") {
+        Some(i) => {
+            let name = args.get(i + 1).context("--jump: a jump name")?.clone();
+            args.drain(i..i + 2);
+            Box::new(legwork::jump::Jump::embedded(&name)?.terrain())
+        }
+        None => Box::new(Plane::flat(0.0)),
+    };
     let plan = Trajectory::load_file(args.first().context("usage: jump_momentum PLAN.json [FROM TO]")?)?;
     let from: f64 = args.get(1).map(|s| s.parse()).transpose()?.unwrap_or(0.0);
     let to: f64 = args.get(2).map(|s| s.parse()).transpose()?.unwrap_or(f64::INFINITY);
     let model = embedded::load("a1")?;
-    let run = run_jump(&model, &Plane::flat(0.0), &plan, &JumpSettings::default())?;
+    let run = run_jump(&model, terrain.as_ref(), &plan, &JumpSettings::default())?;
     println!("run: lift-off {:?} touch-down {:?} fell {}", run.lift_off, run.touch_down, run.fell);
     let mut data = Data::new(&model);
     let mut describe = |k: &legwork::io::Knot| {

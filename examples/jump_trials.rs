@@ -7,7 +7,10 @@
 //! cargo run --release --example jump_trials -- drop:HEIGHT:VY [TRIALS]
 //! cargo run --release --example jump_trials -- guess:JUMP [TRIALS]
 //! cargo run --release --example jump_trials -- solved:JUMP [TRIALS]
+//! cargo run --release --example jump_trials -- REFERENCE.json [TRIALS] --jump NAME
 //! ```
+//!
+//! `--jump NAME` runs on the embedded jump's terrain (its box); flat ground otherwise.
 //!
 //! `REFERENCE.json` is a trajectory file (`io::Trajectory`, 10 ms knots) of the full-body
 //! optimization; `drop:0.15:0.6` is the built-in ballistic reference
@@ -71,7 +74,15 @@ fn initial_guess_reference(model: &legwork::model::Model, name: &str, solve: boo
 }
 
 fn main() -> anyhow::Result<()> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let terrain: Box<dyn legwork::terrain::Terrain> = match args.iter().position(|a| a == "--jump") {
+        Some(i) => {
+            let name = args.get(i + 1).context("--jump: a jump name")?.clone();
+            args.drain(i..i + 2);
+            Box::new(legwork::jump::Jump::embedded(&name)?.terrain())
+        }
+        None => Box::new(Plane::flat(0.0)),
+    };
     let Some(source) = args.first() else { bail!("usage: jump_trials REFERENCE.json|drop:HEIGHT:VY [TRIALS]") };
     let trials: usize = args.get(1).map(|s| s.parse()).transpose().context("TRIALS must be a whole number")?.unwrap_or(20);
     let model = embedded::load("a1")?;
@@ -94,13 +105,13 @@ fn main() -> anyhow::Result<()> {
         reference.save_file(&path)?;
     }
     let start = std::time::Instant::now();
-    let nominal = run_jump(&model, &ground, &reference, &settings)?;
+    let nominal = run_jump(&model, terrain.as_ref(), &reference, &settings)?;
     println!("reference {source}: {} knots, {:.2} s; target ({:.3}, {:.3}) m, yaw {:.1} deg", reference.knots.len(), reference.duration(), nominal.target.position.x, nominal.target.position.y, nominal.target.yaw.to_degrees());
     row("nominal", &nominal, None);
     println!("(nominal run: {:.2} s wall)", start.elapsed().as_secs_f64());
     let trial_settings = TrialSettings { trials, ..TrialSettings::default() };
     let start = std::time::Instant::now();
-    let report = run_trials(&model, &ground, &reference, &settings, &trial_settings)?;
+    let report = run_trials(&model, terrain.as_ref(), &reference, &settings, &trial_settings)?;
     for o in &report.outcomes {
         row(&format!("seed {}", o.seed), &o.run, Some(o.success));
         println!("         mass x{:.4}, base offset ({:+.1}, {:+.1}) mm", o.mass_ratio, 1e3 * o.base_offset.x, 1e3 * o.base_offset.y);

@@ -162,6 +162,41 @@ fn stage_derivatives_match_finite_differences() {
     }
 }
 
+/// The joint-acceleration cost and bound (off by default): derivatives against central
+/// differences, and the cost's Gauss-Newton term `2 w J^T J` in the Hessian.
+#[test]
+fn joint_acceleration_cost_and_bound_derivatives_match_finite_differences() {
+    let model = embedded::load("a1").unwrap();
+    let srb = srb_solution("lateral30").resample(0.01).unwrap();
+    let plain = FullBodySettings::default();
+    let settings = FullBodySettings { w_acceleration: 1e-6, max_joint_acceleration: 500.0, ..plain.clone() };
+    let guess = initial_guess(&model, &srb, settings.pre_landing_knots).unwrap();
+    let fb = FullBodyProblem::new(&model, &srb, &guess, &settings, None).unwrap();
+    let fb_plain = FullBodyProblem::new(&model, &srb, &guess, &plain, None).unwrap();
+    let mut rng = Lcg(11);
+    let n = fb.problem.len();
+    let lift_off = fb.anchors().iter().rposition(|a| a[0].is_some()).unwrap();
+    for k in [1, lift_off, lift_off + 2, n - 2, n - 1] {
+        let stage = fb.problem.stage(k);
+        let d = stage.dims();
+        // 12 acceleration rows on every knot with dynamics.
+        assert_eq!(d.nh, fb_plain.problem.stage(k).dims().nh + if k < n - 1 { 12 } else { 0 });
+        check_stage(stage, &fb.start[k], &mut rng);
+        if k < n - 1 {
+            let z = fb.start[k].as_slice();
+            let none = vec![0.0; d.nx_next.max(d.ng).max(d.nh)];
+            let hessian = |s: &dyn Stage, nh: usize| {
+                let m = StageMultipliers { cost: 1.0, dynamics: &none[..d.nx_next], equalities: &none[..d.ng], inequalities: &none[..nh] };
+                let mut h = DMatrix::zeros(d.nz(), d.nz());
+                s.lagrangian_hessian(z, m, &mut h);
+                h
+            };
+            let extra = hessian(stage, d.nh) - hessian(fb_plain.problem.stage(k), fb_plain.problem.stage(k).dims().nh);
+            assert!(extra.trace() > 0.0 && extra.symmetric_eigenvalues().min() > -1e-9, "knot {k}: the acceleration term is not 2 w J^T J");
+        }
+    }
+}
+
 #[test]
 fn lateral_jump_solves_end_to_end_within_every_limit() {
     let (fb, _) = lateral_problem(None);

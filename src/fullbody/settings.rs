@@ -78,6 +78,16 @@ pub struct FullBodySettings {
     pub w_velocity: f64,
     pub w_torque: f64,
     pub w_force: f64,
+    /// Weight of the joint accelerations `|qdd_j|^2` of every interval (`qdd` the step's ABA
+    /// output, s^4 / rad^2; 0 = off). Why: the semi-implicit step carries angular momentum
+    /// over a flight interval with an error `O(dt^2 |v| |qdd|)`; with the legs free to
+    /// reverse at the joint-speed limit within one 10 ms step (2000-4000 rad/s^2 without
+    /// it) the optimizer gains rotation in the air that the continuous dynamics (the
+    /// simulator, MuJoCo) do not have (docs/experiments/jump-spin.md).
+    pub w_acceleration: f64,
+    /// Bound on every joint acceleration `|qdd_j|` of every interval (rad/s^2; infinite =
+    /// no rows): the same error bounded as a constraint.
+    pub max_joint_acceleration: f64,
     /// The interior-point solver's settings (`ipocp` defaults, 300 iterations at most,
     /// optimality tolerance 1e-6, constraint violation 1e-6; `parallel` off: on this shared
     /// 2-core machine under load it measured no faster).
@@ -102,6 +112,8 @@ impl Default for FullBodySettings {
             w_velocity: 1e-3,
             w_torque: 1e-3,
             w_force: 1e-4,
+            w_acceleration: 0.0,
+            max_joint_acceleration: f64::INFINITY,
             solver: Settings { max_iterations: 300, tolerance: 1e-6, constraint_violation_tolerance: 1e-6, ..Settings::default() },
         }
     }
@@ -130,9 +142,11 @@ impl FullBodySettings {
             ("w_base_position", self.w_base_position),
             ("w_base_orientation", self.w_base_orientation),
             ("w_joint", self.w_joint),
+            ("w_acceleration", self.w_acceleration),
         ] {
             check(field, v, v >= 0.0 && v.is_finite(), ">= 0")?;
         }
+        check("max_joint_acceleration", self.max_joint_acceleration, self.max_joint_acceleration > 0.0 && !self.max_joint_acceleration.is_nan(), "> 0 (infinite: no bound)")?;
         // Positive weights on every control and velocity keep the Gauss-Newton Hessian definite.
         for (field, v) in [("w_velocity", self.w_velocity), ("w_torque", self.w_torque), ("w_force", self.w_force)] {
             check(field, v, v > 0.0 && v.is_finite(), "> 0")?;

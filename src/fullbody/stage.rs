@@ -81,6 +81,7 @@ pub enum ConstraintKind {
     JointAngle,
     JointVelocity,
     Torque,
+    JointAcceleration,
     FrictionCone,
     MinNormalForce,
     TrunkClearance,
@@ -94,6 +95,7 @@ impl ConstraintKind {
             Self::JointAngle => "joint angle",
             Self::JointVelocity => "joint velocity",
             Self::Torque => "torque",
+            Self::JointAcceleration => "joint acceleration",
             Self::FrictionCone => "friction cone",
             Self::MinNormalForce => "min normal force",
             Self::TrunkClearance => "trunk clearance",
@@ -132,6 +134,10 @@ struct Workspace {
     corner_jac: [Matrix3xX<f64>; 8],
     com_jac: Matrix3xX<f64>,
     row: DVector<f64>,
+    /// `d qdd_j / dz` (the joints' rows of `d v' / dz` over `dt`) and the `z` it was taken
+    /// at: the Gauss-Newton term of the acceleration cost reuses the Jacobian pass's.
+    acceleration_jac: DMatrix<f64>,
+    acceleration_z: DVector<f64>,
 }
 
 pub(crate) struct FullBodyStage {
@@ -189,6 +195,8 @@ impl FullBodyStage {
             corner_jac: std::array::from_fn(|_| Matrix3xX::zeros(nv)),
             com_jac: Matrix3xX::zeros(nv),
             row: DVector::zeros(nv),
+            acceleration_jac: DMatrix::zeros(nv - 6, 2 * nv + nu),
+            acceleration_z: DVector::from_element(2 * nv + nu, f64::NAN),
         };
         Self { dims: StageDims { nx: 2 * nv, nu, nx_next, ng, nh }, shared, spec, ws: Mutex::new(ws) }
     }
@@ -202,6 +210,9 @@ impl FullBodyStage {
         k.extend(std::iter::repeat_n(JointVelocity, nj));
         if !spec.last {
             k.extend(std::iter::repeat_n(Torque, nj));
+            if shared.settings.max_joint_acceleration.is_finite() {
+                k.extend(std::iter::repeat_n(JointAcceleration, nj));
+            }
             for _ in 0..nc {
                 k.extend([FrictionCone; 4]);
                 k.push(MinNormalForce);
@@ -260,6 +271,12 @@ impl Stage for FullBodyStage {
             for j in 0..nj {
                 (lower[r], upper[r]) = (-sh.torque_limit[j], sh.torque_limit[j]);
                 r += 1;
+            }
+            if s.max_joint_acceleration.is_finite() {
+                for _ in 0..nj {
+                    (lower[r], upper[r]) = (-s.max_joint_acceleration, s.max_joint_acceleration);
+                    r += 1;
+                }
             }
             for _ in 0..self.n_contacts() {
                 for _ in 0..4 {
@@ -339,6 +356,7 @@ impl Stage for FullBodyStage {
             }
             ws.v.copy_from_slice(v);
             aba(model, &mut ws.data, &ws.q, &ws.v, &ws.tau);
+            out.cost += s.w_acceleration * sq(&ws.data.ddq.as_slice()[6..]);
             ws.v_next.copy_from(&ws.v);
             ws.v_next.axpy(s.dt, &ws.data.ddq, 1.0);
             ws.step.copy_from(&ws.v_next);
@@ -388,6 +406,13 @@ impl Stage for FullBodyStage {
             for j in 0..nj {
                 h[r] = z[2 * nv + j];
                 r += 1;
+            }
+            if s.max_joint_acceleration.is_finite() {
+                // ws.data.ddq: the ABA of the dynamics above.
+                for j in 0..nj {
+                    h[r] = ws.data.ddq[6 + j];
+                    r += 1;
+                }
             }
             for f in 0..4 {
                 if let Some(l) = self.force(z, f) {
@@ -558,6 +583,18 @@ impl Stage for FullBodyStage {
             ws.dq_next_dz.columns_mut(0, nv).gemm(1.0, &ws.jq_step, &ws.jd, 1.0);
             out.dynamics.rows_mut(0, nv).gemm(1.0, &ws.jl, &ws.dq_next_dz, 0.0);
             out.dynamics.rows_mut(nv, nv).copy_from(&ws.dv_dz);
+            // Joint accelerations qdd_j = (v'_j - v_j) / dt: their Jacobian, the cost's gradient
+            // 2 w J^T qdd_j (ws.data.ddq: the ABA of compute_aba_derivatives).
+            ws.acceleration_jac.copy_from(&ws.dv_dz.rows(6, nj));
+            for j in 0..nj {
+                ws.acceleration_jac[(j, nv + 6 + j)] -= 1.0;
+            }
+            ws.acceleration_jac /= dt;
+            ws.acceleration_z.copy_from_slice(z);
+            if s.w_acceleration > 0.0 {
+                let qdd = ws.data.ddq.rows(6, nj);
+                out.cost_gradient.gemv_tr(2.0 * s.w_acceleration, &ws.acceleration_jac, &qdd, 1.0);
+            }
         }
         // Equalities.
         let g = &mut out.equalities;
@@ -607,6 +644,10 @@ impl Stage for FullBodyStage {
             for j in 0..nj {
                 h[(r, 2 * nv + j)] = 1.0;
                 r += 1;
+            }
+            if s.max_joint_acceleration.is_finite() {
+                h.rows_mut(r, nj).copy_from(&ws.acceleration_jac);
+                r += nj;
             }
             for f in 0..4 {
                 if let Some(i) = self.force_index(f) {
@@ -686,6 +727,15 @@ impl Stage for FullBodyStage {
         let nv = model.nv;
         let nj = nv - 6;
         let w = multipliers.cost;
+        let with_acceleration = s.w_acceleration > 0.0 && !self.spec.last;
+        if with_acceleration {
+            let cached = self.ws.lock().unwrap_or_else(|e| e.into_inner()).acceleration_z.as_slice() == z;
+            if !cached {
+                // ipocp asks for the Hessian right after the Jacobians at the same z; anything
+                // else takes this (allocating) detour.
+                self.jacobians(z, &mut StageJacobians::zeros(self.dims));
+            }
+        }
         let mut guard = self.ws.lock().unwrap_or_else(|e| e.into_inner());
         let ws = &mut *guard;
         ws.dq.copy_from_slice(&z[..nv]);
@@ -717,6 +767,9 @@ impl Stage for FullBodyStage {
                     }
                 }
             }
+        }
+        if with_acceleration {
+            out.gemm_tr(2.0 * s.w_acceleration * w, &ws.acceleration_jac, &ws.acceleration_jac, 1.0);
         }
     }
 }
