@@ -33,7 +33,7 @@
 
 use super::elimination::RowReduction;
 use super::stage::StageDims;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DMatrixView, DMatrixViewMut, DVector, Dyn};
 
 /// The QP data of one stage (filled by the solver each iteration).
 #[derive(Clone, Debug)]
@@ -85,6 +85,13 @@ impl StageStep {
             equality_multiplier: DVector::zeros(dims.ng),
         }
     }
+
+    /// Copies `other` (of the same sizes) into `self` without allocating.
+    pub fn copy_from(&mut self, other: &StageStep) {
+        self.dz.copy_from(&other.dz);
+        self.dynamics_multiplier.copy_from(&other.dynamics_multiplier);
+        self.equality_multiplier.copy_from(&other.equality_multiplier);
+    }
 }
 
 /// Why a Riccati solve stopped.
@@ -110,10 +117,8 @@ struct ConstrainedPolicy {
     /// `Z^T (S + R K_c)` and `Z^T (r + R k_c)`.
     reduced_cross: DMatrix<f64>,
     reduced_linear: DVector<f64>,
-    /// `Z^T` and `M_uu Z` (`nu x nu`, leading blocks used).
-    null_basis_t: DMatrix<f64>,
+    /// `M_uu Z` (`nu x nu`, leading columns used).
     rz: DMatrix<f64>,
-    rz_t: DMatrix<f64>,
 }
 
 impl ConstrainedPolicy {
@@ -126,9 +131,7 @@ impl ConstrainedPolicy {
             reduced: DMatrix::zeros(nu, nu),
             reduced_cross: DMatrix::zeros(nu, nx),
             reduced_linear: DVector::zeros(nu),
-            null_basis_t: DMatrix::zeros(nu, nu),
             rz: DMatrix::zeros(nu, nu),
-            rz_t: DMatrix::zeros(nu, nu),
         }
     }
 
@@ -169,39 +172,51 @@ impl ConstrainedPolicy {
                 self.null_basis[(orig, i - r)] = 1.0;
             }
         }
-        if nf > 0 {
+        if r == 0 {
+            // No row fixes a control: Z = I, K_c = 0, k_c = 0, and the reduced problem is
+            // the unconstrained one, K = -M_uu^{-1} M_ux, k = -M_uu^{-1} m_u (no products
+            // with Z).
+            self.reduced.copy_from(&m.view((nx, nx), (nu, nu)));
+            self.reduced_cross.copy_from(&m.view((nx, 0), (nu, nx)));
+            self.reduced_linear.copy_from(&mv.rows(nx, nu));
+            if !cholesky_in_place(&mut self.reduced, nu) {
+                return false;
+            }
+            let ld = self.reduced_cross.nrows();
+            for col in 0..nx {
+                cholesky_solve_in_place(&self.reduced, nu, &mut self.reduced_cross.as_mut_slice()[col * ld..col * ld + nu]);
+            }
+            cholesky_solve_in_place(&self.reduced, nu, self.reduced_linear.as_mut_slice());
+            self.gain.copy_from(&self.reduced_cross);
+            self.gain.neg_mut();
+            self.feedforward.copy_from(&self.reduced_linear);
+            self.feedforward.neg_mut();
+        } else if nf > 0 {
             let z = self.null_basis.columns(0, nf);
             let m_uu = m.view((nx, nx), (nu, nu));
             let m_ux = m.view((nx, 0), (nu, nx));
-            let mut zt = self.null_basis_t.view_mut((0, 0), (nf, nu));
-            z.transpose_to(&mut zt);
-            let mut rz = self.rz.view_mut((0, 0), (nu, nf));
-            rz.gemm(1.0, &m_uu, &z, 0.0);
-            let mut rzt = self.rz_t.view_mut((0, 0), (nf, nu));
-            rz.transpose_to(&mut rzt);
-            let zt = self.null_basis_t.view((0, 0), (nf, nu));
-            let rzt = self.rz_t.view((0, 0), (nf, nu));
+            self.rz.view_mut((0, 0), (nu, nf)).gemm(1.0, &m_uu, &z, 0.0);
+            let rz = self.rz.view((0, 0), (nu, nf));
+            // Z^T and (M_uu Z)^T read in place, not copied.
             let mut red_h = self.reduced.view_mut((0, 0), (nf, nf));
-            red_h.gemm(1.0, &zt, &rz, 0.0);
+            add_at_b(&mut red_h, &self.null_basis, (0, 0), (nu, nf), &rz, 0.0);
             // Z^T (S + R K_c) = Z^T S + (R Z)^T K_c, symmetric R.
             let mut cross = self.reduced_cross.rows_mut(0, nf);
-            cross.gemm(1.0, &zt, &m_ux, 0.0);
-            cross.gemm(1.0, &rzt, &self.gain, 1.0);
+            add_at_b(&mut cross, &self.null_basis, (0, 0), (nu, nf), &m_ux, 0.0);
+            add_at_b(&mut cross, &self.rz, (0, 0), (nu, nf), &self.gain.columns(0, nx), 1.0);
             let mut lin = self.reduced_linear.rows_mut(0, nf);
-            lin.gemv(1.0, &zt, &mv.rows(nx, nu), 0.0);
-            lin.gemv(1.0, &rzt, &self.feedforward, 1.0);
+            lin.gemv_tr(1.0, &z, &mv.rows(nx, nu), 0.0);
+            lin.gemv_tr(1.0, &rz, &self.feedforward, 1.0);
             if !cholesky_in_place(&mut self.reduced, nf) {
                 return false;
             }
             // w = -(Z^T R Z)^{-1} [cross | lin]; K -= Z (.), k -= Z (.)
-            let l = self.reduced.view((0, 0), (nf, nf));
-            let mut cross = self.reduced_cross.rows_mut(0, nf);
-            let mut lin = self.reduced_linear.rows_mut(0, nf);
             // L L^T x = b: the factor is in the lower triangle (the upper one is stale).
-            l.solve_lower_triangular_mut(&mut cross);
-            l.tr_solve_lower_triangular_mut(&mut cross);
-            l.solve_lower_triangular_mut(&mut lin);
-            l.tr_solve_lower_triangular_mut(&mut lin);
+            let ld = self.reduced_cross.nrows();
+            for col in 0..nx {
+                cholesky_solve_in_place(&self.reduced, nf, &mut self.reduced_cross.as_mut_slice()[col * ld..col * ld + nf]);
+            }
+            cholesky_solve_in_place(&self.reduced, nf, &mut self.reduced_linear.as_mut_slice()[..nf]);
             let z = self.null_basis.columns(0, nf);
             self.gain.gemm(-1.0, &z, &self.reduced_cross.rows(0, nf), 1.0);
             self.feedforward.gemv(-1.0, &z, &self.reduced_linear.rows(0, nf), 1.0);
@@ -231,6 +246,52 @@ fn cholesky_in_place(a: &mut DMatrix<f64>, n: usize) -> bool {
         }
     }
     true
+}
+
+/// Solves `L L^T x = b` in place with the factor of [`cholesky_in_place`] (leading `n x n`
+/// lower triangle of `l`), sweeping down the factor's contiguous columns.
+fn cholesky_solve_in_place(l: &DMatrix<f64>, n: usize, x: &mut [f64]) {
+    let ld = l.nrows();
+    let f = l.as_slice();
+    let x = &mut x[..n];
+    // L y = b
+    for k in 0..n {
+        let col = &f[k * ld..k * ld + n];
+        let yk = x[k] / col[k];
+        x[k] = yk;
+        for (xi, l) in x[k + 1..].iter_mut().zip(&col[k + 1..]) {
+            *xi -= l * yk;
+        }
+    }
+    // L^T x = y
+    for i in (0..n).rev() {
+        let col = &f[i * ld..i * ld + n];
+        let mut s = x[i];
+        for (l, xk) in col[i + 1..].iter().zip(&x[i + 1..]) {
+            s -= l * xk;
+        }
+        x[i] = s / col[i];
+    }
+}
+
+/// The transpose of the `(rows, cols)` block of `a` at `start`, as a view with swapped
+/// strides: products with it go to the same `gemm` kernel without a transposed copy.
+fn transposed_block(a: &DMatrix<f64>, start: (usize, usize), size: (usize, usize)) -> DMatrixView<'_, f64, Dyn, Dyn> {
+    let ld = a.nrows();
+    DMatrixView::from_slice_with_strides(&a.as_slice()[start.1 * ld + start.0..], size.1, size.0, ld, 1)
+}
+
+/// `c = A^T b + beta c` for the `(rows, cols)` block `A` of `a` at `start`, without a
+/// transposed copy: matrixmultiply reads the transposed view when nalgebra hands the
+/// product to it (every dimension above 5), nalgebra's dot-product `gemm_tr` otherwise
+/// (its small-matrix loop indexes the operands linearly and cannot take a strided view).
+fn add_at_b(c: &mut DMatrixViewMut<'_, f64>, a: &DMatrix<f64>, start: (usize, usize), size: (usize, usize), b: &DMatrixView<'_, f64>, beta: f64) {
+    const MATRIXMULTIPLY_ABOVE: usize = 5;
+    if c.nrows().min(c.ncols()).min(size.0).min(size.1) > MATRIXMULTIPLY_ABOVE {
+        c.gemm(1.0, &transposed_block(a, start, size), b, beta);
+    } else {
+        c.gemm_tr(1.0, &a.view(start, size), b, beta);
+    }
 }
 
 /// Multipliers of the rows of `red` from the control gradient `g_u = (M dz + m)_u`
@@ -276,9 +337,6 @@ struct StageWork {
     reduced_mult: Vec<f64>,
     row_mult: Vec<f64>,
     grad: DVector<f64>,
-    /// `F^T` (`nz x nx_next`) and `K^T` (`nx x nu`).
-    dynamics_t: DMatrix<f64>,
-    gain_t: DMatrix<f64>,
     /// This stage's `dx` in the forward sweep.
     dx: DVector<f64>,
     /// The next stage's state rows `H'` and `H' F` (`nx_next x nx_next`, `nx_next x nz`).
@@ -322,8 +380,6 @@ impl RiccatiSolver {
                     reduced_mult: vec![0.0; rows],
                     row_mult: vec![0.0; rows],
                     grad: DVector::zeros(d.nz()),
-                    dynamics_t: DMatrix::zeros(d.nz(), d.nx_next),
-                    gain_t: DMatrix::zeros(d.nx, d.nu),
                     dx: DVector::zeros(d.nx),
                     h_next: DMatrix::zeros(d.nx_next, d.nx_next),
                     h_f: DMatrix::zeros(d.nx_next, d.nz()),
@@ -394,16 +450,24 @@ fn backward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&StageWork>, pi
     let d = st.dims;
     let (nx, nu) = (d.nx, d.nu);
     // 1. M = H + F^T P' F, m = q + F^T (P' b + p').
-    st.m.copy_from(&qp.hessian);
-    st.mv.copy_from(&qp.gradient);
+    st.m.as_mut_slice().copy_from_slice(qp.hessian.as_slice());
+    st.mv.as_mut_slice().copy_from_slice(qp.gradient.as_slice());
     let next_rows = match next {
         Some(nw) => {
             st.pf.gemm(1.0, &nw.p, &qp.dynamics, 0.0);
             st.pb.copy_from(&nw.pv);
             st.pb.gemv(1.0, &nw.p, &qp.defect, 1.0);
-            qp.dynamics.transpose_to(&mut st.dynamics_t);
-            st.m.gemm(1.0, &st.dynamics_t, &st.pf, 1.0);
-            st.mv.gemv(1.0, &st.dynamics_t, &st.pb, 1.0);
+            // F^T P' F by blocks, F = [A B]: the rows A^T (P' A) and B^T (P' F); the block
+            // A^T P' B is the transpose of B^T P' A (P' symmetric), mirrored, not multiplied.
+            let nxn = d.nx_next;
+            add_at_b(&mut st.m.view_mut((0, 0), (nx, nx)), &qp.dynamics, (0, 0), (nxn, nx), &st.pf.columns(0, nx), 1.0);
+            add_at_b(&mut st.m.rows_mut(nx, nu), &qp.dynamics, (0, nx), (nxn, nu), &st.pf.columns(0, nx + nu), 1.0);
+            for j in nx..nx + nu {
+                for i in 0..nx {
+                    st.m[(i, j)] = st.m[(j, i)];
+                }
+            }
+            st.mv.gemv_tr(1.0, &qp.dynamics, &st.pb, 1.0);
             nw.red.rank_x
         }
         None => 0,
@@ -412,15 +476,11 @@ fn backward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&StageWork>, pi
     let rows = d.ng + next_rows;
     st.red.begin(rows);
     let rhs = st.red.rhs_col();
-    for i in 0..d.ng {
-        for j in 0..nx {
-            st.red.w[(i, nu + j)] = qp.equality_jacobian[(i, j)];
-        }
-        for j in 0..nu {
-            st.red.w[(i, j)] = qp.equality_jacobian[(i, nx + j)];
-        }
-        st.red.w[(i, rhs)] = qp.equality_residual[i];
-    }
+    // Block copies (column-major), controls first: W = [C_u | C_x | c].
+    let ng = d.ng;
+    st.red.w.view_mut((0, 0), (ng, nu)).copy_from(&qp.equality_jacobian.columns(nx, nu));
+    st.red.w.view_mut((0, nu), (ng, nx)).copy_from(&qp.equality_jacobian.columns(0, nx));
+    st.red.w.column_mut(rhs).rows_mut(0, ng).copy_from(&qp.equality_residual);
     if let Some(nw) = next {
         let (ru, nun) = (nw.red.rank_u, nw.dims.nu);
         let nrhs = nw.red.rhs_col();
@@ -428,16 +488,13 @@ fn backward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&StageWork>, pi
         h.copy_from(&nw.red.w.view((ru, nun), (next_rows, d.nx_next)));
         let mut hf = st.h_f.rows_mut(0, next_rows);
         hf.gemm(1.0, &st.h_next.rows(0, next_rows), &qp.dynamics, 0.0);
-        for i in 0..next_rows {
-            let row = d.ng + i;
-            for j in 0..nx {
-                st.red.w[(row, nu + j)] = st.h_f[(i, j)];
-            }
-            for j in 0..nu {
-                st.red.w[(row, j)] = st.h_f[(i, nx + j)];
-            }
-            st.red.w[(row, rhs)] = nw.red.w[(ru + i, nrhs)] + st.h_next.row(i).dot(&qp.defect.transpose());
-        }
+        st.red.w.view_mut((ng, 0), (next_rows, nu)).copy_from(&st.h_f.view((0, nx), (next_rows, nu)));
+        st.red.w.view_mut((ng, nu), (next_rows, nx)).copy_from(&st.h_f.view((0, 0), (next_rows, nx)));
+        // H' b + h'
+        let mut c = st.red.w.column_mut(rhs);
+        let mut c = c.rows_mut(ng, next_rows);
+        c.copy_from(&nw.red.w.column(nrhs).rows(ru, next_rows));
+        c.gemv(1.0, &st.h_next.rows(0, next_rows), &qp.defect, 1.0);
     }
     st.red.reduce(pivot_tolerance);
     // 3. Policy du = K dx + k on the constraint set.
@@ -447,17 +504,25 @@ fn backward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&StageWork>, pi
     // 4. P = E^T M E, p = E^T (M e + m), E = [I; K], e = [0; k].
     let k_gain = &st.policy.gain;
     let k_ff = &st.policy.feedforward;
-    // ME = M[:, x] + M[:, u] K
-    st.me.copy_from(&st.m.columns(0, nx));
-    st.me.gemm(1.0, &st.m.columns(nx, nu), k_gain, 1.0);
-    st.p.copy_from(&st.me.rows(0, nx));
-    k_gain.transpose_to(&mut st.gain_t);
-    st.p.gemm(1.0, &st.gain_t, &st.me.rows(nx, nu), 1.0);
-    // Me + m = M[:, u] k + m
-    st.grad.copy_from(&st.mv);
-    st.grad.gemv(1.0, &st.m.columns(nx, nu), k_ff, 1.0);
-    st.pv.copy_from(&st.grad.rows(0, nx));
-    st.pv.gemv(1.0, &st.gain_t, &st.grad.rows(nx, nu), 1.0);
+    if st.red.rank_u == 0 {
+        // Unconstrained controls: M_uu K + M_ux = 0 and M_uu k + m_u = 0, so the K^T (.)
+        // terms vanish: P = M_xx + M_xu K, p = m_x + M_xu k (the Schur complement).
+        st.p.copy_from(&st.m.view((0, 0), (nx, nx)));
+        st.p.gemm(1.0, &st.m.view((0, nx), (nx, nu)), k_gain, 1.0);
+        st.pv.copy_from(&st.mv.rows(0, nx));
+        st.pv.gemv(1.0, &st.m.view((0, nx), (nx, nu)), k_ff, 1.0);
+    } else {
+        // ME = M[:, x] + M[:, u] K
+        st.me.copy_from(&st.m.columns(0, nx));
+        st.me.gemm(1.0, &st.m.columns(nx, nu), k_gain, 1.0);
+        st.p.copy_from(&st.me.rows(0, nx));
+        add_at_b(&mut st.p.columns_mut(0, nx), k_gain, (0, 0), (nu, nx), &st.me.rows(nx, nu), 1.0);
+        // Me + m = M[:, u] k + m
+        st.grad.copy_from(&st.mv);
+        st.grad.gemv(1.0, &st.m.columns(nx, nu), k_ff, 1.0);
+        st.pv.copy_from(&st.grad.rows(0, nx));
+        st.pv.gemv_tr(1.0, k_gain, &st.grad.rows(nx, nu), 1.0);
+    }
     for i in 0..nx {
         for j in 0..i {
             let a = 0.5 * (st.p[(i, j)] + st.p[(j, i)]);
