@@ -40,13 +40,17 @@ struct StageBuffers {
     dzl: DVector<f64>,
     dzu: DVector<f64>,
     sigma: DVector<f64>,
-    /// `h - s` (or its second-order-correction replacement) used by the last QP.
+    /// `h - s` (or its second-order-correction replacement) used by the last QP, and the
+    /// original one kept while second-order corrections are tried.
     ineq_residual: DVector<f64>,
+    saved_ineq_residual: DVector<f64>,
     trial_primal: DVector<f64>,
     trial_slack: DVector<f64>,
-    /// Scratch: the condensed linear term per inequality row, a row's nonzero columns.
+    /// Scratch: the condensed linear term per inequality row; the nonzero columns of the
+    /// inequality Jacobian's rows (row `i`: `nonzeros[nonzero_start[i]..nonzero_start[i + 1]]`).
     lin: DVector<f64>,
     nonzeros: Vec<usize>,
+    nonzero_start: Vec<usize>,
     /// Scratch: the stage's part of the Lagrangian gradient.
     lagrangian_gradient: DVector<f64>,
 }
@@ -70,6 +74,8 @@ pub struct Solver {
     buffers: Vec<StageBuffers>,
     qps: Vec<StageQp>,
     steps: Vec<StageStep>,
+    /// The step kept while second-order corrections are tried (restored if they all fail).
+    saved_steps: Vec<StageStep>,
     filter: Filter,
 }
 
@@ -113,10 +119,12 @@ impl Solver {
                 dzu: DVector::zeros(d.nh),
                 sigma: DVector::zeros(d.nh),
                 ineq_residual: DVector::zeros(d.nh),
+                saved_ineq_residual: DVector::zeros(d.nh),
                 trial_primal: DVector::zeros(d.nz()),
                 trial_slack: DVector::zeros(d.nh),
                 lin: DVector::zeros(d.nh),
-                nonzeros: Vec::with_capacity(d.nz()),
+                nonzeros: vec![0; d.nh * d.nz()],
+                nonzero_start: vec![0; d.nh + 1],
                 lagrangian_gradient: DVector::zeros(d.nz()),
             })
             .collect();
@@ -124,6 +132,7 @@ impl Solver {
             riccati: RiccatiSolver::new(problem.dims(), settings.pivot_tolerance),
             qps: problem.dims().iter().map(|&d| StageQp::zeros(d)).collect(),
             steps: problem.dims().iter().map(|&d| StageStep::zeros(d)).collect(),
+            saved_steps: problem.dims().iter().map(|&d| StageStep::zeros(d)).collect(),
             settings,
             buffers,
             filter: Filter::default(),
@@ -563,8 +572,9 @@ impl Solver {
         for k in 0..n {
             let (lo, up) = problem.bounds(k);
             let d = problem.dims()[k];
-            let next_x: Option<DVector<f64>> = if soc.is_some() && k + 1 < n { Some(self.buffers[k + 1].trial_primal.rows(0, d.nx_next).clone_owned()) } else { None };
-            let b = &mut self.buffers[k];
+            let (head, tail) = self.buffers.split_at_mut(k + 1);
+            let b = &mut head[k];
+            let next_x = tail.first().map(|nb| &nb.trial_primal);
             match soc {
                 None => {
                     for i in 0..d.nh {
@@ -580,7 +590,7 @@ impl Solver {
                     for i in 0..d.nh {
                         b.ineq_residual[i] = alpha * b.ineq_residual[i] + (b.trial.inequalities[i] - b.trial_slack[i]);
                     }
-                    let xn = next_x.as_ref();
+                    let xn = next_x;
                     for i in 0..d.nx_next {
                         self.qps[k].defect[i] = alpha * self.qps[k].defect[i] + (b.trial.dynamics[i] - xn.map_or(0.0, |x| x[i]));
                     }
@@ -589,7 +599,7 @@ impl Solver {
                     }
                 }
             }
-            self.qps[k].hessian.copy_from(&b.hess);
+            self.qps[k].hessian.as_mut_slice().copy_from_slice(b.hess.as_slice());
             if delta > 0.0 {
                 for i in 0..d.nz() {
                     self.qps[k].hessian[(i, i)] += delta;
@@ -615,22 +625,22 @@ impl Solver {
             // are simple bounds with one).
             let jh = &b.jac.inequalities;
             let qp = &mut self.qps[k];
+            row_nonzeros(jh, &mut b.nonzero_start, &mut b.nonzeros);
             for i in 0..d.nh {
-                b.nonzeros.clear();
-                b.nonzeros.extend((0..d.nz()).filter(|&j| jh[(i, j)] != 0.0));
                 let (sigma, lin) = (b.sigma[i], b.lin[i]);
-                for &a in &b.nonzeros {
+                let row = &b.nonzeros[b.nonzero_start[i]..b.nonzero_start[i + 1]];
+                for &a in row {
                     let ja = jh[(i, a)];
                     qp.gradient[a] += ja * lin;
                     if sigma != 0.0 {
-                        for &c in &b.nonzeros {
+                        for &c in row {
                             qp.hessian[(c, a)] += sigma * ja * jh[(i, c)];
                         }
                     }
                 }
             }
-            self.qps[k].dynamics.copy_from(&b.jac.dynamics);
-            self.qps[k].equality_jacobian.copy_from(&b.jac.equalities);
+            self.qps[k].dynamics.as_mut_slice().copy_from_slice(b.jac.dynamics.as_slice());
+            self.qps[k].equality_jacobian.as_mut_slice().copy_from_slice(b.jac.equalities.as_slice());
         }
     }
 
@@ -781,6 +791,7 @@ impl Solver {
                 let mut theta_soc_old = theta;
                 let mut theta_trial = theta_t;
                 let mut alpha_soc = alpha;
+                self.save_step();
                 for _ in 0..s.max_second_order_corrections {
                     if theta_trial > s.kappa_soc * theta_soc_old && theta_soc_old != theta {
                         break;
@@ -808,11 +819,9 @@ impl Solver {
                         return Ok(());
                     }
                 }
-                // Restore the original direction for further backtracking.
-                let t = Instant::now();
-                self.assemble_qp(problem, it, mu, delta, None);
-                let _ = self.riccati.solve(&self.qps, &mut self.steps);
-                timings.kkt += t.elapsed();
+                // Restore the original direction for further backtracking (kept, not
+                // solved again: the same QP gives the same step).
+                self.restore_step();
                 self.gather_step(problem, it, mu);
             }
             first = false;
@@ -824,6 +833,23 @@ impl Solver {
                 return Ok(());
             }
             alpha *= s.backtracking_factor;
+        }
+    }
+
+    /// Keeps the current step and the residuals of its QP (before second-order corrections).
+    fn save_step(&mut self) {
+        for (k, b) in self.buffers.iter_mut().enumerate() {
+            b.saved_ineq_residual.copy_from(&b.ineq_residual);
+            self.saved_steps[k].copy_from(&self.steps[k]);
+        }
+    }
+
+    /// Brings back what [`Self::save_step`] kept; `gather_step` then rebuilds the slack and
+    /// bound-multiplier steps (`Sigma` is that of the current iterate, unchanged).
+    fn restore_step(&mut self) {
+        for (k, b) in self.buffers.iter_mut().enumerate() {
+            b.ineq_residual.copy_from(&b.saved_ineq_residual);
+            self.steps[k].copy_from(&self.saved_steps[k]);
         }
     }
 
@@ -887,6 +913,39 @@ fn acceptance(filter: &Filter, s: &Settings, theta: f64, phi: f64, dphi: f64, al
         return Some(false);
     }
     None
+}
+
+/// The nonzero columns of every row of `jac`, by row, in increasing column order (the
+/// storage is column-major: one pass counts, one fills, both down contiguous columns).
+fn row_nonzeros(jac: &DMatrix<f64>, start: &mut [usize], columns: &mut [usize]) {
+    let rows = jac.nrows();
+    start.fill(0);
+    if rows == 0 {
+        return;
+    }
+    for column in jac.as_slice().chunks_exact(rows) {
+        for (count, v) in start[1..].iter_mut().zip(column) {
+            if *v != 0.0 {
+                *count += 1;
+            }
+        }
+    }
+    for i in 0..rows {
+        start[i + 1] += start[i];
+    }
+    // The fill moves `start[i]` to the end of row i; shifted back below.
+    for (j, column) in jac.as_slice().chunks_exact(rows).enumerate() {
+        for (next, v) in start[..rows].iter_mut().zip(column) {
+            if *v != 0.0 {
+                columns[*next] = j;
+                *next += 1;
+            }
+        }
+    }
+    for i in (0..rows).rev() {
+        start[i + 1] = start[i];
+    }
+    start[0] = 0;
 }
 
 /// `-mu sum ln(s - l) + ln(u - s)`; `+inf` outside the interior.
