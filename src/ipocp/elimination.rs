@@ -161,6 +161,19 @@ impl RowReduction {
         }
     }
 
+    /// `c = T c_raw` in the right-hand-side column: the reduction of a new right-hand side
+    /// `c_raw` (`rows` entries) with the row operations of the last [`Self::reduce`].
+    pub fn transform_rhs(&mut self, raw: &[f64]) {
+        let (t, c, rows) = (self.t_col(), self.rhs_col(), self.rows);
+        for i in 0..rows {
+            let mut s = 0.0;
+            for (j, r) in raw.iter().enumerate().take(rows) {
+                s += self.w[(i, t + j)] * r;
+            }
+            self.w[(i, c)] = s;
+        }
+    }
+
     /// Largest |c| of the rows that reduced to zero: the inconsistency of the constraints.
     pub fn inconsistency(&self) -> f64 {
         let c = self.rhs_col();

@@ -76,7 +76,19 @@ pub struct Solver {
     steps: Vec<StageStep>,
     /// The step kept while second-order corrections are tried (restored if they all fail).
     saved_steps: Vec<StageStep>,
+    /// Iterative refinement: the correction of a step, and the residuals of the KKT system
+    /// at the step (stationarity, dynamics, equalities per stage), swapped in for the QP's
+    /// right-hand side while the correction is solved.
+    correction: Vec<StageStep>,
+    residuals: Vec<KktResidual>,
     filter: Filter,
+}
+
+/// The residual of one stage's rows of the KKT system at a step (see [`Solver::refine_step`]).
+struct KktResidual {
+    stationarity: DVector<f64>,
+    dynamics: DVector<f64>,
+    equalities: DVector<f64>,
 }
 
 /// What can go wrong before the iterations start.
@@ -133,6 +145,8 @@ impl Solver {
             qps: problem.dims().iter().map(|&d| StageQp::zeros(d)).collect(),
             steps: problem.dims().iter().map(|&d| StageStep::zeros(d)).collect(),
             saved_steps: problem.dims().iter().map(|&d| StageStep::zeros(d)).collect(),
+            correction: problem.dims().iter().map(|&d| StageStep::zeros(d)).collect(),
+            residuals: problem.dims().iter().map(|&d| KktResidual { stationarity: DVector::zeros(d.nz()), dynamics: DVector::zeros(d.nx_next), equalities: DVector::zeros(d.ng) }).collect(),
             settings,
             buffers,
             filter: Filter::default(),
@@ -270,6 +284,7 @@ impl Solver {
                 regularization_last = delta;
                 regularizations += 1;
             }
+            self.refine_step();
             self.gather_step(problem, &it, mu);
             // 3. Fraction to the boundary (eq. 15).
             let alpha_max = self.max_primal_step(problem, &it, tau);
@@ -566,7 +581,7 @@ impl Solver {
     /// `q = grad l + J_h^T (Sigma r_h + mu/(u - s) - mu/(s - l))` with `r_h = h - s`
     /// (eq. 13 condensed). `soc`: replace the constraint residuals by those of a
     /// second-order correction (`Some(alpha)`: `alpha c(current) + c(trial)`, the trial values
-    /// in `trial`).
+    /// in `trial`; only the vectors are rebuilt, the matrices stay those of the corrected step).
     fn assemble_qp(&mut self, problem: &Problem, it: &Iterate, mu: f64, delta: f64, soc: Option<f64>) {
         let n = self.buffers.len();
         for k in 0..n {
@@ -599,10 +614,15 @@ impl Solver {
                     }
                 }
             }
-            self.qps[k].hessian.as_mut_slice().copy_from_slice(b.hess.as_slice());
-            if delta > 0.0 {
-                for i in 0..d.nz() {
-                    self.qps[k].hessian[(i, i)] += delta;
+            // A second-order correction changes the right-hand side only: the matrices (and
+            // the Riccati factorization) stay those of the step it corrects.
+            let matrices = soc.is_none();
+            if matrices {
+                self.qps[k].hessian.as_mut_slice().copy_from_slice(b.hess.as_slice());
+                if delta > 0.0 {
+                    for i in 0..d.nz() {
+                        self.qps[k].hessian[(i, i)] += delta;
+                    }
                 }
             }
             self.qps[k].gradient.copy_from(&b.jac.cost_gradient);
@@ -625,22 +645,26 @@ impl Solver {
             // are simple bounds with one).
             let jh = &b.jac.inequalities;
             let qp = &mut self.qps[k];
-            row_nonzeros(jh, &mut b.nonzero_start, &mut b.nonzeros);
+            if matrices {
+                row_nonzeros(jh, &mut b.nonzero_start, &mut b.nonzeros);
+            }
             for i in 0..d.nh {
                 let (sigma, lin) = (b.sigma[i], b.lin[i]);
                 let row = &b.nonzeros[b.nonzero_start[i]..b.nonzero_start[i + 1]];
                 for &a in row {
                     let ja = jh[(i, a)];
                     qp.gradient[a] += ja * lin;
-                    if sigma != 0.0 {
+                    if sigma != 0.0 && matrices {
                         for &c in row {
                             qp.hessian[(c, a)] += sigma * ja * jh[(i, c)];
                         }
                     }
                 }
             }
-            self.qps[k].dynamics.as_mut_slice().copy_from_slice(b.jac.dynamics.as_slice());
-            self.qps[k].equality_jacobian.as_mut_slice().copy_from_slice(b.jac.equalities.as_slice());
+            if matrices {
+                self.qps[k].dynamics.as_mut_slice().copy_from_slice(b.jac.dynamics.as_slice());
+                self.qps[k].equality_jacobian.as_mut_slice().copy_from_slice(b.jac.equalities.as_slice());
+            }
         }
     }
 
@@ -799,7 +823,10 @@ impl Solver {
                     theta_soc_old = theta_trial;
                     let t = Instant::now();
                     self.assemble_qp(problem, it, mu, delta, Some(alpha_soc));
-                    let ok = self.riccati.solve(&self.qps, &mut self.steps).is_ok();
+                    let ok = self.riccati.resolve(&self.qps, &mut self.steps).is_ok();
+                    if ok {
+                        self.refine_step();
+                    }
                     timings.kkt += t.elapsed();
                     if !ok {
                         break;
@@ -833,6 +860,84 @@ impl Solver {
                 return Ok(());
             }
             alpha *= s.backtracking_factor;
+        }
+    }
+
+    /// Iterative refinement of the step in `steps` (Wächter & Biegler 2006, sec. 3.1; IPOPT's
+    /// residual test): `r = K s - rhs` on every stage's rows, and while
+    /// `|r| / (|s| + |rhs|) > refinement_residual_ratio`, `s -= K^{-1} r`, re-solved with
+    /// the last factorization (the matrices are unchanged, only the right-hand side is `r`:
+    /// [`RiccatiSolver::resolve`], the vector half of the recursion). Returns the number of
+    /// re-solves.
+    fn refine_step(&mut self) -> usize {
+        let mut solves = 0;
+        let mut ratio = self.kkt_residual();
+        while ratio > self.settings.refinement_residual_ratio && solves < self.settings.max_refinement_steps {
+            for (qp, r) in self.qps.iter_mut().zip(&mut self.residuals) {
+                std::mem::swap(&mut qp.gradient, &mut r.stationarity);
+                std::mem::swap(&mut qp.defect, &mut r.dynamics);
+                std::mem::swap(&mut qp.equality_residual, &mut r.equalities);
+            }
+            let ok = self.riccati.resolve(&self.qps, &mut self.correction).is_ok();
+            for (qp, r) in self.qps.iter_mut().zip(&mut self.residuals) {
+                std::mem::swap(&mut qp.gradient, &mut r.stationarity);
+                std::mem::swap(&mut qp.defect, &mut r.dynamics);
+                std::mem::swap(&mut qp.equality_residual, &mut r.equalities);
+            }
+            solves += 1;
+            if !ok {
+                break;
+            }
+            for (step, c) in self.steps.iter_mut().zip(&self.correction) {
+                step.dz += &c.dz;
+                step.dynamics_multiplier += &c.dynamics_multiplier;
+                step.equality_multiplier += &c.equality_multiplier;
+            }
+            let previous = ratio;
+            ratio = self.kkt_residual();
+            if ratio > 0.5 * previous {
+                // Round-off level reached: further corrections do not pay.
+                break;
+            }
+        }
+        solves
+    }
+
+    /// The residuals of the KKT system of the QPs at `steps` into `residuals`:
+    /// `H dz + q + F^T lambda + G^T nu - [lambda_{k-1}; 0]`, `F dz + b - dx_{k+1}`,
+    /// `G dz + g`; returns `|r| / (|s| + |rhs|)` (max norms).
+    fn kkt_residual(&mut self) -> f64 {
+        let n = self.qps.len();
+        let (mut residual, mut solution, mut rhs) = (0.0f64, 0.0f64, 0.0f64);
+        for k in 0..n {
+            let (qp, step, r) = (&self.qps[k], &self.steps[k], &mut self.residuals[k]);
+            let g = &mut r.stationarity;
+            g.copy_from(&qp.gradient);
+            g.gemv(1.0, &qp.hessian, &step.dz, 1.0);
+            g.gemv_tr(1.0, &qp.dynamics, &step.dynamics_multiplier, 1.0);
+            g.gemv_tr(1.0, &qp.equality_jacobian, &step.equality_multiplier, 1.0);
+            if k > 0 {
+                for (gi, lam) in g.iter_mut().zip(self.steps[k - 1].dynamics_multiplier.iter()) {
+                    *gi -= lam;
+                }
+            }
+            r.dynamics.copy_from(&qp.defect);
+            if k + 1 < n {
+                r.dynamics.gemv(1.0, &qp.dynamics, &step.dz, 1.0);
+                for (ri, dx) in r.dynamics.iter_mut().zip(self.steps[k + 1].dz.iter()) {
+                    *ri -= dx;
+                }
+            }
+            r.equalities.copy_from(&qp.equality_residual);
+            r.equalities.gemv(1.0, &qp.equality_jacobian, &step.dz, 1.0);
+            residual = residual.max(g.amax()).max(r.dynamics.amax()).max(r.equalities.amax());
+            solution = solution.max(step.dz.amax()).max(step.dynamics_multiplier.amax()).max(step.equality_multiplier.amax());
+            rhs = rhs.max(qp.gradient.amax()).max(qp.defect.amax()).max(qp.equality_residual.amax());
+        }
+        if residual == 0.0 {
+            0.0
+        } else {
+            residual / (solution + rhs)
         }
     }
 
