@@ -474,9 +474,9 @@ impl Stage for FullBodyStage {
         // d q / d dq: Jr(dq) on the base, identity on the joints.
         integrate_jacobians(model, &ws.dq, &mut ws.scratch, &mut ws.jd);
         ws.v.copy_from_slice(&z[nv..2 * nv]);
-        out.dynamics.fill(0.0);
-        out.equalities.fill(0.0);
-        out.inequalities.fill(0.0);
+        out.dynamics.as_mut_slice().fill(0.0);
+        out.equalities.as_mut_slice().fill(0.0);
+        out.inequalities.as_mut_slice().fill(0.0);
         out.cost_gradient.fill(0.0);
         // Kinematics at q_k: world Jacobians, CoM and its Jacobian, the feet's Jacobians.
         let jc = com_jacobian(model, &mut ws.data, &ws.q);

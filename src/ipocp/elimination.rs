@@ -72,7 +72,12 @@ impl RowReduction {
     pub fn begin(&mut self, rows: usize) {
         debug_assert!(rows <= self.max_rows);
         self.rows = rows;
-        self.w.rows_mut(0, rows).fill(0.0);
+        let ld = self.w.nrows();
+        if rows > 0 {
+            for column in self.w.as_mut_slice().chunks_exact_mut(ld) {
+                column[..rows].fill(0.0);
+            }
+        }
         let t = self.t_col();
         for i in 0..rows {
             self.w[(i, t + i)] = 1.0;
@@ -88,10 +93,16 @@ impl RowReduction {
     /// Reduces the filled rows; pivots below `pivot_tolerance * max(1, max |C|)` count as zero.
     pub fn reduce(&mut self, pivot_tolerance: f64) {
         let (nu, nx, rows) = (self.nu, self.nx, self.rows);
+        if rows == 0 {
+            return; // nothing to reduce: both ranks stay 0 (from `begin`)
+        }
+        let ld = self.w.nrows();
+        // The scans below run down the contiguous columns of the column-major `W`; a tie
+        // goes to the smallest row, then the smallest column (the row-by-row scan's choice).
         let mut scale: f64 = 1.0;
-        for i in 0..rows {
-            for j in 0..nu + nx {
-                scale = scale.max(self.w[(i, j)].abs());
+        for column in self.w.as_slice()[..(nu + nx) * ld].chunks_exact(ld) {
+            for v in &column[..rows] {
+                scale = scale.max(v.abs());
             }
         }
         let tol = pivot_tolerance * scale;
@@ -99,10 +110,11 @@ impl RowReduction {
         let mut row = 0;
         while row < rows && row < nu {
             let (mut best, mut bi, mut bj) = (0.0, row, row);
-            for i in row..rows {
-                for j in row..nu {
-                    let a = self.w[(i, j)].abs();
-                    if a > best {
+            for j in row..nu {
+                let column = &self.w.as_slice()[j * ld + row..j * ld + rows];
+                for (o, v) in column.iter().enumerate() {
+                    let (a, i) = (v.abs(), row + o);
+                    if a > best || (a == best && i < bi) {
                         (best, bi, bj) = (a, i, j);
                     }
                 }
@@ -122,13 +134,14 @@ impl RowReduction {
         // State columns of the remaining rows: complete pivoting, columns left in place.
         while row < rows {
             let (mut best, mut bi, mut bj) = (0.0, row, 0);
-            for i in row..rows {
-                for j in 0..nx {
-                    if self.x_used[j] {
-                        continue;
-                    }
-                    let a = self.w[(i, nu + j)].abs();
-                    if a > best {
+            for j in 0..nx {
+                if self.x_used[j] {
+                    continue;
+                }
+                let column = &self.w.as_slice()[(nu + j) * ld + row..(nu + j) * ld + rows];
+                for (o, v) in column.iter().enumerate() {
+                    let (a, i) = (v.abs(), row + o);
+                    if a > best || (a == best && i < bi) {
                         (best, bi, bj) = (a, i, j);
                     }
                 }
@@ -143,10 +156,21 @@ impl RowReduction {
         }
         self.rank_x = row - self.rank_u;
         // Rows below are numerically zero in C: clear the round-off so they read as zero.
-        for i in row..rows {
-            for j in 0..nu + nx {
-                self.w[(i, j)] = 0.0;
+        for column in self.w.as_mut_slice()[..(nu + nx) * ld].chunks_exact_mut(ld) {
+            column[row..rows].fill(0.0);
+        }
+    }
+
+    /// `c = T c_raw` in the right-hand-side column: the reduction of a new right-hand side
+    /// `c_raw` (`rows` entries) with the row operations of the last [`Self::reduce`].
+    pub fn transform_rhs(&mut self, raw: &[f64]) {
+        let (t, c, rows) = (self.t_col(), self.rhs_col(), self.rows);
+        for i in 0..rows {
+            let mut s = 0.0;
+            for (j, r) in raw.iter().enumerate().take(rows) {
+                s += self.w[(i, t + j)] * r;
             }
+            self.w[(i, c)] = s;
         }
     }
 

@@ -33,7 +33,7 @@
 
 use super::elimination::RowReduction;
 use super::stage::StageDims;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DMatrixView, DMatrixViewMut, DVector, Dyn};
 
 /// The QP data of one stage (filled by the solver each iteration).
 #[derive(Clone, Debug)]
@@ -85,6 +85,13 @@ impl StageStep {
             equality_multiplier: DVector::zeros(dims.ng),
         }
     }
+
+    /// Copies `other` (of the same sizes) into `self` without allocating.
+    pub fn copy_from(&mut self, other: &StageStep) {
+        self.dz.copy_from(&other.dz);
+        self.dynamics_multiplier.copy_from(&other.dynamics_multiplier);
+        self.equality_multiplier.copy_from(&other.equality_multiplier);
+    }
 }
 
 /// Why a Riccati solve stopped.
@@ -110,10 +117,8 @@ struct ConstrainedPolicy {
     /// `Z^T (S + R K_c)` and `Z^T (r + R k_c)`.
     reduced_cross: DMatrix<f64>,
     reduced_linear: DVector<f64>,
-    /// `Z^T` and `M_uu Z` (`nu x nu`, leading blocks used).
-    null_basis_t: DMatrix<f64>,
+    /// `M_uu Z` (`nu x nu`, leading columns used).
     rz: DMatrix<f64>,
-    rz_t: DMatrix<f64>,
 }
 
 impl ConstrainedPolicy {
@@ -126,9 +131,7 @@ impl ConstrainedPolicy {
             reduced: DMatrix::zeros(nu, nu),
             reduced_cross: DMatrix::zeros(nu, nx),
             reduced_linear: DVector::zeros(nu),
-            null_basis_t: DMatrix::zeros(nu, nu),
             rz: DMatrix::zeros(nu, nu),
-            rz_t: DMatrix::zeros(nu, nu),
         }
     }
 
@@ -169,44 +172,92 @@ impl ConstrainedPolicy {
                 self.null_basis[(orig, i - r)] = 1.0;
             }
         }
-        if nf > 0 {
+        if r == 0 {
+            // No row fixes a control: Z = I, K_c = 0, k_c = 0, and the reduced problem is
+            // the unconstrained one, K = -M_uu^{-1} M_ux, k = -M_uu^{-1} m_u (no products
+            // with Z).
+            self.reduced.copy_from(&m.view((nx, nx), (nu, nu)));
+            self.reduced_cross.copy_from(&m.view((nx, 0), (nu, nx)));
+            self.reduced_linear.copy_from(&mv.rows(nx, nu));
+            if !cholesky_in_place(&mut self.reduced, nu) {
+                return false;
+            }
+            let ld = self.reduced_cross.nrows();
+            for col in 0..nx {
+                cholesky_solve_in_place(&self.reduced, nu, &mut self.reduced_cross.as_mut_slice()[col * ld..col * ld + nu]);
+            }
+            cholesky_solve_in_place(&self.reduced, nu, self.reduced_linear.as_mut_slice());
+            self.gain.copy_from(&self.reduced_cross);
+            self.gain.neg_mut();
+            self.feedforward.copy_from(&self.reduced_linear);
+            self.feedforward.neg_mut();
+        } else if nf > 0 {
             let z = self.null_basis.columns(0, nf);
             let m_uu = m.view((nx, nx), (nu, nu));
             let m_ux = m.view((nx, 0), (nu, nx));
-            let mut zt = self.null_basis_t.view_mut((0, 0), (nf, nu));
-            z.transpose_to(&mut zt);
-            let mut rz = self.rz.view_mut((0, 0), (nu, nf));
-            rz.gemm(1.0, &m_uu, &z, 0.0);
-            let mut rzt = self.rz_t.view_mut((0, 0), (nf, nu));
-            rz.transpose_to(&mut rzt);
-            let zt = self.null_basis_t.view((0, 0), (nf, nu));
-            let rzt = self.rz_t.view((0, 0), (nf, nu));
+            self.rz.view_mut((0, 0), (nu, nf)).gemm(1.0, &m_uu, &z, 0.0);
+            let rz = self.rz.view((0, 0), (nu, nf));
+            // Z^T and (M_uu Z)^T read in place, not copied.
             let mut red_h = self.reduced.view_mut((0, 0), (nf, nf));
-            red_h.gemm(1.0, &zt, &rz, 0.0);
+            add_at_b(&mut red_h, &self.null_basis, (0, 0), (nu, nf), &rz, 0.0);
             // Z^T (S + R K_c) = Z^T S + (R Z)^T K_c, symmetric R.
             let mut cross = self.reduced_cross.rows_mut(0, nf);
-            cross.gemm(1.0, &zt, &m_ux, 0.0);
-            cross.gemm(1.0, &rzt, &self.gain, 1.0);
+            add_at_b(&mut cross, &self.null_basis, (0, 0), (nu, nf), &m_ux, 0.0);
+            add_at_b(&mut cross, &self.rz, (0, 0), (nu, nf), &self.gain.columns(0, nx), 1.0);
             let mut lin = self.reduced_linear.rows_mut(0, nf);
-            lin.gemv(1.0, &zt, &mv.rows(nx, nu), 0.0);
-            lin.gemv(1.0, &rzt, &self.feedforward, 1.0);
+            lin.gemv_tr(1.0, &z, &mv.rows(nx, nu), 0.0);
+            lin.gemv_tr(1.0, &rz, &self.feedforward, 1.0);
             if !cholesky_in_place(&mut self.reduced, nf) {
                 return false;
             }
             // w = -(Z^T R Z)^{-1} [cross | lin]; K -= Z (.), k -= Z (.)
-            let l = self.reduced.view((0, 0), (nf, nf));
-            let mut cross = self.reduced_cross.rows_mut(0, nf);
-            let mut lin = self.reduced_linear.rows_mut(0, nf);
             // L L^T x = b: the factor is in the lower triangle (the upper one is stale).
-            l.solve_lower_triangular_mut(&mut cross);
-            l.tr_solve_lower_triangular_mut(&mut cross);
-            l.solve_lower_triangular_mut(&mut lin);
-            l.tr_solve_lower_triangular_mut(&mut lin);
+            let ld = self.reduced_cross.nrows();
+            for col in 0..nx {
+                cholesky_solve_in_place(&self.reduced, nf, &mut self.reduced_cross.as_mut_slice()[col * ld..col * ld + nf]);
+            }
+            cholesky_solve_in_place(&self.reduced, nf, &mut self.reduced_linear.as_mut_slice()[..nf]);
             let z = self.null_basis.columns(0, nf);
             self.gain.gemm(-1.0, &z, &self.reduced_cross.rows(0, nf), 1.0);
             self.feedforward.gemv(-1.0, &z, &self.reduced_linear.rows(0, nf), 1.0);
         }
         true
+    }
+}
+
+impl ConstrainedPolicy {
+    /// `k` alone for a new right-hand side (`c` of `red`, `m_u` of `mv`), with the matrices
+    /// of the last [`Self::compute`] (`U_11`, `Z`, `M_uu Z`, the reduced Hessian's factor):
+    /// `k_c = -U_11^{-1} c_1`, then `k = k_c - Z (Z^T M_uu Z)^{-1} Z^T (m_u + M_uu k_c)`.
+    fn feedforward_for(&mut self, red: &RowReduction, mv: &DVector<f64>) {
+        let (nu, nx, r) = (red.nu, red.nx, red.rank_u);
+        let nf = nu - r;
+        let rhs = red.rhs_col();
+        for i in (0..r).rev() {
+            let mut s = red.w[(i, rhs)];
+            for j in i + 1..r {
+                s -= red.w[(i, j)] * self.y[(j, nx)];
+            }
+            self.y[(i, nx)] = s / red.w[(i, i)];
+        }
+        self.feedforward.fill(0.0);
+        for i in 0..r {
+            self.feedforward[red.perm_u[i]] = -self.y[(i, nx)];
+        }
+        if r == 0 {
+            self.reduced_linear.copy_from(&mv.rows(nx, nu));
+            cholesky_solve_in_place(&self.reduced, nu, self.reduced_linear.as_mut_slice());
+            self.feedforward.copy_from(&self.reduced_linear);
+            self.feedforward.neg_mut();
+        } else if nf > 0 {
+            let z = self.null_basis.columns(0, nf);
+            let rz = self.rz.view((0, 0), (nu, nf));
+            let mut lin = self.reduced_linear.rows_mut(0, nf);
+            lin.gemv_tr(1.0, &z, &mv.rows(nx, nu), 0.0);
+            lin.gemv_tr(1.0, &rz, &self.feedforward, 1.0);
+            cholesky_solve_in_place(&self.reduced, nf, &mut self.reduced_linear.as_mut_slice()[..nf]);
+            self.feedforward.gemv(-1.0, &z, &self.reduced_linear.rows(0, nf), 1.0);
+        }
     }
 }
 
@@ -231,6 +282,52 @@ fn cholesky_in_place(a: &mut DMatrix<f64>, n: usize) -> bool {
         }
     }
     true
+}
+
+/// Solves `L L^T x = b` in place with the factor of [`cholesky_in_place`] (leading `n x n`
+/// lower triangle of `l`), sweeping down the factor's contiguous columns.
+fn cholesky_solve_in_place(l: &DMatrix<f64>, n: usize, x: &mut [f64]) {
+    let ld = l.nrows();
+    let f = l.as_slice();
+    let x = &mut x[..n];
+    // L y = b
+    for k in 0..n {
+        let col = &f[k * ld..k * ld + n];
+        let yk = x[k] / col[k];
+        x[k] = yk;
+        for (xi, l) in x[k + 1..].iter_mut().zip(&col[k + 1..]) {
+            *xi -= l * yk;
+        }
+    }
+    // L^T x = y
+    for i in (0..n).rev() {
+        let col = &f[i * ld..i * ld + n];
+        let mut s = x[i];
+        for (l, xk) in col[i + 1..].iter().zip(&x[i + 1..]) {
+            s -= l * xk;
+        }
+        x[i] = s / col[i];
+    }
+}
+
+/// The transpose of the `(rows, cols)` block of `a` at `start`, as a view with swapped
+/// strides: products with it go to the same `gemm` kernel without a transposed copy.
+fn transposed_block(a: &DMatrix<f64>, start: (usize, usize), size: (usize, usize)) -> DMatrixView<'_, f64, Dyn, Dyn> {
+    let ld = a.nrows();
+    DMatrixView::from_slice_with_strides(&a.as_slice()[start.1 * ld + start.0..], size.1, size.0, ld, 1)
+}
+
+/// `c = A^T b + beta c` for the `(rows, cols)` block `A` of `a` at `start`, without a
+/// transposed copy: matrixmultiply reads the transposed view when nalgebra hands the
+/// product to it (every dimension above 5), nalgebra's dot-product `gemm_tr` otherwise
+/// (its small-matrix loop indexes the operands linearly and cannot take a strided view).
+fn add_at_b(c: &mut DMatrixViewMut<'_, f64>, a: &DMatrix<f64>, start: (usize, usize), size: (usize, usize), b: &DMatrixView<'_, f64>, beta: f64) {
+    const MATRIXMULTIPLY_ABOVE: usize = 5;
+    if c.nrows().min(c.ncols()).min(size.0).min(size.1) > MATRIXMULTIPLY_ABOVE {
+        c.gemm(1.0, &transposed_block(a, start, size), b, beta);
+    } else {
+        c.gemm_tr(1.0, &a.view(start, size), b, beta);
+    }
 }
 
 /// Multipliers of the rows of `red` from the control gradient `g_u = (M dz + m)_u`
@@ -276,11 +373,10 @@ struct StageWork {
     reduced_mult: Vec<f64>,
     row_mult: Vec<f64>,
     grad: DVector<f64>,
-    /// `F^T` (`nz x nx_next`) and `K^T` (`nx x nu`).
-    dynamics_t: DMatrix<f64>,
-    gain_t: DMatrix<f64>,
     /// This stage's `dx` in the forward sweep.
     dx: DVector<f64>,
+    /// The stacked rows' right-hand side before the reduction (re-solves only).
+    rhs_raw: Vec<f64>,
     /// The next stage's state rows `H'` and `H' F` (`nx_next x nx_next`, `nx_next x nz`).
     h_next: DMatrix<f64>,
     h_f: DMatrix<f64>,
@@ -294,7 +390,10 @@ pub struct RiccatiSolver {
     initial_policy: ConstrainedPolicy,
     initial_grad: DVector<f64>,
     initial_reduced: Vec<f64>,
+    initial_rhs: Vec<f64>,
     pivot_tolerance: f64,
+    /// The last [`Self::solve`] succeeded: its factorization serves [`Self::resolve`].
+    factored: bool,
     /// Largest inconsistency of dependent linearized equality rows in the last solve.
     pub inconsistency: f64,
 }
@@ -322,9 +421,8 @@ impl RiccatiSolver {
                     reduced_mult: vec![0.0; rows],
                     row_mult: vec![0.0; rows],
                     grad: DVector::zeros(d.nz()),
-                    dynamics_t: DMatrix::zeros(d.nz(), d.nx_next),
-                    gain_t: DMatrix::zeros(d.nx, d.nu),
                     dx: DVector::zeros(d.nx),
+                    rhs_raw: vec![0.0; rows],
                     h_next: DMatrix::zeros(d.nx_next, d.nx_next),
                     h_f: DMatrix::zeros(d.nx_next, d.nz()),
                 }
@@ -337,7 +435,9 @@ impl RiccatiSolver {
             initial_policy: ConstrainedPolicy::new(nx0, 0),
             initial_grad: DVector::zeros(nx0),
             initial_reduced: vec![0.0; nx0],
+            initial_rhs: vec![0.0; nx0],
             pivot_tolerance,
+            factored: false,
             inconsistency: 0.0,
         }
     }
@@ -346,6 +446,7 @@ impl RiccatiSolver {
     /// regularization and call again).
     pub fn solve(&mut self, qp: &[StageQp], steps: &mut [StageStep]) -> Result<(), RiccatiFailure> {
         let n = self.stages.len();
+        self.factored = false;
         self.inconsistency = 0.0;
         // Backward sweep.
         for k in (0..n).rev() {
@@ -374,6 +475,44 @@ impl RiccatiSolver {
         if !self.initial_policy.compute(&self.initial, &s0.p, &s0.pv) {
             return Err(RiccatiFailure::WrongInertia { stage: None });
         }
+        self.factored = true;
+        self.forward(qp, steps);
+        Ok(())
+    }
+
+    /// Solves the QP of `qp` again for new vectors `q_k`, `b_k`, `g_k`, the matrices (`H_k`,
+    /// `F_k`, `G_k`) being those of the last successful [`Self::solve`], whose factorization
+    /// (row reductions, gains, Cholesky factors, `P_k`) it reuses: the vector half of the
+    /// recursion, `O(nz^2)` per stage instead of `O(nz^3)` (iterative refinement's
+    /// re-solves). `Err` if there is no factorization.
+    pub fn resolve(&mut self, qp: &[StageQp], steps: &mut [StageStep]) -> Result<(), RiccatiFailure> {
+        if !self.factored {
+            return Err(RiccatiFailure::WrongInertia { stage: None });
+        }
+        let n = self.stages.len();
+        self.inconsistency = 0.0;
+        for k in (0..n).rev() {
+            let (head, tail) = self.stages.split_at_mut(k + 1);
+            backward_stage_vectors(&mut head[k], &qp[k], tail.first());
+            self.inconsistency = self.inconsistency.max(head[k].red.inconsistency());
+        }
+        let s0 = &self.stages[0];
+        let (ru, rx) = (s0.red.rank_u, s0.red.rank_x);
+        for i in 0..rx {
+            self.initial_rhs[i] = s0.red.w[(ru + i, s0.red.rhs_col())];
+        }
+        self.initial.transform_rhs(&self.initial_rhs[..rx]);
+        self.inconsistency = self.inconsistency.max(self.initial.inconsistency());
+        self.initial_policy.feedforward_for(&self.initial, &s0.pv);
+        self.forward(qp, steps);
+        Ok(())
+    }
+
+    /// Stage 0's state and multipliers, then the forward sweep.
+    fn forward(&mut self, qp: &[StageQp], steps: &mut [StageStep]) {
+        let n = self.stages.len();
+        let s0 = &self.stages[0];
+        let rx = s0.red.rank_x;
         // Multipliers of stage 0's state rows: stationarity P0 dx + p0 + H0^T eta = 0.
         self.initial_grad.copy_from(&s0.pv);
         self.initial_grad.gemv(1.0, &s0.p, &self.initial_policy.feedforward, 1.0);
@@ -385,7 +524,43 @@ impl RiccatiSolver {
             let (head, tail) = self.stages.split_at_mut(k + 1);
             forward_stage(&mut head[k], &qp[k], tail.first_mut(), &mut steps[k]);
         }
-        Ok(())
+    }
+}
+
+/// The vector half of [`backward_stage`] for a new right-hand side: `m = q + F^T (P' b + p')`,
+/// the stacked rows' `[g; H' b + h']` through the stored row transformation `T`, `k`, and
+/// `p` (`M`, `K`, `P` and the factors are those of the last full sweep).
+fn backward_stage_vectors(st: &mut StageWork, qp: &StageQp, next: Option<&StageWork>) {
+    let d = st.dims;
+    let (nx, nu, ng) = (d.nx, d.nu, d.ng);
+    st.mv.as_mut_slice().copy_from_slice(qp.gradient.as_slice());
+    st.rhs_raw[..ng].copy_from_slice(qp.equality_residual.as_slice());
+    if let Some(nw) = next {
+        st.pb.copy_from(&nw.pv);
+        st.pb.gemv(1.0, &nw.p, &qp.defect, 1.0);
+        st.mv.gemv_tr(1.0, &qp.dynamics, &st.pb, 1.0);
+        let (ru, nrhs, next_rows) = (nw.red.rank_u, nw.red.rhs_col(), nw.red.rank_x);
+        for i in 0..next_rows {
+            let mut c = nw.red.w[(ru + i, nrhs)];
+            for l in 0..d.nx_next {
+                c += st.h_next[(i, l)] * qp.defect[l];
+            }
+            st.rhs_raw[ng + i] = c;
+        }
+    }
+    let rows = st.red.rows;
+    st.red.transform_rhs(&st.rhs_raw[..rows]);
+    st.policy.feedforward_for(&st.red, &st.mv);
+    let k_gain = &st.policy.gain;
+    let k_ff = &st.policy.feedforward;
+    st.pv.copy_from(&st.mv.rows(0, nx));
+    if st.red.rank_u == 0 {
+        st.pv.gemv(1.0, &st.m.view((0, nx), (nx, nu)), k_ff, 1.0);
+    } else {
+        st.grad.copy_from(&st.mv);
+        st.grad.gemv(1.0, &st.m.columns(nx, nu), k_ff, 1.0);
+        st.pv.copy_from(&st.grad.rows(0, nx));
+        st.pv.gemv_tr(1.0, k_gain, &st.grad.rows(nx, nu), 1.0);
     }
 }
 
@@ -394,16 +569,24 @@ fn backward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&StageWork>, pi
     let d = st.dims;
     let (nx, nu) = (d.nx, d.nu);
     // 1. M = H + F^T P' F, m = q + F^T (P' b + p').
-    st.m.copy_from(&qp.hessian);
-    st.mv.copy_from(&qp.gradient);
+    st.m.as_mut_slice().copy_from_slice(qp.hessian.as_slice());
+    st.mv.as_mut_slice().copy_from_slice(qp.gradient.as_slice());
     let next_rows = match next {
         Some(nw) => {
             st.pf.gemm(1.0, &nw.p, &qp.dynamics, 0.0);
             st.pb.copy_from(&nw.pv);
             st.pb.gemv(1.0, &nw.p, &qp.defect, 1.0);
-            qp.dynamics.transpose_to(&mut st.dynamics_t);
-            st.m.gemm(1.0, &st.dynamics_t, &st.pf, 1.0);
-            st.mv.gemv(1.0, &st.dynamics_t, &st.pb, 1.0);
+            // F^T P' F by blocks, F = [A B]: the rows A^T (P' A) and B^T (P' F); the block
+            // A^T P' B is the transpose of B^T P' A (P' symmetric), mirrored, not multiplied.
+            let nxn = d.nx_next;
+            add_at_b(&mut st.m.view_mut((0, 0), (nx, nx)), &qp.dynamics, (0, 0), (nxn, nx), &st.pf.columns(0, nx), 1.0);
+            add_at_b(&mut st.m.rows_mut(nx, nu), &qp.dynamics, (0, nx), (nxn, nu), &st.pf.columns(0, nx + nu), 1.0);
+            for j in nx..nx + nu {
+                for i in 0..nx {
+                    st.m[(i, j)] = st.m[(j, i)];
+                }
+            }
+            st.mv.gemv_tr(1.0, &qp.dynamics, &st.pb, 1.0);
             nw.red.rank_x
         }
         None => 0,
@@ -412,15 +595,11 @@ fn backward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&StageWork>, pi
     let rows = d.ng + next_rows;
     st.red.begin(rows);
     let rhs = st.red.rhs_col();
-    for i in 0..d.ng {
-        for j in 0..nx {
-            st.red.w[(i, nu + j)] = qp.equality_jacobian[(i, j)];
-        }
-        for j in 0..nu {
-            st.red.w[(i, j)] = qp.equality_jacobian[(i, nx + j)];
-        }
-        st.red.w[(i, rhs)] = qp.equality_residual[i];
-    }
+    // Block copies (column-major), controls first: W = [C_u | C_x | c].
+    let ng = d.ng;
+    st.red.w.view_mut((0, 0), (ng, nu)).copy_from(&qp.equality_jacobian.columns(nx, nu));
+    st.red.w.view_mut((0, nu), (ng, nx)).copy_from(&qp.equality_jacobian.columns(0, nx));
+    st.red.w.column_mut(rhs).rows_mut(0, ng).copy_from(&qp.equality_residual);
     if let Some(nw) = next {
         let (ru, nun) = (nw.red.rank_u, nw.dims.nu);
         let nrhs = nw.red.rhs_col();
@@ -428,16 +607,13 @@ fn backward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&StageWork>, pi
         h.copy_from(&nw.red.w.view((ru, nun), (next_rows, d.nx_next)));
         let mut hf = st.h_f.rows_mut(0, next_rows);
         hf.gemm(1.0, &st.h_next.rows(0, next_rows), &qp.dynamics, 0.0);
-        for i in 0..next_rows {
-            let row = d.ng + i;
-            for j in 0..nx {
-                st.red.w[(row, nu + j)] = st.h_f[(i, j)];
-            }
-            for j in 0..nu {
-                st.red.w[(row, j)] = st.h_f[(i, nx + j)];
-            }
-            st.red.w[(row, rhs)] = nw.red.w[(ru + i, nrhs)] + st.h_next.row(i).dot(&qp.defect.transpose());
-        }
+        st.red.w.view_mut((ng, 0), (next_rows, nu)).copy_from(&st.h_f.view((0, nx), (next_rows, nu)));
+        st.red.w.view_mut((ng, nu), (next_rows, nx)).copy_from(&st.h_f.view((0, 0), (next_rows, nx)));
+        // H' b + h'
+        let mut c = st.red.w.column_mut(rhs);
+        let mut c = c.rows_mut(ng, next_rows);
+        c.copy_from(&nw.red.w.column(nrhs).rows(ru, next_rows));
+        c.gemv(1.0, &st.h_next.rows(0, next_rows), &qp.defect, 1.0);
     }
     st.red.reduce(pivot_tolerance);
     // 3. Policy du = K dx + k on the constraint set.
@@ -447,17 +623,25 @@ fn backward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&StageWork>, pi
     // 4. P = E^T M E, p = E^T (M e + m), E = [I; K], e = [0; k].
     let k_gain = &st.policy.gain;
     let k_ff = &st.policy.feedforward;
-    // ME = M[:, x] + M[:, u] K
-    st.me.copy_from(&st.m.columns(0, nx));
-    st.me.gemm(1.0, &st.m.columns(nx, nu), k_gain, 1.0);
-    st.p.copy_from(&st.me.rows(0, nx));
-    k_gain.transpose_to(&mut st.gain_t);
-    st.p.gemm(1.0, &st.gain_t, &st.me.rows(nx, nu), 1.0);
-    // Me + m = M[:, u] k + m
-    st.grad.copy_from(&st.mv);
-    st.grad.gemv(1.0, &st.m.columns(nx, nu), k_ff, 1.0);
-    st.pv.copy_from(&st.grad.rows(0, nx));
-    st.pv.gemv(1.0, &st.gain_t, &st.grad.rows(nx, nu), 1.0);
+    if st.red.rank_u == 0 {
+        // Unconstrained controls: M_uu K + M_ux = 0 and M_uu k + m_u = 0, so the K^T (.)
+        // terms vanish: P = M_xx + M_xu K, p = m_x + M_xu k (the Schur complement).
+        st.p.copy_from(&st.m.view((0, 0), (nx, nx)));
+        st.p.gemm(1.0, &st.m.view((0, nx), (nx, nu)), k_gain, 1.0);
+        st.pv.copy_from(&st.mv.rows(0, nx));
+        st.pv.gemv(1.0, &st.m.view((0, nx), (nx, nu)), k_ff, 1.0);
+    } else {
+        // ME = M[:, x] + M[:, u] K
+        st.me.copy_from(&st.m.columns(0, nx));
+        st.me.gemm(1.0, &st.m.columns(nx, nu), k_gain, 1.0);
+        st.p.copy_from(&st.me.rows(0, nx));
+        add_at_b(&mut st.p.columns_mut(0, nx), k_gain, (0, 0), (nu, nx), &st.me.rows(nx, nu), 1.0);
+        // Me + m = M[:, u] k + m
+        st.grad.copy_from(&st.mv);
+        st.grad.gemv(1.0, &st.m.columns(nx, nu), k_ff, 1.0);
+        st.pv.copy_from(&st.grad.rows(0, nx));
+        st.pv.gemv_tr(1.0, k_gain, &st.grad.rows(nx, nu), 1.0);
+    }
     for i in 0..nx {
         for j in 0..i {
             let a = 0.5 * (st.p[(i, j)] + st.p[(j, i)]);
@@ -628,6 +812,40 @@ mod tests {
             }
             assert!(solver.inconsistency < 1e-12);
         }
+    }
+
+    #[test]
+    fn resolve_with_the_factorization_equals_a_fresh_solve() {
+        // New q, b, g with the same matrices: the vector-only recursion gives the steps and
+        // multipliers of a full solve (iterative refinement relies on it).
+        let dims = layout();
+        let mut rng = Lcg(19);
+        for _ in 0..20 {
+            let qps = random_qps(&mut rng, &dims, true);
+            let mut solver = RiccatiSolver::new(&dims, 1e-10);
+            let mut steps: Vec<StageStep> = dims.iter().map(|&d| StageStep::zeros(d)).collect();
+            solver.solve(&qps, &mut steps).expect("positive definite Hessians");
+            let mut other = qps.clone();
+            for qp in &mut other {
+                qp.gradient.iter_mut().for_each(|v| *v = rng.next());
+                qp.defect.iter_mut().for_each(|v| *v = rng.next());
+                qp.equality_residual.iter_mut().for_each(|v| *v = rng.next());
+            }
+            let mut resolved: Vec<StageStep> = dims.iter().map(|&d| StageStep::zeros(d)).collect();
+            solver.resolve(&other, &mut resolved).expect("factorized");
+            let mut fresh = RiccatiSolver::new(&dims, 1e-10);
+            fresh.solve(&other, &mut steps).expect("positive definite Hessians");
+            let scale = steps.iter().map(|s| s.dz.amax().max(s.dynamics_multiplier.amax()).max(s.equality_multiplier.amax())).fold(1.0, f64::max);
+            for (k, (a, b)) in resolved.iter().zip(&steps).enumerate() {
+                assert!((&a.dz - &b.dz).amax() < 1e-10 * scale, "dz stage {k}");
+                assert!((&a.dynamics_multiplier - &b.dynamics_multiplier).amax() < 1e-10 * scale, "lambda stage {k}");
+                assert!((&a.equality_multiplier - &b.equality_multiplier).amax() < 1e-10 * scale, "nu stage {k}");
+            }
+        }
+        let mut unfactored = RiccatiSolver::new(&dims, 1e-10);
+        let qps = random_qps(&mut rng, &dims, true);
+        let mut steps: Vec<StageStep> = dims.iter().map(|&d| StageStep::zeros(d)).collect();
+        assert!(unfactored.resolve(&qps, &mut steps).is_err(), "no factorization yet");
     }
 
     #[test]

@@ -69,6 +69,15 @@ pub struct Settings {
     /// [`kappa_soc`].
     pub max_second_order_corrections: usize,
     pub kappa_soc: f64,
+    /// Iterative refinement of every KKT solve (sec. 3.1 of the paper's implementation; IPOPT
+    /// refines on the full system): while the residual of the step, relative to the step
+    /// and the right-hand side, is above `refinement_residual_ratio` (1e-10)
+    /// [`residual_ratio_max`], solve again for the residual, at most `max_refinement_steps`
+    /// times (10) [`max_refinement_steps`], stopping when a correction does not shrink the
+    /// ratio. Without it the end game stalls where the Riccati solve's round-off (about 1e-8
+    /// of the gradient on the full-body stages) exceeds the dual infeasibility left to remove.
+    pub refinement_residual_ratio: f64,
+    pub max_refinement_steps: usize,
     /// Feasibility restoration (sec. 3.3; [`super::restoration`]) where the filter line
     /// search fails from an infeasible point (true): minimize the l1 violation plus a
     /// proximity term, return once the filter accepts. Its penalty `rho` (1000)
@@ -124,6 +133,8 @@ impl Default for Settings {
             backtracking_factor: 0.5,
             max_second_order_corrections: 4,
             kappa_soc: 0.99,
+            refinement_residual_ratio: 1e-10,
+            max_refinement_steps: 10,
             restoration: true,
             restoration_penalty: 1e3,
             restoration_reduction: 0.9,

@@ -40,13 +40,17 @@ struct StageBuffers {
     dzl: DVector<f64>,
     dzu: DVector<f64>,
     sigma: DVector<f64>,
-    /// `h - s` (or its second-order-correction replacement) used by the last QP.
+    /// `h - s` (or its second-order-correction replacement) used by the last QP, and the
+    /// original one kept while second-order corrections are tried.
     ineq_residual: DVector<f64>,
+    saved_ineq_residual: DVector<f64>,
     trial_primal: DVector<f64>,
     trial_slack: DVector<f64>,
-    /// Scratch: the condensed linear term per inequality row, a row's nonzero columns.
+    /// Scratch: the condensed linear term per inequality row; the nonzero columns of the
+    /// inequality Jacobian's rows (row `i`: `nonzeros[nonzero_start[i]..nonzero_start[i + 1]]`).
     lin: DVector<f64>,
     nonzeros: Vec<usize>,
+    nonzero_start: Vec<usize>,
     /// Scratch: the stage's part of the Lagrangian gradient.
     lagrangian_gradient: DVector<f64>,
 }
@@ -70,7 +74,21 @@ pub struct Solver {
     buffers: Vec<StageBuffers>,
     qps: Vec<StageQp>,
     steps: Vec<StageStep>,
+    /// The step kept while second-order corrections are tried (restored if they all fail).
+    saved_steps: Vec<StageStep>,
+    /// Iterative refinement: the correction of a step, and the residuals of the KKT system
+    /// at the step (stationarity, dynamics, equalities per stage), swapped in for the QP's
+    /// right-hand side while the correction is solved.
+    correction: Vec<StageStep>,
+    residuals: Vec<KktResidual>,
     filter: Filter,
+}
+
+/// The residual of one stage's rows of the KKT system at a step (see [`Solver::refine_step`]).
+struct KktResidual {
+    stationarity: DVector<f64>,
+    dynamics: DVector<f64>,
+    equalities: DVector<f64>,
 }
 
 /// What can go wrong before the iterations start.
@@ -113,10 +131,12 @@ impl Solver {
                 dzu: DVector::zeros(d.nh),
                 sigma: DVector::zeros(d.nh),
                 ineq_residual: DVector::zeros(d.nh),
+                saved_ineq_residual: DVector::zeros(d.nh),
                 trial_primal: DVector::zeros(d.nz()),
                 trial_slack: DVector::zeros(d.nh),
                 lin: DVector::zeros(d.nh),
-                nonzeros: Vec::with_capacity(d.nz()),
+                nonzeros: vec![0; d.nh * d.nz()],
+                nonzero_start: vec![0; d.nh + 1],
                 lagrangian_gradient: DVector::zeros(d.nz()),
             })
             .collect();
@@ -124,6 +144,9 @@ impl Solver {
             riccati: RiccatiSolver::new(problem.dims(), settings.pivot_tolerance),
             qps: problem.dims().iter().map(|&d| StageQp::zeros(d)).collect(),
             steps: problem.dims().iter().map(|&d| StageStep::zeros(d)).collect(),
+            saved_steps: problem.dims().iter().map(|&d| StageStep::zeros(d)).collect(),
+            correction: problem.dims().iter().map(|&d| StageStep::zeros(d)).collect(),
+            residuals: problem.dims().iter().map(|&d| KktResidual { stationarity: DVector::zeros(d.nz()), dynamics: DVector::zeros(d.nx_next), equalities: DVector::zeros(d.ng) }).collect(),
             settings,
             buffers,
             filter: Filter::default(),
@@ -261,6 +284,7 @@ impl Solver {
                 regularization_last = delta;
                 regularizations += 1;
             }
+            self.refine_step();
             self.gather_step(problem, &it, mu);
             // 3. Fraction to the boundary (eq. 15).
             let alpha_max = self.max_primal_step(problem, &it, tau);
@@ -557,14 +581,15 @@ impl Solver {
     /// `q = grad l + J_h^T (Sigma r_h + mu/(u - s) - mu/(s - l))` with `r_h = h - s`
     /// (eq. 13 condensed). `soc`: replace the constraint residuals by those of a
     /// second-order correction (`Some(alpha)`: `alpha c(current) + c(trial)`, the trial values
-    /// in `trial`).
+    /// in `trial`; only the vectors are rebuilt, the matrices stay those of the corrected step).
     fn assemble_qp(&mut self, problem: &Problem, it: &Iterate, mu: f64, delta: f64, soc: Option<f64>) {
         let n = self.buffers.len();
         for k in 0..n {
             let (lo, up) = problem.bounds(k);
             let d = problem.dims()[k];
-            let next_x: Option<DVector<f64>> = if soc.is_some() && k + 1 < n { Some(self.buffers[k + 1].trial_primal.rows(0, d.nx_next).clone_owned()) } else { None };
-            let b = &mut self.buffers[k];
+            let (head, tail) = self.buffers.split_at_mut(k + 1);
+            let b = &mut head[k];
+            let next_x = tail.first().map(|nb| &nb.trial_primal);
             match soc {
                 None => {
                     for i in 0..d.nh {
@@ -580,7 +605,7 @@ impl Solver {
                     for i in 0..d.nh {
                         b.ineq_residual[i] = alpha * b.ineq_residual[i] + (b.trial.inequalities[i] - b.trial_slack[i]);
                     }
-                    let xn = next_x.as_ref();
+                    let xn = next_x;
                     for i in 0..d.nx_next {
                         self.qps[k].defect[i] = alpha * self.qps[k].defect[i] + (b.trial.dynamics[i] - xn.map_or(0.0, |x| x[i]));
                     }
@@ -589,10 +614,15 @@ impl Solver {
                     }
                 }
             }
-            self.qps[k].hessian.copy_from(&b.hess);
-            if delta > 0.0 {
-                for i in 0..d.nz() {
-                    self.qps[k].hessian[(i, i)] += delta;
+            // A second-order correction changes the right-hand side only: the matrices (and
+            // the Riccati factorization) stay those of the step it corrects.
+            let matrices = soc.is_none();
+            if matrices {
+                self.qps[k].hessian.as_mut_slice().copy_from_slice(b.hess.as_slice());
+                if delta > 0.0 {
+                    for i in 0..d.nz() {
+                        self.qps[k].hessian[(i, i)] += delta;
+                    }
                 }
             }
             self.qps[k].gradient.copy_from(&b.jac.cost_gradient);
@@ -615,22 +645,26 @@ impl Solver {
             // are simple bounds with one).
             let jh = &b.jac.inequalities;
             let qp = &mut self.qps[k];
+            if matrices {
+                row_nonzeros(jh, &mut b.nonzero_start, &mut b.nonzeros);
+            }
             for i in 0..d.nh {
-                b.nonzeros.clear();
-                b.nonzeros.extend((0..d.nz()).filter(|&j| jh[(i, j)] != 0.0));
                 let (sigma, lin) = (b.sigma[i], b.lin[i]);
-                for &a in &b.nonzeros {
+                let row = &b.nonzeros[b.nonzero_start[i]..b.nonzero_start[i + 1]];
+                for &a in row {
                     let ja = jh[(i, a)];
                     qp.gradient[a] += ja * lin;
-                    if sigma != 0.0 {
-                        for &c in &b.nonzeros {
+                    if sigma != 0.0 && matrices {
+                        for &c in row {
                             qp.hessian[(c, a)] += sigma * ja * jh[(i, c)];
                         }
                     }
                 }
             }
-            self.qps[k].dynamics.copy_from(&b.jac.dynamics);
-            self.qps[k].equality_jacobian.copy_from(&b.jac.equalities);
+            if matrices {
+                self.qps[k].dynamics.as_mut_slice().copy_from_slice(b.jac.dynamics.as_slice());
+                self.qps[k].equality_jacobian.as_mut_slice().copy_from_slice(b.jac.equalities.as_slice());
+            }
         }
     }
 
@@ -781,6 +815,7 @@ impl Solver {
                 let mut theta_soc_old = theta;
                 let mut theta_trial = theta_t;
                 let mut alpha_soc = alpha;
+                self.save_step();
                 for _ in 0..s.max_second_order_corrections {
                     if theta_trial > s.kappa_soc * theta_soc_old && theta_soc_old != theta {
                         break;
@@ -788,7 +823,10 @@ impl Solver {
                     theta_soc_old = theta_trial;
                     let t = Instant::now();
                     self.assemble_qp(problem, it, mu, delta, Some(alpha_soc));
-                    let ok = self.riccati.solve(&self.qps, &mut self.steps).is_ok();
+                    let ok = self.riccati.resolve(&self.qps, &mut self.steps).is_ok();
+                    if ok {
+                        self.refine_step();
+                    }
                     timings.kkt += t.elapsed();
                     if !ok {
                         break;
@@ -808,11 +846,9 @@ impl Solver {
                         return Ok(());
                     }
                 }
-                // Restore the original direction for further backtracking.
-                let t = Instant::now();
-                self.assemble_qp(problem, it, mu, delta, None);
-                let _ = self.riccati.solve(&self.qps, &mut self.steps);
-                timings.kkt += t.elapsed();
+                // Restore the original direction for further backtracking (kept, not
+                // solved again: the same QP gives the same step).
+                self.restore_step();
                 self.gather_step(problem, it, mu);
             }
             first = false;
@@ -824,6 +860,101 @@ impl Solver {
                 return Ok(());
             }
             alpha *= s.backtracking_factor;
+        }
+    }
+
+    /// Iterative refinement of the step in `steps` (Wächter & Biegler 2006, sec. 3.1; IPOPT's
+    /// residual test): `r = K s - rhs` on every stage's rows, and while
+    /// `|r| / (|s| + |rhs|) > refinement_residual_ratio`, `s -= K^{-1} r`, re-solved with
+    /// the last factorization (the matrices are unchanged, only the right-hand side is `r`:
+    /// [`RiccatiSolver::resolve`], the vector half of the recursion). Returns the number of
+    /// re-solves.
+    fn refine_step(&mut self) -> usize {
+        let mut solves = 0;
+        let mut ratio = self.kkt_residual();
+        while ratio > self.settings.refinement_residual_ratio && solves < self.settings.max_refinement_steps {
+            for (qp, r) in self.qps.iter_mut().zip(&mut self.residuals) {
+                std::mem::swap(&mut qp.gradient, &mut r.stationarity);
+                std::mem::swap(&mut qp.defect, &mut r.dynamics);
+                std::mem::swap(&mut qp.equality_residual, &mut r.equalities);
+            }
+            let ok = self.riccati.resolve(&self.qps, &mut self.correction).is_ok();
+            for (qp, r) in self.qps.iter_mut().zip(&mut self.residuals) {
+                std::mem::swap(&mut qp.gradient, &mut r.stationarity);
+                std::mem::swap(&mut qp.defect, &mut r.dynamics);
+                std::mem::swap(&mut qp.equality_residual, &mut r.equalities);
+            }
+            solves += 1;
+            if !ok {
+                break;
+            }
+            for (step, c) in self.steps.iter_mut().zip(&self.correction) {
+                step.dz += &c.dz;
+                step.dynamics_multiplier += &c.dynamics_multiplier;
+                step.equality_multiplier += &c.equality_multiplier;
+            }
+            let previous = ratio;
+            ratio = self.kkt_residual();
+            if ratio > 0.5 * previous {
+                // Round-off level reached: further corrections do not pay.
+                break;
+            }
+        }
+        solves
+    }
+
+    /// The residuals of the KKT system of the QPs at `steps` into `residuals`:
+    /// `H dz + q + F^T lambda + G^T nu - [lambda_{k-1}; 0]`, `F dz + b - dx_{k+1}`,
+    /// `G dz + g`; returns `|r| / (|s| + |rhs|)` (max norms).
+    fn kkt_residual(&mut self) -> f64 {
+        let n = self.qps.len();
+        let (mut residual, mut solution, mut rhs) = (0.0f64, 0.0f64, 0.0f64);
+        for k in 0..n {
+            let (qp, step, r) = (&self.qps[k], &self.steps[k], &mut self.residuals[k]);
+            let g = &mut r.stationarity;
+            g.copy_from(&qp.gradient);
+            g.gemv(1.0, &qp.hessian, &step.dz, 1.0);
+            g.gemv_tr(1.0, &qp.dynamics, &step.dynamics_multiplier, 1.0);
+            g.gemv_tr(1.0, &qp.equality_jacobian, &step.equality_multiplier, 1.0);
+            if k > 0 {
+                for (gi, lam) in g.iter_mut().zip(self.steps[k - 1].dynamics_multiplier.iter()) {
+                    *gi -= lam;
+                }
+            }
+            r.dynamics.copy_from(&qp.defect);
+            if k + 1 < n {
+                r.dynamics.gemv(1.0, &qp.dynamics, &step.dz, 1.0);
+                for (ri, dx) in r.dynamics.iter_mut().zip(self.steps[k + 1].dz.iter()) {
+                    *ri -= dx;
+                }
+            }
+            r.equalities.copy_from(&qp.equality_residual);
+            r.equalities.gemv(1.0, &qp.equality_jacobian, &step.dz, 1.0);
+            residual = residual.max(g.amax()).max(r.dynamics.amax()).max(r.equalities.amax());
+            solution = solution.max(step.dz.amax()).max(step.dynamics_multiplier.amax()).max(step.equality_multiplier.amax());
+            rhs = rhs.max(qp.gradient.amax()).max(qp.defect.amax()).max(qp.equality_residual.amax());
+        }
+        if residual == 0.0 {
+            0.0
+        } else {
+            residual / (solution + rhs)
+        }
+    }
+
+    /// Keeps the current step and the residuals of its QP (before second-order corrections).
+    fn save_step(&mut self) {
+        for (k, b) in self.buffers.iter_mut().enumerate() {
+            b.saved_ineq_residual.copy_from(&b.ineq_residual);
+            self.saved_steps[k].copy_from(&self.steps[k]);
+        }
+    }
+
+    /// Brings back what [`Self::save_step`] kept; `gather_step` then rebuilds the slack and
+    /// bound-multiplier steps (`Sigma` is that of the current iterate, unchanged).
+    fn restore_step(&mut self) {
+        for (k, b) in self.buffers.iter_mut().enumerate() {
+            b.ineq_residual.copy_from(&b.saved_ineq_residual);
+            self.steps[k].copy_from(&self.saved_steps[k]);
         }
     }
 
@@ -887,6 +1018,39 @@ fn acceptance(filter: &Filter, s: &Settings, theta: f64, phi: f64, dphi: f64, al
         return Some(false);
     }
     None
+}
+
+/// The nonzero columns of every row of `jac`, by row, in increasing column order (the
+/// storage is column-major: one pass counts, one fills, both down contiguous columns).
+fn row_nonzeros(jac: &DMatrix<f64>, start: &mut [usize], columns: &mut [usize]) {
+    let rows = jac.nrows();
+    start.fill(0);
+    if rows == 0 {
+        return;
+    }
+    for column in jac.as_slice().chunks_exact(rows) {
+        for (count, v) in start[1..].iter_mut().zip(column) {
+            if *v != 0.0 {
+                *count += 1;
+            }
+        }
+    }
+    for i in 0..rows {
+        start[i + 1] += start[i];
+    }
+    // The fill moves `start[i]` to the end of row i; shifted back below.
+    for (j, column) in jac.as_slice().chunks_exact(rows).enumerate() {
+        for (next, v) in start[..rows].iter_mut().zip(column) {
+            if *v != 0.0 {
+                columns[*next] = j;
+                *next += 1;
+            }
+        }
+    }
+    for i in (0..rows).rev() {
+        start[i + 1] = start[i];
+    }
+    start[0] = 0;
 }
 
 /// `-mu sum ln(s - l) + ln(u - s)`; `+inf` outside the interior.

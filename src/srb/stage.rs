@@ -491,7 +491,7 @@ impl Stage for SrbStage {
         }
         if !self.last {
             let f = &mut out.dynamics;
-            f.fill(0.0);
+            f.as_mut_slice().fill(0.0);
             for j in 0..3 {
                 f[(P + j, P + j)] = 1.0;
                 f[(P + j, V + j)] = q.dt;
@@ -550,7 +550,7 @@ impl Stage for SrbStage {
             }
         }
         let g = &mut out.equalities;
-        g.fill(0.0);
+        g.as_mut_slice().fill(0.0);
         if self.knot == 0 {
             for j in 0..9 {
                 g[(j, j)] = 1.0;
@@ -572,7 +572,7 @@ impl Stage for SrbStage {
             }
         }
         let h = &mut out.inequalities;
-        h.fill(0.0);
+        h.as_mut_slice().fill(0.0);
         let mut row = 0;
         if !self.last {
             for s in 0..4 {
@@ -624,7 +624,7 @@ impl Stage for SrbStage {
     fn lagrangian_hessian(&self, z: &[f64], m: StageMultipliers<'_>, out: &mut DMatrix<f64>) {
         let sh = &self.shared;
         let q = self.point(z);
-        out.fill(0.0);
+        out.as_mut_slice().fill(0.0);
         let inv_n = self.inv_n();
         let ti = self.t_index();
         // Cost: w q, w = T/N: w Hess(q) + (1/N)(e_T grad q^T + grad q e_T^T).
