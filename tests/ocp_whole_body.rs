@@ -360,4 +360,18 @@ fn feasibility_gradient_case(friction_form: legwork::ocp::FrictionForm, joint_li
         let analytic = d.l_x.dot(&dx);
         assert!((fd - analytic).abs() < 1e-4 * (1.0 + analytic.abs()), "{friction_form:?}, direction {trial}: finite differences {fd} against l_x . dx = {analytic}");
     }
+    // The same terms on the last state (`terminal_knot`; the task has no final cost, so
+    // `h` is theirs alone): `h_x` against central differences of `h`.
+    problem.feasibility.as_mut().unwrap().settings.terminal_knot = true;
+    let (mut h_x, mut h_xx) = (DVector::zeros(nx), nalgebra::DMatrix::zeros(nx, nx));
+    let h = problem.terminal_cost_derivatives(&mut problem.workspace(), &x, &mut h_x, &mut h_xx);
+    assert!(h > 0.0 && (h - problem.terminal_cost(&mut problem.workspace(), &x)).abs() <= 1e-12 * h, "terminal feasibility cost {h}");
+    for trial in 0..4 {
+        let dx = DVector::from_fn(nx, |_, _| r());
+        let step = 1e-7;
+        let terminal = |y: &RobotState| problem.terminal_cost(&mut problem.workspace(), y);
+        let fd = (terminal(&perturbed(&dx, step)) - terminal(&perturbed(&dx, -step))) / (2.0 * step);
+        let analytic = h_x.dot(&dx);
+        assert!((fd - analytic).abs() < 1e-4 * (1.0 + analytic.abs()), "{friction_form:?}, terminal direction {trial}: finite differences {fd} against h_x . dx = {analytic}");
+    }
 }

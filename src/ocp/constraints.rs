@@ -70,6 +70,23 @@ pub struct FeasibilitySettings {
     /// so a solve costs at most `1 + polish_share` times the iterations it did without
     /// (docs/experiments/feasible-slq-3.md).
     pub polish_share: f64,
+    /// The polish's iterations split into this many rounds, the multipliers updated before
+    /// each (2): the method of multipliers needs more than one update, and the polish starts
+    /// at a converged plan, so its short rounds do not cost the task's solve what splitting
+    /// the task's own budget did.
+    pub polish_rounds: usize,
+    /// The bounds the polish holds the plan to, inside the targets (`eta` 0.70 against 0.75,
+    /// 9 mm against 10, joints 0.02 rad inside their range): a multiplier round ends near
+    /// its bounds, some knots a little over, so it aims inside the targets to meet them.
+    /// The task's own solve keeps the targets' bounds ([`Self::friction_margin`],
+    /// [`Self::max_penetration`], [`Self::joint_limit_margin`]).
+    pub polish_friction_margin: f64,
+    pub polish_max_penetration: f64,
+    pub polish_joint_limit_margin: f64,
+    /// The last state `x_N` carries the constraints too, as a knot (`dt psi`; false: on in
+    /// the task's solve it cost sidestep 0.297 -> 0.273 m and trot 0.96 -> 0.83 m, and the
+    /// last knots stay at the cone's edge, docs/experiments/feasible-slq-4.md).
+    pub terminal_knot: bool,
 }
 
 /// How the friction residual is normalized.
@@ -86,7 +103,7 @@ pub enum FrictionForm {
 
 impl Default for FeasibilitySettings {
     fn default() -> Self {
-        Self { friction_margin: 0.75, max_penetration: 0.01, friction_penalty: 1e4, penetration_penalty: 1e3, joint_limit_penalty: 1e4, joint_speed_penalty: 1e3, outer_rounds: 1, penalty_growth: 1.0, local_penalty_growth: false, friction_form: FrictionForm::Demand, joint_limit_margin: 0.0, polish_share: 0.5 }
+        Self { friction_margin: 0.75, max_penetration: 0.01, friction_penalty: 1e4, penetration_penalty: 1e3, joint_limit_penalty: 1e4, joint_speed_penalty: 1e3, outer_rounds: 1, penalty_growth: 1.0, local_penalty_growth: false, friction_form: FrictionForm::Demand, joint_limit_margin: 0.0, polish_share: 0.5, polish_rounds: 2, polish_friction_margin: 0.70, polish_max_penetration: 0.009, polish_joint_limit_margin: 0.02, terminal_knot: false }
     }
 }
 
@@ -104,11 +121,15 @@ impl FeasibilitySettings {
     /// (0 switches a kind off), at least one round.
     pub fn validate(&self) -> Result<(), FeasibilitySettingsError> {
         let bad = |field, expected, value| Err(FeasibilitySettingsError { field, expected, value });
-        if !(self.friction_margin > 0.0 && self.friction_margin <= 1.0) {
-            return bad("friction_margin", "a fraction in (0, 1]", self.friction_margin);
+        for (field, value) in [("friction_margin", self.friction_margin), ("polish_friction_margin", self.polish_friction_margin)] {
+            if !(value > 0.0 && value <= 1.0) {
+                return bad(field, "a fraction in (0, 1]", value);
+            }
         }
-        if !(self.max_penetration.is_finite() && self.max_penetration > 0.0) {
-            return bad("max_penetration", "a finite depth > 0 (m)", self.max_penetration);
+        for (field, value) in [("max_penetration", self.max_penetration), ("polish_max_penetration", self.polish_max_penetration)] {
+            if !(value.is_finite() && value > 0.0) {
+                return bad(field, "a finite depth > 0 (m)", value);
+            }
         }
         for (field, value) in [("friction_penalty", self.friction_penalty), ("penetration_penalty", self.penetration_penalty), ("joint_limit_penalty", self.joint_limit_penalty), ("joint_speed_penalty", self.joint_speed_penalty)] {
             if !(value.is_finite() && value >= 0.0) {
@@ -118,16 +139,26 @@ impl FeasibilitySettings {
         if self.outer_rounds == 0 {
             return bad("outer_rounds", "at least 1", 0.0);
         }
+        if self.polish_rounds == 0 {
+            return bad("polish_rounds", "at least 1", 0.0);
+        }
         if !(self.penalty_growth.is_finite() && self.penalty_growth >= 1.0) {
             return bad("penalty_growth", "a finite factor >= 1", self.penalty_growth);
         }
         if !(self.polish_share.is_finite() && self.polish_share >= 0.0) {
             return bad("polish_share", "a finite share >= 0 of the iterations", self.polish_share);
         }
-        if !(self.joint_limit_margin.is_finite() && self.joint_limit_margin >= 0.0) {
-            return bad("joint_limit_margin", "a finite angle >= 0 (rad)", self.joint_limit_margin);
+        for (field, value) in [("joint_limit_margin", self.joint_limit_margin), ("polish_joint_limit_margin", self.polish_joint_limit_margin)] {
+            if !(value.is_finite() && value >= 0.0) {
+                return bad(field, "a finite angle >= 0 (rad)", value);
+            }
         }
         Ok(())
+    }
+
+    /// These settings with the polish's bounds in place of the targets'.
+    pub fn with_polish_bounds(&self) -> Self {
+        Self { friction_margin: self.polish_friction_margin, max_penetration: self.polish_max_penetration, joint_limit_margin: self.polish_joint_limit_margin, ..*self }
     }
 }
 
@@ -495,6 +526,14 @@ mod tests {
         let err = FeasibilitySettings { friction_penalty: f64::NAN, ..Default::default() }.validate().unwrap_err();
         assert!(err.to_string().contains("friction_penalty"), "{err}");
         assert_eq!(FeasibilitySettings { outer_rounds: 0, ..Default::default() }.validate().unwrap_err().field, "outer_rounds");
+        assert_eq!(FeasibilitySettings { polish_rounds: 0, ..Default::default() }.validate().unwrap_err().field, "polish_rounds");
+        assert_eq!(FeasibilitySettings { polish_friction_margin: 0.0, ..Default::default() }.validate().unwrap_err().field, "polish_friction_margin");
+        assert_eq!(FeasibilitySettings { polish_max_penetration: -1e-3, ..Default::default() }.validate().unwrap_err().field, "polish_max_penetration");
+        // The polish's bounds replace the targets' and nothing else.
+        let s = FeasibilitySettings::default();
+        let polish = s.with_polish_bounds();
+        assert_eq!((polish.friction_margin, polish.max_penetration, polish.joint_limit_margin), (s.polish_friction_margin, s.polish_max_penetration, s.polish_joint_limit_margin));
+        assert_eq!(FeasibilitySettings { friction_margin: s.friction_margin, max_penetration: s.max_penetration, joint_limit_margin: s.joint_limit_margin, ..polish }, s);
     }
 
     /// `psi` is C1 across the activation and its derivatives match differences.

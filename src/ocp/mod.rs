@@ -191,6 +191,9 @@ pub struct WholeBodyWorkspace<'a> {
     frame_jac: nalgebra::Matrix6xX<f64>,
     /// A constraint's gradient row (`nx`).
     constraint_row: DVector<f64>,
+    /// The terminal state's copy that a linearized step from it advances (its contacts and
+    /// foot Jacobians are the terminal constraints').
+    terminal_scratch: RobotState,
 }
 
 impl<'a> WholeBodyProblem<'a> {
@@ -292,11 +295,17 @@ impl<'a> WholeBodyProblem<'a> {
 }
 
 impl WholeBodyProblem<'_> {
-    /// `f(k, q, v, anchors, feet)` at every knot state `x_0 .. x_{N-1}` of `states` (the
-    /// constrained ones), with the contacts evaluated there.
+    /// Whether the last state `x_N` carries the feasibility constraints.
+    fn terminal_constrained(&self) -> bool {
+        self.feasibility.as_ref().is_some_and(|c| c.settings.terminal_knot)
+    }
+
+    /// `f(k, q, v, anchors, feet)` at every constrained knot state of `states` (`x_0 ..
+    /// x_{N-1}`, and `x_N` with [`FeasibilitySettings::terminal_knot`]), with the contacts
+    /// evaluated there.
     fn for_each_knot_contact(&self, states: &[RobotState], mut f: impl FnMut(usize, &RobotState, &crate::contact::ContactParams, &[crate::sim::FootState])) {
         let mut ws = ContactModelWorkspace::new(self.model, self.terrain).with_joint_limits(self.joint_limits);
-        for (k, x) in states.iter().enumerate().take(self.knots) {
+        for (k, x) in states.iter().enumerate().take(self.knots + usize::from(self.terminal_constrained())) {
             ws.evaluate_contacts(&x.q, &x.v, &x.anchors);
             f(k, x, ws.params(), ws.feet());
         }
@@ -362,6 +371,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             kinematics: crate::dynamics::Data::new(model),
             frame_jac: nalgebra::Matrix6xX::zeros(nv),
             constraint_row: DVector::zeros(self.nx()),
+            terminal_scratch: self.initial.clone(),
         }
     }
     fn initial_state(&self) -> RobotState {
@@ -466,13 +476,35 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         }
         cost
     }
+    /// `h(x_N)`, and with [`FeasibilitySettings::terminal_knot`] the feasibility terms of
+    /// `x_N` as of any knot (`dt psi`): the plan's last state is a knot of the motion, and
+    /// without them the terminal cost is cheapest met by a last stamp and drag of the feet
+    /// (docs/experiments/feasible-slq-3.md, turn).
     fn terminal_cost(&self, ws: &mut WholeBodyWorkspace<'a>, x: &RobotState) -> f64 {
-        self.state_cost(ws, &self.terminal, 1.0, x)
+        let mut cost = self.state_cost(ws, &self.terminal, 1.0, x);
+        if let Some(constraints) = self.feasibility.as_ref().filter(|c| c.settings.terminal_knot) {
+            ws.dynamics.evaluate_contacts(&x.q, &x.v, &x.anchors);
+            let at = KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params: ws.dynamics.params(), feet: ws.dynamics.feet() };
+            cost += constraints.cost(self.knots, self.dt, at);
+        }
+        cost
     }
     fn terminal_cost_derivatives(&self, ws: &mut WholeBodyWorkspace<'a>, x: &RobotState, h_x: &mut DVector<f64>, h_xx: &mut DMatrix<f64>) -> f64 {
         h_x.fill(0.0);
         h_xx.fill(0.0);
-        self.add_state_cost_derivatives(ws, &self.terminal, 1.0, x, h_x, h_xx)
+        let mut cost = 0.0;
+        if let Some(constraints) = self.feasibility.as_ref().filter(|c| c.settings.terminal_knot) {
+            // One linearized step from x_N (torques zero: they move neither the contacts nor
+            // the foot Jacobians at x_N) evaluates both there, as a running knot's first
+            // substep does.
+            ws.terminal_scratch.clone_from(x);
+            ws.tau.fill(0.0);
+            let s = &mut ws.terminal_scratch;
+            ws.derivatives.step(&mut ws.dynamics, &mut s.q, &mut s.v, &mut s.anchors, &ws.tau, self.dt / self.substeps as f64);
+            let at = KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params: ws.dynamics.params(), feet: ws.dynamics.feet() };
+            cost += constraints.add_derivatives(self.knots, self.dt, at, &ws.derivatives, self.anchor_states, &mut ws.constraint_row, (h_x, h_xx));
+        }
+        cost + self.add_state_cost_derivatives(ws, &self.terminal, 1.0, x, h_x, h_xx)
     }
     /// `-effort <= u <= effort`, the joints' effort limits.
     fn input_bounds(&self, _k: usize, lower: &mut DVector<f64>, upper: &mut DVector<f64>) {

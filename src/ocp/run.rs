@@ -266,21 +266,38 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
         problem.next_outer_round(&solution.states);
         warm = Some(solution);
     };
-    // The polish: one more round from the finished plan, the multipliers updated at its
-    // violations (and the penalties grown, if the settings grow them), of at most
-    // `polish_share` of the iterations spent so far. Unlike a split of the budget into
-    // rounds, the task's own solve is untouched and its target kept as the starting point.
+    // The polish: more rounds from the finished plan, the multipliers updated before each
+    // at its violations of the polish's bounds (inside the targets'; and the penalties grown,
+    // if the settings grow them), of at most `polish_share` of the iterations spent so far
+    // in all. Unlike a split of the budget into rounds, the task's own solve is untouched
+    // and its target kept as the starting point (docs/experiments/feasible-slq-3.md, -4.md).
     let spent = stages.iter().chain(&rounds).map(|s| s.iterations).sum::<usize>() + solution.iterations.len();
     let polish = problem.feasibility.as_ref().map_or(0, |c| (c.settings.polish_share * spent as f64).floor() as usize);
-    let violated = problem.constraint_violation(&solution.states).is_some_and(|v| v.max() > 0.0);
-    let solution = if polish > 0 && violated {
-        rounds.push(StageReport::of(spec.duration, &solution));
-        problem.next_outer_round(&solution.states);
-        let report = |log: &IterationLog| on_iteration(SolveProgress { stage: None, log });
-        solve_from(&problem, settings(polish, flat_cost_tolerance), Some(&solution), &standing, report)?
-    } else {
-        solution
-    };
+    let violated = |problem: &WholeBodyProblem<'_>, solution: &SlqSolution<RobotState>| problem.constraint_violation(&solution.states).is_some_and(|v| v.max() > 0.0);
+    let mut solution = solution;
+    if polish > 0 && violated(&problem, &solution) {
+        let targets = problem.feasibility.as_ref().map(|c| c.settings);
+        let polish_rounds = targets.map_or(1, |s| s.polish_rounds.max(1)).min(polish);
+        if let Some(c) = problem.feasibility.as_mut() {
+            c.settings = c.settings.with_polish_bounds();
+        }
+        let mut left = polish;
+        for round in 0..polish_rounds {
+            if round > 0 && !violated(&problem, &solution) {
+                break;
+            }
+            let iterations = if round + 1 == polish_rounds { left } else { polish / polish_rounds };
+            left -= iterations;
+            rounds.push(StageReport::of(spec.duration, &solution));
+            problem.next_outer_round(&solution.states);
+            let report = |log: &IterationLog| on_iteration(SolveProgress { stage: None, log });
+            solution = solve_from(&problem, settings(iterations, flat_cost_tolerance), Some(&solution), &standing, report)?;
+        }
+        // The plan's violations are reported against the targets.
+        if let (Some(c), Some(targets)) = (problem.feasibility.as_mut(), targets) {
+            c.settings = targets;
+        }
+    }
     let violation = problem.constraint_violation(&solution.states);
     let plan = solution_trajectory(&problem, &solution, &format!("solve {}", spec.name));
 
