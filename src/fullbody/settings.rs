@@ -78,6 +78,13 @@ pub struct FullBodySettings {
     pub w_velocity: f64,
     pub w_torque: f64,
     pub w_force: f64,
+    /// `Some(n)`: after `n` Gauss-Newton iterations without convergence, continue from that
+    /// iterate (primal and duals, warm) with the dynamics' and constraints' curvature
+    /// (weighted by their multipliers) added to the Hessian, by central differences of the
+    /// exact Jacobians; each Hessian then costs `2 nz` Jacobian evaluations per knot. From the
+    /// start the exact curvature with the first multipliers' estimates makes the steps worse
+    /// (measured on lateral_down). `None`: Gauss-Newton throughout (the default).
+    pub constraint_curvature_after: Option<usize>,
     /// The interior-point solver's settings (`ipocp` defaults, 300 iterations at most,
     /// optimality tolerance 1e-6, constraint violation 1e-6; `parallel` off: on this shared
     /// 2-core machine under load it measured no faster).
@@ -102,6 +109,7 @@ impl Default for FullBodySettings {
             w_velocity: 1e-3,
             w_torque: 1e-3,
             w_force: 1e-4,
+            constraint_curvature_after: None,
             solver: Settings { max_iterations: 300, tolerance: 1e-6, constraint_violation_tolerance: 1e-6, ..Settings::default() },
         }
     }

@@ -13,7 +13,7 @@
 
 use super::exp_map::{exp, ExpMap};
 use super::params::SrbParams;
-use super::stage::{rotation_error_map, Shared, SrbStage, BIG, P, R, T, V, W};
+use super::stage::{rotation_error_map, PlatformBox, Shared, SrbStage, BIG, P, R, T, V, W};
 use crate::ipocp::{Problem, ProblemError, Settings, SolveError, SolveResult, Solver, Stage};
 use nalgebra::{DVector, Matrix3, Vector3};
 use std::sync::Arc;
@@ -36,6 +36,9 @@ pub struct JumpSpec {
     pub angle: f64,
     /// Height of the start box above the landing ground.
     pub box_height: f64,
+    /// The start box the airborne legs must clear (top at `box_height`, this extent in x
+    /// and y, world); `None`: no clearance rows, the reference script's problem.
+    pub clear_of: Option<BoxExtent>,
     pub phases: Vec<Contacts>,
     /// `[T_min, T_max]` of (2j).
     pub total_time: (f64, f64),
@@ -65,6 +68,13 @@ fn embedded_specs(spec: impl Fn(&crate::jump::Jump) -> JumpSpec) -> Vec<JumpSpec
         .collect()
 }
 
+/// The horizontal extent of a start box (world, m): `[x_min, x_max]`, `[y_min, y_max]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoxExtent {
+    pub x: [f64; 2],
+    pub y: [f64; 2],
+}
+
 /// Settings of the formulation (defaults: the script's, in parentheses).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ContactTimingSettings {
@@ -88,6 +98,11 @@ pub struct ContactTimingSettings {
     pub cost_dt: bool,
     /// The SO(3) step's exponential (`Exact`; `Taylor4` is the paper's and the script's).
     pub exp_map: ExpMap,
+    /// Clearance from the start box (`JumpSpec::clear_of`) of each airborne leg's tuck point
+    /// (m; not in the script, whose problems have no box: 0.02). The tuck point is the top of
+    /// the foot's sphere (2d), `R (pbar^s + r e_z)`: the shallowest foot the single rigid
+    /// body's own leg model allows, straight under the nominal foot.
+    pub box_clearance: f64,
 }
 
 impl Default for ContactTimingSettings {
@@ -105,6 +120,7 @@ impl Default for ContactTimingSettings {
             eps_f: 1e-4,
             cost_dt: true,
             exp_map: ExpMap::Exact,
+            box_clearance: 0.02,
         }
     }
 }
@@ -133,6 +149,7 @@ impl ContactTimingSettings {
         check("radius", self.radius, self.radius > 0.0, "> 0")?;
         check("t_lo", self.t_lo, self.t_lo > 0.0 && self.t_lo <= self.t_hi, "> 0 and <= t_hi")?;
         check("t_hi", self.t_hi, self.t_hi.is_finite(), "finite")?;
+        check("box_clearance", self.box_clearance, self.box_clearance.is_finite() && self.box_clearance >= 0.0, "finite and >= 0")?;
         for (field, v) in [("eps_omega", self.eps_omega), ("eps_r", self.eps_r), ("eps_f", self.eps_f)] {
             check(field, v, v >= 0.0 && v.is_finite(), ">= 0")?;
         }
@@ -210,6 +227,9 @@ impl ContactTimingProblem {
             rg,
             feet_start,
             feet_goal,
+            platform: jump.clear_of.map(|b| PlatformBox { top: jump.box_height, x: b.x, y: b.y }),
+            tuck: std::array::from_fn(|f| pbar[f] + Vector3::new(0.0, 0.0, s.radius)),
+            box_clearance: s.box_clearance,
         });
         let phase_of = |k: usize| k.min(nc - 1) / n;
         let k_flight = n * (np - 1);
@@ -253,8 +273,11 @@ impl ContactTimingProblem {
                 }
             }
             let ncontact = contact.iter().filter(|&&c| c).count();
-            let n_general = if last { 4 + 1 } else { 4 * ncontact + 4 + usize::from(ncontact > 0) + usize::from(k == 0) };
-            stages.push(Box::new(SrbStage { shared: shared.clone(), knot: k, phase, last, contact, rot_err, bounds, n_general }));
+            // Clearance rows of the airborne legs over their interval (the last knot's feet
+            // are the landing's, off the box by the file's checks).
+            let n_box = if shared.platform.is_some() && !last && ncontact == 0 { 4 } else { 0 };
+            let n_general = n_box + if last { 4 + 1 } else { 4 * ncontact + 4 + usize::from(ncontact > 0) + usize::from(k == 0) };
+            stages.push(Box::new(SrbStage { shared: shared.clone(), knot: k, phase, last, contact, rot_err, bounds, n_general, n_box }));
             // Guess.
             let frac = k as f64 / nc as f64;
             let mut z = DVector::zeros(if last { nx } else { nx + 12 });
