@@ -228,6 +228,12 @@ impl FullBodyProblem {
         Ok(self.plan(&second, t0.elapsed()))
     }
 
+    /// Adds (or no longer adds) the constraints' curvature to the stages' Hessians: what the
+    /// second phase of [`Self::solve`] with `constraint_curvature_after` does.
+    pub fn set_constraint_curvature(&self, on: bool) {
+        self.shared.curvature.store(on, Ordering::Relaxed);
+    }
+
     /// The plan of a solve's last iterate.
     pub fn plan(&self, result: &SolveResult, time: Duration) -> FullBodyPlan {
         let primal = &result.last.primal;

@@ -744,9 +744,13 @@ impl Stage for FullBodyStage {
 
 impl FullBodyStage {
     /// Adds `sum_i m_i Hess c_i(z)` of the dynamics, equality and inequality rows: column `j`
-    /// is the central difference of `J_c(z)^T m` along `z_j` (step `1e-6 (1 + |z_j|)`), the
-    /// result symmetrized. The exact Jacobians are differenced, so the error is
-    /// `O(h^2)` of their derivatives; `2 nz` Jacobian evaluations per call.
+    /// is the central difference of `J_c(z)^T m` along `z_j` (step `1e-6 (1 + |z_j|)`). Only
+    /// the state columns are differenced: every row is linear in the controls (the torques
+    /// and contact forces enter the dynamics through `ABA(q, v, S^T tau + J^T lambda)`, linear
+    /// in its force argument, and the torque, friction and force rows are linear), so the
+    /// control-control block is zero and the control-state block is the transpose of the
+    /// state columns' control rows. The state block is symmetrized. `2 nx` Jacobian
+    /// evaluations per call.
     fn add_constraint_curvature(&self, z: &[f64], m: &StageMultipliers<'_>, out: &mut DMatrix<f64>) {
         let d = self.dims;
         let nz = d.nz();
@@ -762,7 +766,8 @@ impl FullBodyStage {
         let nu = DVectorView::from_slice(m.equalities, d.ng);
         let y = DVectorView::from_slice(m.inequalities, d.nh);
         fd.z.copy_from_slice(z);
-        for j in 0..nz {
+        let nx = d.nx;
+        for j in 0..nx {
             let h = 1e-6 * (1.0 + z[j].abs());
             for (sign, side) in [(1.0, 0), (-1.0, 1)] {
                 fd.z[j] = z[j] + sign * h;
@@ -777,9 +782,13 @@ impl FullBodyStage {
                 fd.curvature[(i, j)] = (fd.plus[i] - fd.minus[i]) / (2.0 * h);
             }
         }
-        for i in 0..nz {
-            for j in 0..nz {
+        for j in 0..nx {
+            for i in 0..nx {
                 out[(i, j)] += 0.5 * (fd.curvature[(i, j)] + fd.curvature[(j, i)]);
+            }
+            for i in nx..nz {
+                out[(i, j)] += fd.curvature[(i, j)];
+                out[(j, i)] += fd.curvature[(i, j)];
             }
         }
     }

@@ -238,6 +238,7 @@ impl ContactTimingProblem {
         // line, no rotation in stance and a constant rate in flight, feet interpolated.
         let t_guess = 0.5 * (jump.total_time.0 + jump.total_time.1) / np as f64;
         let t_total = t_guess * np as f64;
+        let flight_arc = Self::flight_arc(&shared, jump, k_flight, nc);
         let mut stages: Vec<Box<dyn Stage>> = Vec::with_capacity(nc + 1);
         let mut guess = Vec::with_capacity(nc + 1);
         for k in 0..=nc {
@@ -281,7 +282,10 @@ impl ContactTimingProblem {
             // Guess.
             let frac = k as f64 / nc as f64;
             let mut z = DVector::zeros(if last { nx } else { nx + 12 });
-            let p = p0 * (1.0 - frac) + pg * frac;
+            let mut p = p0 * (1.0 - frac) + pg * frac;
+            if k > k_flight && k < nc {
+                p.z += flight_arc * (std::f64::consts::PI * (k - k_flight) as f64 / (nc - k_flight) as f64).sin();
+            }
             let v = (pg - p0) / t_total;
             let w = if k >= k_flight && k < nc { jump.axis * (jump.angle / t_guess) } else { Vector3::zeros() };
             let ang = jump.angle * (k.saturating_sub(k_flight)) as f64 / (nc - k_flight) as f64;
@@ -324,6 +328,28 @@ impl ContactTimingProblem {
             feet_start,
             feet_goal,
         })
+    }
+
+    /// Height of the arc added to the guess's straight CoM line over the flight (`0` without
+    /// a box): the largest lift any flight knot's tuck points need to be `box_clearance` above
+    /// the box top where they are over it, so the solve starts with the airborne legs clear of
+    /// the box (inside it the signed distance's nearest face switches between top and side).
+    fn flight_arc(sh: &Shared, jump: &JumpSpec, k_flight: usize, nc: usize) -> f64 {
+        let Some(b) = &sh.platform else { return 0.0 };
+        let mut lift: f64 = 0.0;
+        for k in k_flight + 1..nc {
+            let frac = k as f64 / nc as f64;
+            let p = sh.p0 * (1.0 - frac) + sh.pg * frac;
+            let r = rotation(&jump.axis, jump.angle * (k - k_flight) as f64 / (nc - k_flight) as f64);
+            for t in &sh.tuck {
+                let a = p + r * t;
+                let over = a.x > b.x[0] - sh.box_clearance && a.x < b.x[1] + sh.box_clearance && a.y > b.y[0] - sh.box_clearance && a.y < b.y[1] + sh.box_clearance;
+                if over {
+                    lift = lift.max(b.top + sh.box_clearance - a.z);
+                }
+            }
+        }
+        lift
     }
 
     /// A solver for this problem.
