@@ -35,6 +35,7 @@ fn main() -> anyhow::Result<()> {
     let mut max_iterations = None;
     let mut box_rows = false;
     let mut curvature = None;
+    let mut foot_margin = 0.0;
     let mut names = Vec::new();
     while let Some(a) = args.next() {
         match a.as_str() {
@@ -50,6 +51,7 @@ fn main() -> anyhow::Result<()> {
             "--max-iterations" => max_iterations = Some(args.next().ok_or_else(|| anyhow::anyhow!("--max-iterations: a number"))?.parse()?),
             "--limits" => show_limits = true,
             "--box-rows" => box_rows = true,
+            "--foot-margin" => foot_margin = args.next().ok_or_else(|| anyhow::anyhow!("--foot-margin: metres"))?.parse()?,
             "--curvature-after" => curvature = Some(args.next().ok_or_else(|| anyhow::anyhow!("--curvature-after: iterations"))?.parse()?),
             _ => names.push(a),
         }
@@ -61,6 +63,7 @@ fn main() -> anyhow::Result<()> {
         solver: Settings { verbose, parallel, restoration, max_iterations: max_iterations.unwrap_or(defaults.solver.max_iterations), ..defaults.solver.clone() },
         pre_landing_knots: pre_landing.unwrap_or(defaults.pre_landing_knots),
         constraint_curvature_after: curvature,
+        airborne_foot_margin: foot_margin,
         ..defaults
     };
     // The files' jumps under the reference script's names.

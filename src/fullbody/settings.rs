@@ -64,6 +64,10 @@ pub struct FullBodySettings {
     /// clearance kept from it and from the jump's box (0.01 m; a swing foot keeps its radius).
     pub trunk_half_extents: Vector3<f64>,
     pub clearance: f64,
+    /// Extra clearance of an airborne foot from the jump's box beyond its radius (0: the
+    /// radius alone, as before; the pipeline uses `clearance`: a plan that grazes the box
+    /// edge is clipped by any tracking error, docs/experiments/jump-box.md).
+    pub airborne_foot_margin: f64,
     /// Smallest distance (base frame) between the left and right feet and knees in y
     /// (0.05 m), and between the front and hind feet and knees of a side in x (0.1 m).
     pub legs_apart_y: f64,
@@ -100,6 +104,7 @@ impl Default for FullBodySettings {
             min_normal_force: 2.0,
             trunk_half_extents: Vector3::new(0.1335, 0.097, 0.057),
             clearance: 0.01,
+            airborne_foot_margin: 0.0,
             legs_apart_y: 0.05,
             legs_apart_x: 0.1,
             w_com: 100.0,
@@ -132,6 +137,7 @@ impl FullBodySettings {
         }
         for (field, v) in [
             ("clearance", self.clearance),
+            ("airborne_foot_margin", self.airborne_foot_margin),
             ("legs_apart_y", self.legs_apart_y),
             ("legs_apart_x", self.legs_apart_x),
             ("w_com", self.w_com),

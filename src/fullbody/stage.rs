@@ -303,7 +303,7 @@ impl Stage for FullBodyStage {
             }
             for f in 0..4 {
                 if self.spec.airborne[f] {
-                    (lower[r], upper[r]) = (sh.foot_radius, f64::INFINITY);
+                    (lower[r], upper[r]) = (sh.foot_radius + s.airborne_foot_margin, f64::INFINITY);
                     r += 1;
                 }
             }

@@ -140,11 +140,15 @@ pub struct PipelineOptions {
 
 impl PipelineOptions {
     /// The jump file's contact-timing settings, the full body's defaults with the constraint
-    /// curvature after [`FULL_BODY_GAUSS_NEWTON_ITERATIONS`], every other setting its default.
+    /// curvature after [`FULL_BODY_GAUSS_NEWTON_ITERATIONS`] and airborne feet kept
+    /// `clearance` (1 cm) beyond their radius from the box, every other setting its default.
     pub fn of(jump: &Jump) -> Self {
         Self {
             contact_timing: jump.contact_timing.clone(),
-            full_body: FullBodySettings { constraint_curvature_after: Some(FULL_BODY_GAUSS_NEWTON_ITERATIONS), ..FullBodySettings::default() },
+            full_body: {
+                let defaults = FullBodySettings::default();
+                FullBodySettings { constraint_curvature_after: Some(FULL_BODY_GAUSS_NEWTON_ITERATIONS), airborne_foot_margin: defaults.clearance, ..defaults }
+            },
             controllers: JumpSettings::default(),
             criteria: SuccessCriteria::default(),
             trials: 0,
