@@ -38,6 +38,9 @@ fn main() -> anyhow::Result<()> {
     let mut pre_landing = None;
     let mut parallel = false;
     let mut max_iterations = None;
+    let mut box_rows = false;
+    let mut curvature = None;
+    let mut foot_margin = 0.0;
     let mut names = Vec::new();
     let mut w_acceleration = None;
     let mut max_acceleration = None;
@@ -62,6 +65,9 @@ fn main() -> anyhow::Result<()> {
             "--w-velocity" => w_velocity = Some(args.next().ok_or_else(|| anyhow::anyhow!("--w-velocity: a weight"))?.parse::<f64>()?),
             "--max-stance-speed" => max_stance_speed = Some(args.next().ok_or_else(|| anyhow::anyhow!("--max-stance-speed: m/s"))?.parse::<f64>()?),
             "--out" => out_dir = Some(args.next().ok_or_else(|| anyhow::anyhow!("--out: a directory"))?),
+            "--box-rows" => box_rows = true,
+            "--foot-margin" => foot_margin = args.next().ok_or_else(|| anyhow::anyhow!("--foot-margin: metres"))?.parse()?,
+            "--curvature-after" => curvature = Some(args.next().ok_or_else(|| anyhow::anyhow!("--curvature-after: iterations"))?.parse()?),
             _ => names.push(a),
         }
     }
@@ -74,6 +80,8 @@ fn main() -> anyhow::Result<()> {
         w_acceleration: w_acceleration.unwrap_or(defaults.w_acceleration),
         max_joint_acceleration: max_acceleration.unwrap_or(defaults.max_joint_acceleration),
         w_velocity: w_velocity.unwrap_or(defaults.w_velocity),
+        constraint_curvature_after: curvature,
+        airborne_foot_margin: foot_margin,
         ..defaults
     };
     // The files' jumps under the reference script's names.
@@ -135,12 +143,49 @@ fn main() -> anyhow::Result<()> {
             std::fs::create_dir_all(dir)?;
             plan.trajectory.save_file(format!("{dir}/{}.json", jump.name))?;
         }
+        if box_rows {
+            if let Some(b) = &obstacle {
+                print_box_rows(&model, &srb, &plan.trajectory, b, &settings)?;
+            }
+        }
         if show_limits {
             println!("{}", plan.limits);
             for (kind, v) in &rep.max_violation {
                 println!("  optimizer rows {kind:20} {v:.2e}");
             }
         }
+    }
+    Ok(())
+}
+
+/// Per knot from lift-off on: the SRB's CoM (y, z), the plan's base (y, z), and the box
+/// clearance of each leg's knee and foot and of the nearest trunk corner (`--box-rows`:
+/// which point binds where).
+fn print_box_rows(model: &legwork::model::Model, srb: &SrbTrajectory, plan: &legwork::io::Trajectory, b: &BoxObstacle, s: &FullBodySettings) -> anyhow::Result<()> {
+    use legwork::dynamics::{forward_kinematics, Data};
+    use legwork::fullbody::kinematics::{foot_position, knee_position, legs};
+    use nalgebra::{DVector, Vector3};
+    let legs = legs(model)?;
+    let mut data = Data::new(model);
+    println!("knot  srb y    srb z    base y   base z  | knee LF RF LH RH (cm)       | foot LF RF LH RH (cm)       | corner (cm)");
+    for (k, knot) in plan.knots.iter().enumerate() {
+        if knot.in_contact.iter().all(|&c| c) {
+            continue;
+        }
+        forward_kinematics(model, &mut data, &DVector::from_column_slice(&knot.q));
+        let base = data.o_m_i[1];
+        let d = |p: &Vector3<f64>| 100.0 * b.signed_distance(p).0;
+        let knees: Vec<f64> = legs.iter().map(|l| d(&knee_position(&data, l)) - 100.0 * s.clearance).collect();
+        let feet: Vec<f64> = legs.iter().enumerate().map(|(f, l)| d(&foot_position(model, &data, l)) - 100.0 * model.feet[f].radius).collect();
+        let corner = (0..8)
+            .map(|c| {
+                let sign = Vector3::new(if c & 4 == 0 { 1.0 } else { -1.0 }, if c & 2 == 0 { 1.0 } else { -1.0 }, if c & 1 == 0 { 1.0 } else { -1.0 });
+                d(&base.act_point(&s.trunk_half_extents.component_mul(&sign))) - 100.0 * s.clearance
+            })
+            .fold(f64::INFINITY, f64::min);
+        let c = &srb.knots[k.min(srb.knots.len() - 1)].com;
+        let f = |v: &[f64]| v.iter().map(|x| format!("{x:6.1}")).collect::<Vec<_>>().join(" ");
+        println!("{k:4} {:8.3} {:8.3} {:8.3} {:8.3} | {} | {} | {corner:6.1}", c.y, c.z, knot.q[1], knot.q[2], f(&knees), f(&feet));
     }
     Ok(())
 }

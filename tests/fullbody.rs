@@ -197,6 +197,50 @@ fn joint_acceleration_cost_and_bound_derivatives_match_finite_differences() {
     }
 }
 
+/// With the constraint curvature on and the cost weight 0, the Hessian is `sum m_i Hess c_i`:
+/// against central differences of `J_c(z)^T m` over every column (the stage differences only
+/// the state columns, the control-control block taken as zero).
+#[test]
+fn constraint_curvature_matches_differences_of_the_jacobians() {
+    use legwork::ipocp::StageJacobians;
+    let obstacle = BoxObstacle { top: -0.02, x: [-0.3, 0.3], y: [-0.2, 0.0] };
+    let (fb, _) = lateral_problem(Some(obstacle));
+    fb.set_constraint_curvature(true);
+    let mut rng = Lcg(11);
+    let lift_off = fb.anchors().iter().rposition(|a| a[0].is_some()).unwrap();
+    for k in [1, lift_off, lift_off + 2] {
+        let stage = fb.problem.stage(k);
+        let d = stage.dims();
+        let nz = d.nz();
+        let z = DVector::from_fn(nz, |i, _| fb.start[k][i] + if i < 36 { 0.02 } else { 0.5 } * rng.next());
+        let lam = DVector::from_fn(d.nx_next, |_, _| rng.next());
+        let nu = DVector::from_fn(d.ng, |_, _| rng.next());
+        let y = DVector::from_fn(d.nh, |_, _| rng.next());
+        let gradient = |zz: &DVector<f64>| {
+            let mut j = StageJacobians::zeros(d);
+            stage.jacobians(zz.as_slice(), &mut j);
+            j.dynamics.transpose() * &lam + j.equalities.transpose() * &nu + j.inequalities.transpose() * &y
+        };
+        let mut hess = DMatrix::zeros(nz, nz);
+        let m = StageMultipliers { cost: 0.0, dynamics: lam.as_slice(), equalities: nu.as_slice(), inequalities: y.as_slice() };
+        stage.lagrangian_hessian(z.as_slice(), m, &mut hess);
+        let mut fd = DMatrix::zeros(nz, nz);
+        for j in 0..nz {
+            let h = 1e-5 * (1.0 + z[j].abs());
+            let (mut zp, mut zm) = (z.clone(), z.clone());
+            zp[j] += h;
+            zm[j] -= h;
+            fd.set_column(j, &((gradient(&zp) - gradient(&zm)) / (2.0 * h)));
+        }
+        let scale = fd.amax().max(1.0);
+        let err = (&hess - &fd).amax();
+        eprintln!("knot {k}: |H - H_fd| {err:.2e}, |H_fd| {scale:.2e}");
+        assert!(err < 1e-6 * scale, "knot {k}: curvature off by {err:.2e} (largest entry {scale:.2e})");
+        assert!((&hess - hess.transpose()).amax() < 1e-12, "Hessian not symmetric");
+    }
+    fb.set_constraint_curvature(false);
+}
+
 #[test]
 fn lateral_jump_solves_end_to_end_within_every_limit() {
     let (fb, _) = lateral_problem(None);

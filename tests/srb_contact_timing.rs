@@ -81,7 +81,7 @@ fn check_stage(stage: &dyn Stage, z0: &DVector<f64>, rng: &mut Lcg) {
 fn stage_derivatives_match_finite_differences() {
     let params = SrbParams::a1().unwrap();
     let mut rng = Lcg(5);
-    for (name, exp_map) in [("lateral", ExpMap::Taylor4), ("barrel_roll", ExpMap::Exact), ("double_backflip", ExpMap::Taylor4)] {
+    for (name, exp_map) in [("lateral", ExpMap::Taylor4), ("lateral_down", ExpMap::Exact), ("barrel_roll", ExpMap::Exact), ("double_backflip", ExpMap::Taylor4)] {
         let jump = Jump::embedded(name).unwrap().srb();
         let settings = ContactTimingSettings { exp_map, knots_per_phase: 4, ..Default::default() };
         let ct = ContactTimingProblem::new(&jump, &params, &settings).unwrap();

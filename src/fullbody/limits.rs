@@ -142,7 +142,7 @@ pub fn check_limits(model: &Model, plan: &Trajectory, settings: &FullBodySetting
             for f in 0..4 {
                 let airborne = !knot.in_contact[f] && (k == 0 || !plan.knots[k - 1].in_contact[f]);
                 if airborne {
-                    t.put("box clearance", "m", dist(&feet[f]) - model.feet[f].radius, k);
+                    t.put("box clearance", "m", dist(&feet[f]) - model.feet[f].radius - s.airborne_foot_margin, k);
                 }
             }
         }

@@ -64,6 +64,10 @@ pub struct FullBodySettings {
     /// clearance kept from it and from the jump's box (0.01 m; a swing foot keeps its radius).
     pub trunk_half_extents: Vector3<f64>,
     pub clearance: f64,
+    /// Extra clearance of an airborne foot from the jump's box beyond its radius (0: the
+    /// radius alone, as before; the pipeline uses `clearance`: a plan that grazes the box
+    /// edge is clipped by any tracking error, docs/experiments/jump-box.md).
+    pub airborne_foot_margin: f64,
     /// Smallest distance (base frame) between the left and right feet and knees in y
     /// (0.05 m), and between the front and hind feet and knees of a side in x (0.1 m).
     pub legs_apart_y: f64,
@@ -88,6 +92,13 @@ pub struct FullBodySettings {
     /// Bound on every joint acceleration `|qdd_j|` of every interval (rad/s^2; infinite =
     /// no rows): the same error bounded as a constraint.
     pub max_joint_acceleration: f64,
+    /// `Some(n)`: after `n` Gauss-Newton iterations without convergence, continue from that
+    /// iterate (primal and duals, warm) with the dynamics' and constraints' curvature
+    /// (weighted by their multipliers) added to the Hessian, by central differences of the
+    /// exact Jacobians; each Hessian then costs `2 nz` Jacobian evaluations per knot. From the
+    /// start the exact curvature with the first multipliers' estimates makes the steps worse
+    /// (measured on lateral_down). `None`: Gauss-Newton throughout (the default).
+    pub constraint_curvature_after: Option<usize>,
     /// The interior-point solver's settings (`ipocp` defaults, 300 iterations at most,
     /// optimality tolerance 1e-6, constraint violation 1e-6; `parallel` off: on this shared
     /// 2-core machine under load it measured no faster).
@@ -103,6 +114,7 @@ impl Default for FullBodySettings {
             min_normal_force: 2.0,
             trunk_half_extents: Vector3::new(0.1335, 0.097, 0.057),
             clearance: 0.01,
+            airborne_foot_margin: 0.0,
             legs_apart_y: 0.05,
             legs_apart_x: 0.1,
             w_com: 100.0,
@@ -114,6 +126,7 @@ impl Default for FullBodySettings {
             w_force: 1e-4,
             w_acceleration: 0.0,
             max_joint_acceleration: f64::INFINITY,
+            constraint_curvature_after: None,
             solver: Settings { max_iterations: 300, tolerance: 1e-6, constraint_violation_tolerance: 1e-6, ..Settings::default() },
         }
     }
@@ -136,6 +149,7 @@ impl FullBodySettings {
         }
         for (field, v) in [
             ("clearance", self.clearance),
+            ("airborne_foot_margin", self.airborne_foot_margin),
             ("legs_apart_y", self.legs_apart_y),
             ("legs_apart_x", self.legs_apart_x),
             ("w_com", self.w_com),

@@ -21,7 +21,9 @@
 //! Derivatives: exact first derivatives of the dynamics (ABA derivatives of Carpentier &
 //! Mansard 2018 plus the contact forces' `d (J^T lambda) / dq`) and of every constraint;
 //! the Hessian is Gauss-Newton (`2 J_r^T W J_r` of the cost residuals; the curvature of the
-//! dynamics and constraints, weighted by their multipliers, is left out).
+//! dynamics and constraints, weighted by their multipliers, is left out), or with
+//! `FullBodySettings::constraint_curvature` that curvature added by central differences of
+//! the exact constraint Jacobians ([`FullBodyStage::add_constraint_curvature`]).
 
 // Index loops over rows and columns read like the equations they implement.
 #![allow(clippy::needless_range_loop)]
@@ -34,7 +36,8 @@ use crate::dynamics::{
 };
 use crate::ipocp::{Stage, StageDims, StageJacobians, StageMultipliers, StageValues};
 use crate::model::Model;
-use nalgebra::{DMatrix, DVector, Matrix3, Matrix3xX, Vector3};
+use nalgebra::{DMatrix, DVector, DVectorView, Matrix3, Matrix3xX, Vector3};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// What all knots share.
@@ -49,6 +52,9 @@ pub(crate) struct Shared {
     pub velocity_limit: Vec<f64>,
     pub torque_limit: Vec<f64>,
     pub foot_radius: f64,
+    /// Add the constraints' curvature to the Hessian (the second phase of
+    /// `FullBodySettings::constraint_curvature_after`).
+    pub curvature: AtomicBool,
 }
 
 /// What one knot is.
@@ -145,6 +151,17 @@ pub(crate) struct FullBodyStage {
     pub spec: KnotSpec,
     dims: StageDims,
     ws: Mutex<Workspace>,
+    /// Buffers of the constraint curvature by differences (allocated on first use).
+    fd: Mutex<Option<CurvatureWorkspace>>,
+}
+
+/// Buffers of [`FullBodyStage::add_constraint_curvature`].
+struct CurvatureWorkspace {
+    z: DVector<f64>,
+    jacobians: StageJacobians,
+    plus: DVector<f64>,
+    minus: DVector<f64>,
+    curvature: DMatrix<f64>,
 }
 
 const TRUNK_CORNERS: [[f64; 3]; 8] = [
@@ -198,7 +215,7 @@ impl FullBodyStage {
             acceleration_jac: DMatrix::zeros(nv - 6, 2 * nv + nu),
             acceleration_z: DVector::from_element(2 * nv + nu, f64::NAN),
         };
-        Self { dims: StageDims { nx: 2 * nv, nu, nx_next, ng, nh }, shared, spec, ws: Mutex::new(ws) }
+        Self { dims: StageDims { nx: 2 * nv, nu, nx_next, ng, nh }, shared, spec, ws: Mutex::new(ws), fd: Mutex::new(None) }
     }
 
     /// The kind of every inequality row, in order.
@@ -303,7 +320,7 @@ impl Stage for FullBodyStage {
             }
             for f in 0..4 {
                 if self.spec.airborne[f] {
-                    (lower[r], upper[r]) = (sh.foot_radius, f64::INFINITY);
+                    (lower[r], upper[r]) = (sh.foot_radius + s.airborne_foot_margin, f64::INFINITY);
                     r += 1;
                 }
             }
@@ -770,6 +787,62 @@ impl Stage for FullBodyStage {
         }
         if with_acceleration {
             out.gemm_tr(2.0 * s.w_acceleration * w, &ws.acceleration_jac, &ws.acceleration_jac, 1.0);
+        }
+        drop(guard);
+        if sh.curvature.load(Ordering::Relaxed) {
+            self.add_constraint_curvature(z, &multipliers, out);
+        }
+    }
+}
+
+impl FullBodyStage {
+    /// Adds `sum_i m_i Hess c_i(z)` of the dynamics, equality and inequality rows: column `j`
+    /// is the central difference of `J_c(z)^T m` along `z_j` (step `1e-6 (1 + |z_j|)`). Only
+    /// the state columns are differenced: every row is linear in the controls (the torques
+    /// and contact forces enter the dynamics through `ABA(q, v, S^T tau + J^T lambda)`, linear
+    /// in its force argument, and the torque, friction and force rows are linear), so the
+    /// control-control block is zero and the control-state block is the transpose of the
+    /// state columns' control rows. The state block is symmetrized. `2 nx` Jacobian
+    /// evaluations per call.
+    fn add_constraint_curvature(&self, z: &[f64], m: &StageMultipliers<'_>, out: &mut DMatrix<f64>) {
+        let d = self.dims;
+        let nz = d.nz();
+        let mut guard = self.fd.lock().unwrap_or_else(|e| e.into_inner());
+        let fd = guard.get_or_insert_with(|| CurvatureWorkspace {
+            z: DVector::zeros(nz),
+            jacobians: StageJacobians::zeros(d),
+            plus: DVector::zeros(nz),
+            minus: DVector::zeros(nz),
+            curvature: DMatrix::zeros(nz, nz),
+        });
+        let lam = DVectorView::from_slice(m.dynamics, d.nx_next);
+        let nu = DVectorView::from_slice(m.equalities, d.ng);
+        let y = DVectorView::from_slice(m.inequalities, d.nh);
+        fd.z.copy_from_slice(z);
+        let nx = d.nx;
+        for j in 0..nx {
+            let h = 1e-6 * (1.0 + z[j].abs());
+            for (sign, side) in [(1.0, 0), (-1.0, 1)] {
+                fd.z[j] = z[j] + sign * h;
+                self.jacobians(fd.z.as_slice(), &mut fd.jacobians);
+                let g = if side == 0 { &mut fd.plus } else { &mut fd.minus };
+                g.gemv_tr(1.0, &fd.jacobians.dynamics, &lam, 0.0);
+                g.gemv_tr(1.0, &fd.jacobians.equalities, &nu, 1.0);
+                g.gemv_tr(1.0, &fd.jacobians.inequalities, &y, 1.0);
+            }
+            fd.z[j] = z[j];
+            for i in 0..nz {
+                fd.curvature[(i, j)] = (fd.plus[i] - fd.minus[i]) / (2.0 * h);
+            }
+        }
+        for j in 0..nx {
+            for i in 0..nx {
+                out[(i, j)] += 0.5 * (fd.curvature[(i, j)] + fd.curvature[(j, i)]);
+            }
+            for i in nx..nz {
+                out[(i, j)] += fd.curvature[(i, j)];
+                out[(j, i)] += fd.curvature[(i, j)];
+            }
         }
     }
 }

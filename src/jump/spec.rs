@@ -33,7 +33,7 @@
 //! expected. The jump starts standing on the box (or the ground) and lands on the ground:
 //! `displacement[2] = -box.height`.
 
-use crate::srb::{ContactTimingError, ContactTimingSettings, Contacts, ExpMap, JumpSpec, SrbParams};
+use crate::srb::{BoxExtent, ContactTimingError, ContactTimingSettings, Contacts, ExpMap, JumpSpec, SrbParams};
 use crate::terrain::{BoxSpec, Boxes};
 use nalgebra::{Matrix3, Vector3};
 use serde::Deserialize;
@@ -130,6 +130,7 @@ pub struct ContactTimingOverrides {
     pub eps_f: Option<f64>,
     pub cost_dt: Option<bool>,
     pub exp_map: Option<ExpMap>,
+    pub box_clearance: Option<f64>,
 }
 
 impl ContactTimingOverrides {
@@ -150,6 +151,7 @@ impl ContactTimingOverrides {
             eps_f: self.eps_f.unwrap_or(d.eps_f),
             cost_dt: self.cost_dt.unwrap_or(d.cost_dt),
             exp_map: self.exp_map.unwrap_or(d.exp_map),
+            box_clearance: self.box_clearance.unwrap_or(d.box_clearance),
         }
     }
 }
@@ -370,15 +372,17 @@ impl Jump {
             axis: self.axis,
             angle: self.angle,
             box_height: self.box_height(),
+            clear_of: self.platform.as_ref().map(|p| BoxExtent { x: p.x, y: p.y }),
             phases: self.phases.clone(),
             total_time: self.total_time,
         }
     }
 
     /// The reference script's problem (`../shared/anchors/nguyen2022/contact_timing.py`):
-    /// [`Self::srb`] with the script's own displacement where the file's differs.
+    /// [`Self::srb`] with the script's own displacement where the file's differs, and without
+    /// the box-clearance rows (the script has none: its optimum is checked like with like).
     pub fn reference_srb(&self) -> JumpSpec {
-        self.reference().srb()
+        JumpSpec { clear_of: None, ..self.reference().srb() }
     }
 
     /// This jump with the reference script's target (see [`Self::reference_srb`]).

@@ -13,7 +13,7 @@
 
 use super::exp_map::{exp, ExpMap};
 use super::params::SrbParams;
-use super::stage::{rotation_error_map, Shared, SrbStage, BIG, P, R, T, V, W};
+use super::stage::{rotation_error_map, PlatformBox, Shared, SrbStage, BIG, P, R, T, V, W};
 use crate::ipocp::{Problem, ProblemError, Settings, SolveError, SolveResult, Solver, Stage};
 use nalgebra::{DVector, Matrix3, Vector3};
 use std::sync::Arc;
@@ -36,6 +36,9 @@ pub struct JumpSpec {
     pub angle: f64,
     /// Height of the start box above the landing ground.
     pub box_height: f64,
+    /// The start box the airborne legs must clear (top at `box_height`, this extent in x
+    /// and y, world); `None`: no clearance rows, the reference script's problem.
+    pub clear_of: Option<BoxExtent>,
     pub phases: Vec<Contacts>,
     /// `[T_min, T_max]` of (2j).
     pub total_time: (f64, f64),
@@ -63,6 +66,13 @@ fn embedded_specs(spec: impl Fn(&crate::jump::Jump) -> JumpSpec) -> Vec<JumpSpec
             JumpSpec { name: script_name, ..spec(&jump) }
         })
         .collect()
+}
+
+/// The horizontal extent of a start box (world, m): `[x_min, x_max]`, `[y_min, y_max]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoxExtent {
+    pub x: [f64; 2],
+    pub y: [f64; 2],
 }
 
 /// Settings of the formulation (defaults: the script's, in parentheses).
@@ -97,6 +107,11 @@ pub struct ContactTimingSettings {
     pub cost_dt: bool,
     /// The SO(3) step's exponential (`Exact`; `Taylor4` is the paper's and the script's).
     pub exp_map: ExpMap,
+    /// Clearance from the start box (`JumpSpec::clear_of`) of each airborne leg's tuck point
+    /// (m; not in the script, whose problems have no box: 0.02). The tuck point is the top of
+    /// the foot's sphere (2d), `R (pbar^s + r e_z)`: the shallowest foot the single rigid
+    /// body's own leg model allows, straight under the nominal foot.
+    pub box_clearance: f64,
 }
 
 impl Default for ContactTimingSettings {
@@ -115,6 +130,7 @@ impl Default for ContactTimingSettings {
             eps_f: 1e-4,
             cost_dt: true,
             exp_map: ExpMap::Exact,
+            box_clearance: 0.02,
         }
     }
 }
@@ -144,6 +160,7 @@ impl ContactTimingSettings {
         check("max_stance_speed", self.max_stance_speed, self.max_stance_speed > 0.0, "> 0 (infinite: no bound)")?;
         check("t_lo", self.t_lo, self.t_lo > 0.0 && self.t_lo <= self.t_hi, "> 0 and <= t_hi")?;
         check("t_hi", self.t_hi, self.t_hi.is_finite(), "finite")?;
+        check("box_clearance", self.box_clearance, self.box_clearance.is_finite() && self.box_clearance >= 0.0, "finite and >= 0")?;
         for (field, v) in [("eps_omega", self.eps_omega), ("eps_r", self.eps_r), ("eps_f", self.eps_f)] {
             check(field, v, v >= 0.0 && v.is_finite(), ">= 0")?;
         }
@@ -221,6 +238,9 @@ impl ContactTimingProblem {
             rg,
             feet_start,
             feet_goal,
+            platform: jump.clear_of.map(|b| PlatformBox { top: jump.box_height, x: b.x, y: b.y }),
+            tuck: std::array::from_fn(|f| pbar[f] + Vector3::new(0.0, 0.0, s.radius)),
+            box_clearance: s.box_clearance,
         });
         let phase_of = |k: usize| k.min(nc - 1) / n;
         let k_flight = n * (np - 1);
@@ -229,6 +249,7 @@ impl ContactTimingProblem {
         // line, no rotation in stance and a constant rate in flight, feet interpolated.
         let t_guess = 0.5 * (jump.total_time.0 + jump.total_time.1) / np as f64;
         let t_total = t_guess * np as f64;
+        let flight_arc = Self::flight_arc(&shared, jump, k_flight, nc);
         let mut stages: Vec<Box<dyn Stage>> = Vec::with_capacity(nc + 1);
         let mut guess = Vec::with_capacity(nc + 1);
         for k in 0..=nc {
@@ -267,12 +288,18 @@ impl ContactTimingProblem {
                 }
             }
             let ncontact = contact.iter().filter(|&&c| c).count();
-            let n_general = if last { 4 + 1 } else { 4 * ncontact + 4 + usize::from(ncontact > 0) + usize::from(k == 0) };
-            stages.push(Box::new(SrbStage { shared: shared.clone(), knot: k, phase, last, contact, rot_err, bounds, n_general }));
+            // Clearance rows of the airborne legs over their interval (the last knot's feet
+            // are the landing's, off the box by the file's checks).
+            let n_box = if shared.platform.is_some() && !last && ncontact == 0 { 4 } else { 0 };
+            let n_general = n_box + if last { 4 + 1 } else { 4 * ncontact + 4 + usize::from(ncontact > 0) + usize::from(k == 0) };
+            stages.push(Box::new(SrbStage { shared: shared.clone(), knot: k, phase, last, contact, rot_err, bounds, n_general, n_box }));
             // Guess.
             let frac = k as f64 / nc as f64;
             let mut z = DVector::zeros(if last { nx } else { nx + 12 });
-            let p = p0 * (1.0 - frac) + pg * frac;
+            let mut p = p0 * (1.0 - frac) + pg * frac;
+            if k > k_flight && k < nc {
+                p.z += flight_arc * (std::f64::consts::PI * (k - k_flight) as f64 / (nc - k_flight) as f64).sin();
+            }
             let v = (pg - p0) / t_total;
             let w = if k >= k_flight && k < nc { jump.axis * (jump.angle / t_guess) } else { Vector3::zeros() };
             let ang = jump.angle * (k.saturating_sub(k_flight)) as f64 / (nc - k_flight) as f64;
@@ -315,6 +342,28 @@ impl ContactTimingProblem {
             feet_start,
             feet_goal,
         })
+    }
+
+    /// Height of the arc added to the guess's straight CoM line over the flight (`0` without
+    /// a box): the largest lift any flight knot's tuck points need to be `box_clearance` above
+    /// the box top where they are over it, so the solve starts with the airborne legs clear of
+    /// the box (inside it the signed distance's nearest face switches between top and side).
+    fn flight_arc(sh: &Shared, jump: &JumpSpec, k_flight: usize, nc: usize) -> f64 {
+        let Some(b) = &sh.platform else { return 0.0 };
+        let mut lift: f64 = 0.0;
+        for k in k_flight + 1..nc {
+            let frac = k as f64 / nc as f64;
+            let p = sh.p0 * (1.0 - frac) + sh.pg * frac;
+            let r = rotation(&jump.axis, jump.angle * (k - k_flight) as f64 / (nc - k_flight) as f64);
+            for t in &sh.tuck {
+                let a = p + r * t;
+                let over = a.x > b.x[0] - sh.box_clearance && a.x < b.x[1] + sh.box_clearance && a.y > b.y[0] - sh.box_clearance && a.y < b.y[1] + sh.box_clearance;
+                if over {
+                    lift = lift.max(b.top + sh.box_clearance - a.z);
+                }
+            }
+        }
+        lift
     }
 
     /// A solver for this problem.

@@ -52,6 +52,44 @@ pub(crate) struct Shared {
     /// Feet at the start and at the goal (world).
     pub feet_start: [Vector3<f64>; 4],
     pub feet_goal: [Vector3<f64>; 4],
+    /// The start box the airborne legs clear, the legs' tuck points (body frame, relative to
+    /// the CoM) and the clearance.
+    pub platform: Option<PlatformBox>,
+    pub tuck: [Vector3<f64>; 4],
+    pub box_clearance: f64,
+}
+
+/// The start box as an obstacle: top face at `top`, extent `x`, `y`, down to the ground.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct PlatformBox {
+    pub top: f64,
+    pub x: [f64; 2],
+    pub y: [f64; 2],
+}
+
+impl PlatformBox {
+    /// Signed distance of `a` from the box (negative inside), its gradient and Hessian.
+    /// Outside: the distance to the nearest point, `|e+|` with `e+` the positive part of
+    /// the excess over each half-extent; its Hessian is `(P - n n^T) / d` on the `k` excess
+    /// axes `P` (zero on a face, the edge's or corner's curvature beyond). Inside: minus
+    /// the distance to the nearest face (top or side), gradient out of that face.
+    pub fn signed_distance(&self, a: &Vector3<f64>) -> (f64, Vector3<f64>, Matrix3<f64>) {
+        let cx = 0.5 * (self.x[0] + self.x[1]);
+        let cy = 0.5 * (self.y[0] + self.y[1]);
+        let e = Vector3::new((a.x - cx).abs() - 0.5 * (self.x[1] - self.x[0]), (a.y - cy).abs() - 0.5 * (self.y[1] - self.y[0]), a.z - self.top);
+        let sign = Vector3::new(if a.x >= cx { 1.0 } else { -1.0 }, if a.y >= cy { 1.0 } else { -1.0 }, 1.0);
+        let out = e.map(|v| v.max(0.0));
+        let d = out.norm();
+        if d > 0.0 {
+            let n = out.component_mul(&sign) / d;
+            let active = Matrix3::from_diagonal(&e.map(|v| if v > 0.0 { 1.0 } else { 0.0 }));
+            return (d, n, (active - n * n.transpose()) / d);
+        }
+        let axis = e.imax();
+        let mut g = Vector3::zeros();
+        g[axis] = sign[axis];
+        (e[axis], g, Matrix3::zeros())
+    }
 }
 
 /// What a knot is.
@@ -69,6 +107,8 @@ pub(crate) struct SrbStage {
     /// `(row in z, lower, upper)` of the simple bounds.
     pub bounds: Vec<(usize, f64, f64)>,
     pub n_general: usize,
+    /// Box-clearance rows (the last of the general rows): one per airborne foot.
+    pub n_box: usize,
 }
 
 fn ridx(a: usize, b: usize) -> usize {
@@ -312,6 +352,28 @@ impl SrbStage {
         }
     }
 
+    /// The airborne feet whose tuck points have a box-clearance row, in row order.
+    fn box_feet(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..4).filter(move |&f| self.n_box > 0 && !self.contact[f])
+    }
+
+    /// Tuck point of leg `s` in the world, `a = p + R t^s` (linear in `p` and `vec(R)`).
+    fn tuck_point(&self, q: &Point, s: usize) -> Vector3<f64> {
+        q.p + q.r * self.shared.tuck[s]
+    }
+
+    /// Gradient in `z` of `n^T a` for the tuck point `a = p + R t^s`: `n` on `p`, `n_a t_b`
+    /// on `R_ab`.
+    fn add_point_row(&self, s: usize, n: &Vector3<f64>, mut put: impl FnMut(usize, f64)) {
+        let t = self.shared.tuck[s];
+        for a in 0..3 {
+            put(P + a, n[a]);
+            for b in 0..3 {
+                put(ridx(a, b), n[a] * t[b]);
+            }
+        }
+    }
+
     /// Sphere row of foot `s` (2d): `d = R^T (p_f - p) - pbar`, value `|d|^2`; the sparse
     /// Jacobian of `d`: per row `a`, up to 9 (index, coefficient) pairs, `count` used.
     fn sphere(&self, z: &[f64], q: &Point, s: usize) -> (Vector3<f64>, SphereJacobian, usize) {
@@ -373,6 +435,11 @@ impl Stage for SrbStage {
         }
         if self.last {
             lower[row] = 2.9;
+            upper[row] = f64::INFINITY;
+            row += 1;
+        }
+        for _ in 0..self.n_box {
+            lower[row] = sh.box_clearance;
             upper[row] = f64::INFINITY;
             row += 1;
         }
@@ -470,6 +537,12 @@ impl Stage for SrbStage {
         if self.last {
             h[row] = (sh.rg.transpose() * q.r).trace();
             row += 1;
+        }
+        if let Some(b) = &sh.platform {
+            for s in self.box_feet() {
+                h[row] = b.signed_distance(&self.tuck_point(&q, s)).0; // airborne legs clear the box
+                row += 1;
+            }
         }
         for (i, &(idx, _, _)) in self.bounds.iter().enumerate() {
             h[row + i] = z[idx];
@@ -616,6 +689,13 @@ impl Stage for SrbStage {
             }
             row += 1;
         }
+        if let Some(b) = &sh.platform {
+            for s in self.box_feet() {
+                let (_, n, _) = b.signed_distance(&self.tuck_point(&q, s));
+                self.add_point_row(s, &n, |j, v| h[(row, j)] += v);
+                row += 1;
+            }
+        }
         for (i, &(idx, _, _)) in self.bounds.iter().enumerate() {
             h[(row + i, idx)] = 1.0;
         }
@@ -744,5 +824,79 @@ impl Stage for SrbStage {
                 }
             }
         }
+        // Box rows: the tuck point is linear in z, so the row's Hessian is J_a^T H_d J_a.
+        if let Some(b) = &sh.platform {
+            let first_box = self.n_general - self.n_box;
+            for (i, s) in self.box_feet().enumerate() {
+                let ys = y[first_box + i];
+                if ys == 0.0 {
+                    continue;
+                }
+                let (_, _, hd) = b.signed_distance(&self.tuck_point(&q, s));
+                if hd.iter().all(|&v| v == 0.0) {
+                    continue;
+                }
+                // Column c of H_d pulled back: J_a^T H_d e_c, then row by row.
+                let mut cols = [[(0usize, 0.0f64); 12]; 3];
+                for c in 0..3 {
+                    let mut n = 0;
+                    self.add_point_row(s, &hd.column(c).into_owned(), |j, v| {
+                        cols[c][n] = (j, v);
+                        n += 1;
+                    });
+                }
+                // J_a's row c: e_c on p, t_b on R_cb.
+                let mut jrow = [[(0usize, 0.0f64); 12]; 3];
+                for c in 0..3 {
+                    let mut e = Vector3::zeros();
+                    e[c] = 1.0;
+                    let mut n = 0;
+                    self.add_point_row(s, &e, |j, v| {
+                        jrow[c][n] = (j, v);
+                        n += 1;
+                    });
+                }
+                for c in 0..3 {
+                    for &(i, vi) in &jrow[c] {
+                        if vi == 0.0 {
+                            continue;
+                        }
+                        for &(j, vj) in &cols[c] {
+                            out[(i, j)] += ys * vi * vj;
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::PlatformBox;
+    use nalgebra::Vector3;
+
+    /// Gradient and Hessian of the signed distance against central differences on a face,
+    /// an edge and a corner region outside the box, and inside it.
+    #[test]
+    fn box_signed_distance_derivatives_match_central_differences() {
+        let b = PlatformBox { top: 0.3, x: [-0.5, 0.5], y: [-0.5, 0.147] };
+        let h = 1e-6;
+        for a in [Vector3::new(0.1, 0.2, 0.25), Vector3::new(0.1, 0.2, 0.36), Vector3::new(0.6, 0.2, 0.36), Vector3::new(0.1, 0.0, 0.2)] {
+            let (d, g, hd) = b.signed_distance(&a);
+            for i in 0..3 {
+                let mut e = Vector3::zeros();
+                e[i] = h;
+                let (dp, gp, _) = b.signed_distance(&(a + e));
+                let (dm, gm, _) = b.signed_distance(&(a - e));
+                assert!(((dp - dm) / (2.0 * h) - g[i]).abs() < 1e-6, "{a:?}: gradient {i}");
+                let col = (gp - gm) / (2.0 * h);
+                assert!((col - hd.column(i)).amax() < 1e-5, "{a:?}: Hessian column {i}: {col:?} vs {:?}", hd.column(i));
+            }
+            assert!(d.is_finite());
+        }
+        // Beyond the +y edge and above the top: 3 cm from the edge along the diagonal.
+        let (d, _, _) = b.signed_distance(&Vector3::new(0.0, 0.147 + 0.03, 0.3 + 0.04));
+        assert!((d - 0.05).abs() < 1e-12);
     }
 }
