@@ -21,9 +21,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// Largest constraint violation after the Gauss-Newton phase from which the curvature phase
-/// of `constraint_curvature_after` starts (lateral_down: 0.46 after 100 iterations, and solved;
-/// double_barrel_roll: 6e-4 after 300).
+/// Largest constraint violation at which the Gauss-Newton phase hands over to the curvature
+/// phase of `constraint_curvature_after` (lateral_down: 0.46-1.1 after 100 iterations, and
+/// solved; double_barrel_roll: 6e-4 after 300).
 const CURVATURE_MAX_VIOLATION: f64 = 1.0;
 
 /// The full-body problem of a jump.
@@ -205,14 +205,23 @@ impl FullBodyProblem {
         // the remaining iterations from phase 1's barrier parameter.
         let t0 = Instant::now();
         self.shared.curvature.store(false, Ordering::Relaxed);
-        let first_settings = Settings { max_iterations: gauss_newton_iterations, ..settings.solver.clone() };
-        let mut solver = Solver::new(&self.problem, first_settings).map_err(solver_error)?;
-        let first = solver.solve(&self.problem, &self.start).map_err(|e| FullBodyError::Solve(e.to_string()))?;
-        // The curvature is worth its cost near a solution, where the multipliers mean
-        // something: not after a local infeasibility or far from feasible.
-        if first.status != Status::MaxIterations || first.primal_infeasibility > CURVATURE_MAX_VIOLATION {
+        // Gauss-Newton for at least `gauss_newton_iterations`, then until the violation is at
+        // most CURVATURE_MAX_VIOLATION: the curvature is worth its cost near a solution, where
+        // the multipliers mean something, not after a local infeasibility or far from
+        // feasible (the violation after a fixed count is not a robust test: lateral_down 0.46
+        // or 1.1 at 100 iterations with round-off-level changes of the steps).
+        let mut switched = false;
+        let mut stop = |iteration: usize, violation: f64| {
+            switched = iteration >= gauss_newton_iterations && violation <= CURVATURE_MAX_VIOLATION;
+            switched
+        };
+        let mut solver = Solver::new(&self.problem, settings.solver.clone()).map_err(solver_error)?;
+        let mut first = solver.solve_warm_until(&self.problem, &self.start, None, &mut stop).map_err(|e| FullBodyError::Solve(e.to_string()))?;
+        if !switched {
             return Ok(self.plan(&first, t0.elapsed()));
         }
+        // The stop reports Solved; what phase 1 ended with is "not yet converged".
+        first.status = Status::MaxIterations;
         self.shared.curvature.store(true, Ordering::Relaxed);
         let second_settings = Settings { max_iterations: settings.solver.max_iterations - first.iterations, mu_init: first.mu, ..settings.solver.clone() };
         let mut solver = Solver::new(&self.problem, second_settings).map_err(solver_error)?;

@@ -92,7 +92,8 @@ pub struct FullBodySettings {
     /// Bound on every joint acceleration `|qdd_j|` of every interval (rad/s^2; infinite =
     /// no rows): the same error bounded as a constraint.
     pub max_joint_acceleration: f64,
-    /// `Some(n)`: after `n` Gauss-Newton iterations without convergence, continue from that
+    /// `Some(n)`: after `n` Gauss-Newton iterations without convergence, at the first
+    /// iterate whose constraint violation is at most 1, continue from that
     /// iterate (primal and duals, warm) with the dynamics' and constraints' curvature
     /// (weighted by their multipliers) added to the Hessian, by central differences of the
     /// exact Jacobians; each Hessian then costs `2 nz` Jacobian evaluations per knot. From the

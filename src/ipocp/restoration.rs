@@ -355,7 +355,7 @@ pub(super) fn restore(problem: &Problem, it: &Iterate, mu: f64, settings: &Setti
     // once per restoration iteration).
     let mut slacks: Vec<DVector<f64>> = dims.iter().map(|d| DVector::zeros(d.nh)).collect();
     let mut nexts: Vec<DVector<f64>> = dims.iter().map(|d| DVector::zeros(d.nx_next)).collect();
-    let mut exit = |r: &Iterate| -> bool {
+    let mut exit = |_: usize, r: &Iterate, _: f64| -> bool {
         let (mut theta, mut phi) = (0.0, 0.0);
         for k in 0..n_stages {
             let d = dims[k];

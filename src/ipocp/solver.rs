@@ -168,9 +168,20 @@ impl Solver {
         self.solve_with_exit(problem, primal, duals, None)
     }
 
+    /// [`Self::solve_warm`] that also stops at the first iterate after the start that `stop`
+    /// accepts, given the iteration count and the iterate's constraint violation (the
+    /// `primal_infeasibility` of [`SolveResult`]). Such a stop is reported as
+    /// [`Status::Solved`]: the caller's closure knows whether it fired. What a solve in
+    /// phases uses (`fullbody`: Gauss-Newton until close enough to feasible, then the exact
+    /// curvature).
+    pub fn solve_warm_until(&mut self, problem: &Problem, primal: &[DVector<f64>], duals: Option<&Duals>, stop: &mut dyn FnMut(usize, f64) -> bool) -> Result<SolveResult, SolveError> {
+        self.solve_with_exit(problem, primal, duals, Some(&mut |iteration: usize, _: &Iterate, violation: f64| stop(iteration, violation)))
+    }
+
     /// [`Self::solve_warm`] that also stops, reporting [`Status::Solved`], at the first
-    /// iterate after the start that `exit` accepts (the restoration phase's return test).
-    pub(super) fn solve_with_exit(&mut self, problem: &Problem, primal: &[DVector<f64>], duals: Option<&Duals>, mut exit: Option<&mut dyn FnMut(&Iterate) -> bool>) -> Result<SolveResult, SolveError> {
+    /// iterate after the start that `exit` accepts (the restoration phase's return test),
+    /// given the iteration count, the iterate and its constraint violation.
+    pub(super) fn solve_with_exit(&mut self, problem: &Problem, primal: &[DVector<f64>], duals: Option<&Duals>, mut exit: Option<&mut dyn FnMut(usize, &Iterate, f64) -> bool>) -> Result<SolveResult, SolveError> {
         let start = Instant::now();
         self.check_layout(problem, primal, duals)?;
         let s = self.settings.clone();
@@ -224,7 +235,7 @@ impl Solver {
                 status = Status::Solved;
                 break;
             }
-            if iteration > 0 && exit.as_mut().is_some_and(|exit| exit(&it)) {
+            if iteration > 0 && exit.as_mut().is_some_and(|exit| exit(iteration, &it, errors.primal)) {
                 status = Status::Solved;
                 break;
             }
