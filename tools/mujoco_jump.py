@@ -7,8 +7,8 @@ Usage:
       --mjcf robot.xml --reference out/jump/lateral/trajectory.json [--settle 1.0] [--output run.json] \
       [--trials 20]
 
-`robot.xml` is `legwork export mjcf --robot a1 --terrain <the plan's trajectory.json>` (the
-plan's terrain, its box included). Prints and writes (JSON) the landing figures (position
+`robot.xml` is `legwork export mjcf a1 --jump <the jump> --out robot.xml` (the jump's
+terrain, its box included). Prints and writes (JSON) the landing figures (position
 and yaw error against the plan's last knot, roll and pitch, a fall) and the pipe's cost:
 the round trip per step (write the state, read the torques) against MuJoCo's own step.
 
