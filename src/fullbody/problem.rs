@@ -201,27 +201,25 @@ impl FullBodyProblem {
             let result = solver.solve(&self.problem, &self.start).map_err(|e| FullBodyError::Solve(e.to_string()))?;
             return Ok(self.plan(&result, t0.elapsed()));
         };
-        // Phase 1: Gauss-Newton; phase 2 (if not yet solved): warm, with the curvature, for
-        // the remaining iterations from phase 1's barrier parameter.
+        // Phase 1: Gauss-Newton for at least `gauss_newton_iterations`, then until the
+        // violation is at most CURVATURE_MAX_VIOLATION: the curvature is worth its cost near a
+        // solution, where the multipliers mean something, not after a local infeasibility or
+        // far from feasible (the violation after a fixed count is not a robust test:
+        // lateral_down 0.46 or 1.1 at 100 iterations with round-off-level changes of the
+        // steps). Phase 2 (if phase 1 stopped there): warm, with the curvature, for the
+        // remaining iterations from phase 1's barrier parameter.
         let t0 = Instant::now();
         self.shared.curvature.store(false, Ordering::Relaxed);
-        // Gauss-Newton for at least `gauss_newton_iterations`, then until the violation is at
-        // most CURVATURE_MAX_VIOLATION: the curvature is worth its cost near a solution, where
-        // the multipliers mean something, not after a local infeasibility or far from
-        // feasible (the violation after a fixed count is not a robust test: lateral_down 0.46
-        // or 1.1 at 100 iterations with round-off-level changes of the steps).
         let mut switched = false;
         let mut stop = |iteration: usize, violation: f64| {
             switched = iteration >= gauss_newton_iterations && violation <= CURVATURE_MAX_VIOLATION;
             switched
         };
         let mut solver = Solver::new(&self.problem, settings.solver.clone()).map_err(solver_error)?;
-        let mut first = solver.solve_warm_until(&self.problem, &self.start, None, &mut stop).map_err(|e| FullBodyError::Solve(e.to_string()))?;
+        let first = solver.solve_warm_until(&self.problem, &self.start, None, &mut stop).map_err(|e| FullBodyError::Solve(e.to_string()))?;
         if !switched {
             return Ok(self.plan(&first, t0.elapsed()));
         }
-        // The stop reports Solved; what phase 1 ended with is "not yet converged".
-        first.status = Status::MaxIterations;
         self.shared.curvature.store(true, Ordering::Relaxed);
         let second_settings = Settings { max_iterations: settings.solver.max_iterations - first.iterations, mu_init: first.mu, ..settings.solver.clone() };
         let mut solver = Solver::new(&self.problem, second_settings).map_err(solver_error)?;

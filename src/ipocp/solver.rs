@@ -102,6 +102,10 @@ pub enum SolveError {
     LayoutMismatch,
 }
 
+/// A test that ends a solve early, given the iteration count, the iterate and its constraint
+/// violation ([`Solver::solve_warm_until`], the restoration phase's return test).
+type ExitTest<'a> = dyn FnMut(usize, &Iterate, f64) -> bool + 'a;
+
 /// Measures of the current iterate.
 #[derive(Clone, Copy, Debug, Default)]
 struct Errors {
@@ -181,7 +185,7 @@ impl Solver {
     /// [`Self::solve_warm`] that also stops, reporting [`Status::Solved`], at the first
     /// iterate after the start that `exit` accepts (the restoration phase's return test),
     /// given the iteration count, the iterate and its constraint violation.
-    pub(super) fn solve_with_exit(&mut self, problem: &Problem, primal: &[DVector<f64>], duals: Option<&Duals>, mut exit: Option<&mut dyn FnMut(usize, &Iterate, f64) -> bool>) -> Result<SolveResult, SolveError> {
+    pub(super) fn solve_with_exit(&mut self, problem: &Problem, primal: &[DVector<f64>], duals: Option<&Duals>, mut exit: Option<&mut ExitTest<'_>>) -> Result<SolveResult, SolveError> {
         let start = Instant::now();
         self.check_layout(problem, primal, duals)?;
         let s = self.settings.clone();
