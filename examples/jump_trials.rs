@@ -11,6 +11,7 @@
 //! ```
 //!
 //! `--jump NAME` runs on the embedded jump's terrain (its box); flat ground otherwise.
+//! `--lift-off-lead S` overrides `JumpSettings::lift_off_lead` (s).
 //!
 //! `REFERENCE.json` is a trajectory file (`io::Trajectory`, 10 ms knots) of the full-body
 //! optimization; `drop:0.15:0.6` is the built-in ballistic reference
@@ -83,6 +84,14 @@ fn main() -> anyhow::Result<()> {
         }
         None => Box::new(Plane::flat(0.0)),
     };
+    let lift_off_lead = match args.iter().position(|a| a == "--lift-off-lead") {
+        Some(i) => {
+            let lead: f64 = args.get(i + 1).context("--lift-off-lead: a time (s)")?.parse().context("--lift-off-lead: a time (s)")?;
+            args.drain(i..i + 2);
+            Some(lead)
+        }
+        None => None,
+    };
     let Some(source) = args.first() else { bail!("usage: jump_trials REFERENCE.json|drop:HEIGHT:VY [TRIALS]") };
     let trials: usize = args.get(1).map(|s| s.parse()).transpose().context("TRIALS must be a whole number")?.unwrap_or(20);
     let model = embedded::load("a1")?;
@@ -100,7 +109,8 @@ fn main() -> anyhow::Result<()> {
     } else {
         Trajectory::load_file(source)?
     };
-    let settings = JumpSettings::default();
+    let defaults = JumpSettings::default();
+    let settings = JumpSettings { lift_off_lead: lift_off_lead.unwrap_or(defaults.lift_off_lead), ..defaults };
     if let Ok(path) = std::env::var("JUMP_REFERENCE_OUT") {
         reference.save_file(&path)?;
     }

@@ -76,12 +76,12 @@ fn lateral_jump_end_to_end_in_short_form() {
 #[test]
 fn a_box_jump_writes_its_box_and_names_the_conflicts() {
     // The barrel roll with the reference script's landing target (0.2 m to +y, over the
-    // box; the embedded file lands 0.33 m to +y, clear of it).
+    // box; the embedded file lands 0.36 m to +y, clear of it).
     let dir = out_dir("barrel");
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("barrel_roll_script_target.toml");
     let barrel = std::fs::read_to_string(format!("{}/jumps/barrel_roll.toml", env!("CARGO_MANIFEST_DIR"))).unwrap();
-    std::fs::write(&file, barrel.replace("displacement = [0.0, 0.33, -0.4]", "displacement = [0.0, 0.2, -0.4]")).unwrap();
+    std::fs::write(&file, barrel.replace("displacement = [0.0, 0.36, -0.4]", "displacement = [0.0, 0.2, -0.4]")).unwrap();
     let out = legwork(&["jump", file.to_str().unwrap(), "--knots", "6", "--out", dir.to_str().unwrap()]);
     let stdout = text(&out.stdout);
     assert!(matches!(out.status.code(), Some(2..=5)), "{stdout}\n{}", text(&out.stderr));
@@ -91,7 +91,7 @@ fn a_box_jump_writes_its_box_and_names_the_conflicts() {
     assert_eq!(terrain["kind"], "boxes");
     assert_eq!(terrain["boxes"][0]["top"], 0.4);
     let html = std::fs::read_to_string(dir.join("replay.html")).unwrap();
-    assert!(html.contains("\"boxes\":[[-0.5,0.5,-0.5,0.147,0.0,0.4]]"), "the replay draws the box");
+    assert!(html.contains("\"boxes\":[[-0.5,0.5,-0.5,0.17,0.0,0.4]]"), "the replay draws the box");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

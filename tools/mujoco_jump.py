@@ -16,8 +16,13 @@ the round trip per step (write the state, read the torques) against MuJoCo's own
 in its own simulator: trial `i` (seed 17 + i) scales every body's mass and rotational inertia
 by independent factors uniform in 1 +- 5 % (the controller keeps the nominal model) and moves
 the initial base uniformly within +-2 cm in x and y; success = no fall, |roll|, |pitch| < 10
-deg, within 5 cm and 5 deg of yaw of the plan's last knot (measured at the plan's end +
-`--settle`).
+deg, within 5 cm and 5 deg of yaw of the plan's last knot.
+
+A run is judged as legwork's `jump::control::run_jump` judges it (issue 17): at touch-down
+(the landing switch of the controller) + `--settle`; a fall is the base origin below 0.1 m
+over the ground under it or |roll| or |pitch| beyond 60 deg at any instant *from touch-down
+on* (a flip passes 60 deg in flight by design), a non-finite state, or no touch-down within
+`--settle` after the plan's end ("never landed").
 """
 import argparse
 import json
@@ -42,12 +47,45 @@ def roll_pitch(r):
     return math.atan2(r[2, 1], r[2, 2]), math.asin(max(-1.0, min(1.0, -r[2, 0])))
 
 
+MIN_BASE_HEIGHT = 0.1  # m, legwork's FallCriteria::min_base_height
+MAX_TILT = math.radians(60.0)  # legwork's FallCriteria::max_tilt
+
+
+def ground_height(model, x, y):
+    """Height of the terrain under (x, y): the ground plane and the tops of the boxes the
+    MJCF export writes (`box<i>`). Height fields are not handled (no jump has one)."""
+    h = 0.0
+    for g in range(model.ngeom):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or ""
+        if name == "ground" and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE:
+            h = model.geom_pos[g][2]
+    for g in range(model.ngeom):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or ""
+        if name.startswith("box") and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
+            c, half = model.geom_pos[g], model.geom_size[g]
+            if abs(x - c[0]) <= half[0] and abs(y - c[1]) <= half[1]:
+                h = max(h, c[2] + half[2])
+    return h
+
+
+def fallen(model, data, robot):
+    """Why the robot counts as fallen (legwork's `FallCriteria`), or None."""
+    q, _ = robot.state(data)
+    height = q[2] - ground_height(model, q[0], q[1])
+    roll, pitch = roll_pitch(quat_xyzw_to_matrix(q[3:7]))
+    if height < MIN_BASE_HEIGHT:
+        return f"base {height:.3f} m above the ground"
+    if abs(roll) > MAX_TILT or abs(pitch) > MAX_TILT:
+        return f"roll {math.degrees(roll):.1f} deg, pitch {math.degrees(pitch):.1f} deg"
+    return None
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--legwork", required=True, help="the legwork binary")
     parser.add_argument("--mjcf", required=True)
     parser.add_argument("--reference", required=True, help="the full-body plan (trajectory.json)")
-    parser.add_argument("--settle", type=float, default=1.0, help="seconds simulated after the plan's end")
+    parser.add_argument("--settle", type=float, default=1.0, help="seconds simulated after touch-down (and how late after the plan's end a touch-down may come)")
     parser.add_argument("--output")
     parser.add_argument("--trials", type=int, default=0, help="robustness trials after the nominal run")
     args = parser.parse_args()
@@ -99,7 +137,9 @@ def run(args, plan, model=None, base_offset=(0.0, 0.0)):
     mujoco.mj_forward(model, data)
     t0 = knots[0]["t"]
     dt = model.opt.timestep
-    steps = int(round((knots[-1]["t"] - t0 + args.settle) / dt))
+    # At most the plan, a late touch-down and the settling after it; the loop ends at
+    # touch-down + settle.
+    steps = int(round((knots[-1]["t"] - t0 + 2.0 * args.settle) / dt))
 
     server = subprocess.Popen([args.legwork, "control", "serve", "--reference", args.reference], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1)
     round_trips, mujoco_steps = [], []
@@ -123,13 +163,20 @@ def run(args, plan, model=None, base_offset=(0.0, 0.0)):
             break
         if reply["landing"] and landing_at is None:
             landing_at = t
+        if landing_at is None and t > knots[-1]["t"] + args.settle:
+            failed = f"never landed: still in the air {args.settle} s after the plan's end"
+            break
+        if landing_at is not None and t >= landing_at + args.settle:
+            break
         data.ctrl[robot.actuator] = np.clip(np.array(reply["tau"]), -robot.effort, robot.effort)
         start = time.perf_counter()
         mujoco.mj_step(model, data)
         mujoco_steps.append(time.perf_counter() - start)
-        if data.qpos[2] < 0.05 or abs(roll_pitch(quat_xyzw_to_matrix(robot.state(data)[0][3:7]))[0]) > math.radians(60):
-            failed = f"fell at t = {t:.3f} s"
-            break
+        if landing_at is not None:
+            why = fallen(model, data, robot)
+            if why:
+                failed = f"fell at t = {t:.3f} s: {why}"
+                break
     server.stdin.close()
     server.wait(timeout=10)
     q, _ = robot.state(data)

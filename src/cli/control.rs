@@ -55,7 +55,7 @@ fn serve(args: ServeArgs) -> Result<()> {
     let (model, _) = super::robot::load(&reference.metadata.robot)?;
     reference.check_against(&model, &args.reference.display().to_string())?;
     let settings = JumpSettings::default();
-    let jump_reference = JumpReference::new(&model, &reference, settings.posing_tolerance)?;
+    let jump_reference = JumpReference::new(&model, &reference, settings.posing_tolerance)?.with_lift_off_lead(settings.lift_off_lead)?;
     let mut controller = JumpController::new(&model, jump_reference, settings.jump_gains, settings.landing, settings.extension)?;
     let nfeet = model.feet.len();
     let mut feet: Vec<FootState> = (0..nfeet)

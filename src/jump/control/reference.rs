@@ -77,6 +77,12 @@ pub struct JumpReference {
     tau: Vec<DVector<f64>>,
     foot_position: Vec<Vec<Vector3<f64>>>,
     foot_velocity: Vec<Vec<Vector3<f64>>>,
+    /// Per knot and foot: whether the plan has the foot in contact there.
+    in_contact: Vec<Vec<bool>>,
+    /// Per foot (model order): the leg's actuated velocity indices.
+    leg_dofs: Vec<[usize; 3]>,
+    /// [`JumpReference::with_lift_off_lead`] (s); 0 by default.
+    lift_off_lead: f64,
     /// `T_posing`: start of the pre-landing configuration (s).
     t_posing: f64,
     /// The pre-landing configuration: the last knot (`nq`).
@@ -110,12 +116,20 @@ impl JumpReference {
             tau: vec![],
             foot_position: vec![],
             foot_velocity: vec![],
+            in_contact: vec![],
+            leg_dofs: vec![],
+            lift_off_lead: 0.0,
             t_posing: 0.0,
             pre_landing: DVector::zeros(model.nq),
             target: JumpTarget { position: Vector3::zeros(), yaw: 0.0 },
             impact_velocity: (Vector3::zeros(), Vector3::zeros()),
         };
+        r.leg_dofs = vec![[0; 3]; model.feet.len()];
+        for leg in feet.legs() {
+            r.leg_dofs[leg.foot] = leg.v_index;
+        }
         for k in &trajectory.knots {
+            r.in_contact.push(if k.in_contact.len() == model.feet.len() { k.in_contact.clone() } else { vec![false; model.feet.len()] });
             let q = DVector::from_column_slice(&k.q);
             let v = DVector::from_column_slice(&k.v);
             let mut tau = DVector::zeros(model.nv);
@@ -163,6 +177,25 @@ impl JumpReference {
         }
         self.t_posing = t_posing;
         self.pre_landing.copy_from(pre_landing);
+        Ok(self)
+    }
+
+    /// The same reference with each leg's feed-forward switched to its lift-off knot's
+    /// `lead` seconds before that knot (s, at most one 10 ms interval).
+    ///
+    /// Why: the plan's contact is rigid, the simulators' is compliant. At the end of a push
+    /// the ground is pressed in by `f / k_n` (legwork's A1 contact: ~2 cm under the 500 N
+    /// of barrel_roll's last push), and the foot only unloads once the leg has retracted
+    /// that far: with the plan's timing the foot went on pushing ~5 ms after the plan's
+    /// lift-off and the barrel roll left with 12 % more roll momentum than planned
+    /// (`docs/experiments/jump-flip.md`). Ending the push `lead` early on the lifting legs
+    /// only hands the unloading the time it takes; the stance legs keep the plan's timing.
+    pub fn with_lift_off_lead(mut self, lead: f64) -> Result<Self, JumpControlError> {
+        let interval = self.t.windows(2).map(|w| w[1] - w[0]).fold(f64::INFINITY, f64::min);
+        if !(lead.is_finite() && lead >= 0.0 && lead <= interval) {
+            return Err(JumpControlError::Setting { field: "lift_off_lead", expected: format!("a time in [0, {interval}] s (one knot interval), got {lead}") });
+        }
+        self.lift_off_lead = lead;
         Ok(self)
     }
 
@@ -216,6 +249,15 @@ impl JumpReference {
         // `[t_k, t_k+1)`, semi-implicit Euler). Interpolated, the last stance interval's
         // push would fade towards the flight torques and deliver half its impulse.
         out.tau.copy_from(&self.tau[k]);
+        if self.lift_off_lead > 0.0 && self.t[k + 1] - t <= self.lift_off_lead {
+            for (f, dofs) in self.leg_dofs.iter().enumerate() {
+                if self.in_contact[k][f] && !self.in_contact[k + 1][f] {
+                    for &i in dofs {
+                        out.tau[i] = self.tau[k + 1][i];
+                    }
+                }
+            }
+        }
         for f in 0..out.foot_position.len() {
             out.foot_position[f] = self.foot_position[k][f].lerp(&self.foot_position[k + 1][f], s);
             out.foot_velocity[f] = self.foot_velocity[k][f].lerp(&self.foot_velocity[k + 1][f], s);

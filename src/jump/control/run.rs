@@ -35,6 +35,11 @@ pub struct JumpSettings {
     pub landing: LandingSettings,
     pub extension: LegExtension,
     pub posing_tolerance: PosingTolerance,
+    /// How early each lifting leg ends its push ([`JumpReference::with_lift_off_lead`], s).
+    /// Default 4 ms: the time legwork's compliant A1 contact takes to unload after a
+    /// ~500 N push (measured: 3-5 ms land the barrel roll, 0 and 2 ms do not; see
+    /// `docs/experiments/jump-flip.md`).
+    pub lift_off_lead: f64,
     /// The simulator: default [`SimConfig::default`] (2 kHz physics, 1 kHz control, the
     /// motors' effort limits enforced).
     pub sim: SimConfig,
@@ -55,6 +60,7 @@ impl Default for JumpSettings {
             landing: LandingSettings::default(),
             extension: LegExtension::default(),
             posing_tolerance: PosingTolerance::default(),
+            lift_off_lead: 0.004,
             sim: SimConfig::default(),
             settle_time: 1.0,
             max_late_landing: 1.0,
@@ -112,7 +118,7 @@ pub fn run_jump_on(plant: &Model, model: &Model, terrain: &dyn Terrain, referenc
     if plant.nq != model.nq || plant.feet.len() != model.feet.len() {
         return Err(JumpControlError::Robot(format!("the simulated robot '{}' and the controller's '{}' differ in structure", plant.name, model.name)));
     }
-    let reference = JumpReference::new(model, reference, settings.posing_tolerance)?;
+    let reference = JumpReference::new(model, reference, settings.posing_tolerance)?.with_lift_off_lead(settings.lift_off_lead)?;
     let target = reference.target();
     let t_end = reference.duration_end();
     let (q0, v0) = reference.initial_state();

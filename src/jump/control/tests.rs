@@ -230,6 +230,40 @@ fn the_feed_forward_is_held_over_each_interval_as_the_plan_applied_it() {
 }
 
 #[test]
+fn a_lifting_leg_ends_its_push_the_lift_off_lead_early_and_the_others_keep_the_plans_timing() {
+    // Knot 11 is foot 0's lift-off knot (in contact at 10, not at 11); every other foot
+    // stays down. Each knot's torques are its index, so the sample says which knot's it is.
+    let (model, _, mut trajectory) = a1_standing_reference();
+    let dt = trajectory.knots[1].t - trajectory.knots[0].t;
+    for (k, knot) in trajectory.knots.iter_mut().enumerate() {
+        knot.tau.iter_mut().for_each(|t| *t = k as f64);
+        knot.in_contact = vec![true; model.feet.len()];
+        if k >= 11 {
+            knot.in_contact[0] = false;
+        }
+    }
+    let lead = 0.004;
+    let reference = JumpReference::new(&model, &trajectory, PosingTolerance::default()).unwrap().with_lift_off_lead(lead).unwrap();
+    let lifting: Vec<usize> = crate::control::whole_body::leg_chains(&model).unwrap().into_iter().find(|l| l.foot == 0).unwrap().v_index.to_vec();
+    let mut sample = ReferenceSample::new(&model);
+    let knot_of = |sample: &ReferenceSample, i: usize| sample.tau[i];
+    for (t, lifting_knot) in [(10.0 * dt, 10.0), (11.0 * dt - lead - 1e-4, 10.0), (11.0 * dt - lead + 1e-4, 11.0), (11.0 * dt - 1e-4, 11.0), (11.5 * dt, 11.0), (12.0 * dt - 1e-4, 11.0)] {
+        let t = trajectory.knots[0].t + t;
+        reference.sample(&model, t, &mut sample);
+        for i in 6..model.nv {
+            let expected = if lifting.contains(&i) { lifting_knot } else { (((t - trajectory.knots[0].t) / dt) + 1e-9).floor() };
+            assert_eq!(knot_of(&sample, i), expected, "t = {t}, dof {i}");
+        }
+    }
+    // Without the lead (the default), the plan's timing everywhere.
+    let plain = JumpReference::new(&model, &trajectory, PosingTolerance::default()).unwrap();
+    plain.sample(&model, trajectory.knots[0].t + 11.0 * dt - 1e-4, &mut sample);
+    assert!(lifting.iter().all(|&i| sample.tau[i] == 10.0));
+    // More than one interval is refused.
+    assert!(JumpReference::new(&model, &trajectory, PosingTolerance::default()).unwrap().with_lift_off_lead(1.5 * dt).is_err());
+}
+
+#[test]
 fn posing_starts_where_the_joints_stop_moving() {
     let (model, _, mut trajectory) = a1_standing_reference();
     // The joints move until knot 60, then hold the final configuration.
