@@ -127,14 +127,6 @@ impl Verdict {
 /// (docs/experiments/jump-box.md).
 pub const FULL_BODY_GAUSS_NEWTON_ITERATIONS: usize = 100;
 
-/// Upper bound on each foot's normal force over its last pushing interval
-/// (`FullBodySettings::lift_off_normal_force`, N): 20 N, 0.6 of an A1 foot's standing load
-/// (every jump file's robot). The rigid-contact plan otherwise ends its push at its peak
-/// (lateral_down: 93-110 N per foot) and a compliant ground keeps the feet loaded past the
-/// plan's lift-off while it releases that compression: in legwork's simulator for 9 ms,
-/// unevenly, reversing lateral_down's roll momentum (docs/experiments/jump-box-2.md).
-pub const LIFT_OFF_NORMAL_FORCE: f64 = 20.0;
-
 /// Options of [`run`] beyond the jump file.
 #[derive(Clone, Debug)]
 pub struct PipelineOptions {
@@ -149,8 +141,8 @@ pub struct PipelineOptions {
 impl PipelineOptions {
     /// The jump file's contact-timing settings, the full body's defaults with the constraint
     /// curvature after [`FULL_BODY_GAUSS_NEWTON_ITERATIONS`], airborne feet kept
-    /// `clearance` (1 cm) beyond their radius from the box and the lift-off force bound
-    /// [`LIFT_OFF_NORMAL_FORCE`], every other setting its default.
+    /// `clearance` (1 cm) beyond their radius from the box and the jump file's
+    /// `[full_body]` settings (the lift-off force bound), every other setting its default.
     pub fn of(jump: &Jump) -> Self {
         Self {
             contact_timing: jump.contact_timing.clone(),
@@ -159,7 +151,7 @@ impl PipelineOptions {
                 FullBodySettings {
                     constraint_curvature_after: Some(FULL_BODY_GAUSS_NEWTON_ITERATIONS),
                     airborne_foot_margin: defaults.clearance,
-                    lift_off_normal_force: LIFT_OFF_NORMAL_FORCE,
+                    lift_off_normal_force: jump.full_body.lift_off_normal_force.unwrap_or(defaults.lift_off_normal_force),
                     ..defaults
                 }
             },
