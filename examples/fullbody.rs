@@ -41,6 +41,7 @@ fn main() -> anyhow::Result<()> {
     let mut box_rows = false;
     let mut curvature = None;
     let mut foot_margin = 0.0;
+    let mut lift_off_force = f64::INFINITY;
     let mut names = Vec::new();
     let mut w_acceleration = None;
     let mut max_acceleration = None;
@@ -66,6 +67,7 @@ fn main() -> anyhow::Result<()> {
             "--max-stance-speed" => max_stance_speed = Some(args.next().ok_or_else(|| anyhow::anyhow!("--max-stance-speed: m/s"))?.parse::<f64>()?),
             "--out" => out_dir = Some(args.next().ok_or_else(|| anyhow::anyhow!("--out: a directory"))?),
             "--box-rows" => box_rows = true,
+            "--lift-off-force" => lift_off_force = args.next().ok_or_else(|| anyhow::anyhow!("--lift-off-force: N"))?.parse()?,
             "--foot-margin" => foot_margin = args.next().ok_or_else(|| anyhow::anyhow!("--foot-margin: metres"))?.parse()?,
             "--curvature-after" => curvature = Some(args.next().ok_or_else(|| anyhow::anyhow!("--curvature-after: iterations"))?.parse()?),
             _ => names.push(a),
@@ -82,6 +84,7 @@ fn main() -> anyhow::Result<()> {
         w_velocity: w_velocity.unwrap_or(defaults.w_velocity),
         constraint_curvature_after: curvature,
         airborne_foot_margin: foot_margin,
+        lift_off_normal_force: lift_off_force,
         ..defaults
     };
     // The files' jumps under the reference script's names.

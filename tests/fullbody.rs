@@ -266,6 +266,38 @@ fn box_signed_distance_is_the_euclidean_distance_outside_and_the_nearest_face_in
     assert!((d - 0.05).abs() < 1e-12);
 }
 
+/// The largest normal force of a foot over its last pushing interval (a stance knot whose
+/// next knot has the foot in the air).
+fn largest_lift_off_force(plan: &legwork::io::Trajectory) -> f64 {
+    let knots = &plan.knots;
+    let mut largest: f64 = 0.0;
+    for k in 0..knots.len() - 1 {
+        for f in 0..4 {
+            if knots[k].in_contact[f] && !knots[k + 1].in_contact[f] {
+                largest = largest.max(knots[k].contact_force[f][2]);
+            }
+        }
+    }
+    largest
+}
+
+#[test]
+fn lift_off_force_bound_holds_on_the_last_pushing_interval() {
+    let model = embedded::load("a1").unwrap();
+    let srb = srb_solution("lateral30").resample(0.01).unwrap();
+    let plain = FullBodySettings::default();
+    let guess = initial_guess(&model, &srb, plain.pre_landing_knots).unwrap();
+    let bound = 20.0;
+    let free = FullBodyProblem::new(&model, &srb, &guess, &plain, None).unwrap().solve().unwrap();
+    // Without the bound the rigid-contact optimum pushes hardest at lift-off.
+    assert!(largest_lift_off_force(&free.trajectory) > 2.0 * bound, "{}", largest_lift_off_force(&free.trajectory));
+    let settings = FullBodySettings { lift_off_normal_force: bound, ..plain };
+    let plan = FullBodyProblem::new(&model, &srb, &guess, &settings, None).unwrap().solve().unwrap();
+    assert_eq!(plan.report.status, Status::Solved);
+    assert!(plan.limits.all_met(1e-6), "{}", plan.limits);
+    assert!(largest_lift_off_force(&plan.trajectory) <= bound + 1e-6, "{}", largest_lift_off_force(&plan.trajectory));
+}
+
 #[test]
 fn full_body_problem_rejects_bad_input() {
     let model = embedded::load("a1").unwrap();
@@ -275,6 +307,8 @@ fn full_body_problem_rejects_bad_input() {
     let new = |s: &FullBodySettings, b: Option<BoxObstacle>, g: &legwork::io::Trajectory| FullBodyProblem::new(&model, &srb, g, s, b).err().unwrap();
     let e = new(&FullBodySettings { w_torque: 0.0, ..settings.clone() }, None, &guess);
     assert_eq!(e, FullBodyError::Setting { field: "w_torque", value: 0.0, expected: "> 0" });
+    let e = new(&FullBodySettings { lift_off_normal_force: 1.0, ..settings.clone() }, None, &guess);
+    assert!(matches!(e, FullBodyError::Setting { field: "lift_off_normal_force", .. }), "{e}");
     let e = new(&FullBodySettings { dt: 0.02, ..settings.clone() }, None, &guess);
     assert!(matches!(e, FullBodyError::Guess(ref m) if m.contains("dt = 0.02")), "{e}");
     let e = new(&settings, Some(BoxObstacle { top: 0.3, x: [0.2, -0.2], y: [-0.1, 0.1] }), &guess);

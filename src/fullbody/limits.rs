@@ -115,6 +115,10 @@ pub fn check_limits(model: &Model, plan: &Trajectory, settings: &FullBodySetting
                 let [fx, fy, fz] = knot.contact_force[f];
                 t.put("friction cone", "N", s.mu * fz - fx.abs().max(fy.abs()), k);
                 t.put("min normal force", "N", fz - s.min_normal_force, k);
+                let lifting = k + 1 < n && !plan.knots[k + 1].in_contact[f];
+                if lifting && s.lift_off_normal_force.is_finite() {
+                    t.put("lift-off normal force", "N", s.lift_off_normal_force - fz, k);
+                }
                 let anchor = *first_contact[f].get_or_insert(feet[f]);
                 // The first stance knot is the start (at rest); later stance knots stay put.
                 t.put(STANCE_DRIFT, "m", -(feet[f] - anchor).norm(), k);

@@ -154,6 +154,7 @@ impl FullBodyProblem {
                         None
                     }
                 }),
+                lifting: std::array::from_fn(|f| contacts[f] && !srb.knots[k + 1].contacts[f]),
                 airborne: std::array::from_fn(|f| k > lift_off[f]),
                 initial: k == 0,
                 pre_landing: k >= last - a,

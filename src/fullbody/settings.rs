@@ -60,6 +60,15 @@ pub struct FullBodySettings {
     /// minimum normal force on a stance foot (2 N).
     pub mu: f64,
     pub min_normal_force: f64,
+    /// Upper bound on a foot's normal force over its last pushing interval (N; infinite, the
+    /// default: no bound). Why: the plan's contact is rigid, so its optimal push peaks at
+    /// lift-off and drops to zero in no time; a compliant ground (legwork's simulator,
+    /// MuJoCo's soft constraints) has to release the compression that force caused, and
+    /// the feet stay loaded past the plan's lift-off (lateral_down in legwork's simulator:
+    /// 9 ms, the right feet longer than the left, roll momentum -0.08 N m s against the
+    /// plan's +0.09; docs/experiments/jump-box-2.md). Bounded, the push ends on lightly
+    /// loaded feet, which unload as fast as the legs retract.
+    pub lift_off_normal_force: f64,
     /// Half extents of the trunk's box in the base frame (A1: 0.1335, 0.097, 0.057 m) and the
     /// clearance kept from it and from the jump's box (0.01 m; a swing foot keeps its radius).
     pub trunk_half_extents: Vector3<f64>,
@@ -113,6 +122,7 @@ impl Default for FullBodySettings {
             pre_landing_knots: 10,
             mu: 0.6,
             min_normal_force: 2.0,
+            lift_off_normal_force: f64::INFINITY,
             trunk_half_extents: Vector3::new(0.1335, 0.097, 0.057),
             clearance: 0.01,
             airborne_foot_margin: 0.0,
@@ -141,6 +151,12 @@ impl FullBodySettings {
         check("pre_landing_knots", self.pre_landing_knots as f64, self.pre_landing_knots >= 1, ">= 1")?;
         check("mu", self.mu, self.mu > 0.0 && self.mu.is_finite(), "> 0")?;
         check("min_normal_force", self.min_normal_force, self.min_normal_force >= 0.0 && self.min_normal_force.is_finite(), ">= 0")?;
+        check(
+            "lift_off_normal_force",
+            self.lift_off_normal_force,
+            self.lift_off_normal_force >= self.min_normal_force && !self.lift_off_normal_force.is_nan(),
+            ">= min_normal_force (infinite: no bound)",
+        )?;
         for (field, v) in [
             ("trunk_half_extents.x", self.trunk_half_extents.x),
             ("trunk_half_extents.y", self.trunk_half_extents.y),

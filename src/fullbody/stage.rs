@@ -73,6 +73,8 @@ pub(crate) struct KnotSpec {
     /// Feet held at a contact point at this knot (pushing over this knot's interval or the one
     /// before it).
     pub pinned: [Option<Vector3<f64>>; 4],
+    /// Feet pushing over this knot's interval for the last time (lifting off at the next knot).
+    pub lifting: [bool; 4],
     /// Feet that must keep clear of the box at this knot (in the air since before it).
     pub airborne: [bool; 4],
     pub initial: bool,
@@ -244,10 +246,6 @@ impl FullBodyStage {
         k
     }
 
-    fn n_contacts(&self) -> usize {
-        self.spec.contacts.iter().filter(|&&c| c).count()
-    }
-
     fn nv(&self) -> usize {
         self.shared.model.nv
     }
@@ -295,12 +293,13 @@ impl Stage for FullBodyStage {
                     r += 1;
                 }
             }
-            for _ in 0..self.n_contacts() {
+            for f in (0..4).filter(|&f| self.spec.contacts[f]) {
                 for _ in 0..4 {
                     (lower[r], upper[r]) = (f64::NEG_INFINITY, 0.0);
                     r += 1;
                 }
-                (lower[r], upper[r]) = (s.min_normal_force, f64::INFINITY);
+                let max_normal_force = if self.spec.lifting[f] { s.lift_off_normal_force } else { f64::INFINITY };
+                (lower[r], upper[r]) = (s.min_normal_force, max_normal_force);
                 r += 1;
             }
         }

@@ -10,4 +10,4 @@ pub mod trials;
 
 pub use bench::{bench_jump, JumpBenchRow};
 pub use pipeline::{box_obstacle, plan_contact_timing, plan_full_body, srb_plan_trajectory, ContactTimingStage, JumpReport, PipelineError, PipelineOptions, Stage, StageState, Verdict};
-pub use spec::{embedded_jumps, ContactTimingOverrides, Jump, JumpError, PaperRow, Platform, StanceConflict, EMBEDDED_JUMPS, FOOT_NAMES};
+pub use spec::{embedded_jumps, ContactTimingOverrides, FullBodyOverrides, Jump, JumpError, PaperRow, Platform, StanceConflict, EMBEDDED_JUMPS, FOOT_NAMES};

@@ -23,6 +23,9 @@
 //! [contact_timing]                   # optional overrides of ContactTimingSettings
 //! knots_per_phase = 30
 //!
+//! [full_body]                        # optional: the jump's full-body plan settings
+//! lift_off_normal_force = 20.0       # N, bound on a lifting foot's last push (default none)
+//!
 //! [paper]                            # optional: the paper's Table I row
 //! timings_10ms = [52, 35]
 //! contact_timing_s = 5.02
@@ -85,7 +88,18 @@ struct JumpFile {
     #[serde(default)]
     contact_timing: ContactTimingOverrides,
     #[serde(default)]
+    full_body: FullBodyOverrides,
+    #[serde(default)]
     paper: Option<PaperRow>,
+}
+
+/// The jump's own full-body settings (`[full_body]`); an absent field keeps the pipeline's.
+#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FullBodyOverrides {
+    /// `FullBodySettings::lift_off_normal_force` (N): the bound on each foot's normal force
+    /// over its last pushing interval. Absent: no bound.
+    pub lift_off_normal_force: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -203,6 +217,7 @@ pub struct Jump {
     pub reference_displacement: Option<Vector3<f64>>,
     /// The formulation's settings: defaults with the file's overrides.
     pub contact_timing: ContactTimingSettings,
+    pub full_body: FullBodyOverrides,
     pub paper: Option<PaperRow>,
     /// Where the jump came from (a path or `embedded jump NAME`).
     pub origin: String,
@@ -335,6 +350,11 @@ impl Jump {
         if let Err(ContactTimingError::Setting { field, value, expected }) = contact_timing.validate() {
             return bad(&format!("contact_timing.{field}"), expected, value.to_string());
         }
+        if let Some(f) = file.full_body.lift_off_normal_force {
+            if !(f.is_finite() && f > 0.0) {
+                return bad("full_body.lift_off_normal_force", "a positive force (N)", f.to_string());
+            }
+        }
         if let Some(p) = &file.paper {
             if p.timings_10ms.len() != phases.len() || !finite(&p.timings_10ms) {
                 return bad("paper.timings_10ms", &format!("{} finite durations (one per phase)", phases.len()), format!("{:?}", p.timings_10ms));
@@ -354,6 +374,7 @@ impl Jump {
             platform,
             reference_displacement,
             contact_timing,
+            full_body: file.full_body,
             paper: file.paper,
             origin: origin.into(),
         })
@@ -466,6 +487,8 @@ mod tests {
         assert!(e.contains("field `target.displacement[2]`: expected -box.height = -0.3"), "{e}");
         let e = error_of(&LATERAL.replace("[paper]", "[contact_timing]\nmu = -1.0\n\n[paper]"));
         assert!(e.contains("field `contact_timing.mu`: expected > 0, got -1"), "{e}");
+        let e = error_of(&LATERAL.replace("[paper]", "[full_body]\nlift_off_normal_force = -1.0\n\n[paper]"));
+        assert!(e.contains("field `full_body.lift_off_normal_force`: expected a positive force (N), got -1"), "{e}");
         let e = error_of(&LATERAL.replace("[paper]", "[contact_timing]\nknots = 3\n\n[paper]"));
         assert!(e.contains("knots"), "{e}");
         let e = error_of(&LATERAL.replace("timings_10ms = [50, 28]", "timings_10ms = [50]"));
