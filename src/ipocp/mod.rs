@@ -35,6 +35,6 @@ mod stage;
 pub use iterate::{Duals, Iterate, SolveResult, Status, Timings};
 pub use nlp::{nlp_problem, Nlp, NlpStage};
 pub use problem::{Problem, ProblemError};
-pub use settings::{Settings, SettingsError};
+pub use settings::{BarrierUpdate, MuOracle, Settings, SettingsError};
 pub use solver::{SolveError, Solver};
 pub use stage::{Stage, StageDims, StageJacobians, StageMultipliers, StageValues};
