@@ -113,14 +113,18 @@ impl ComplementarityPairs {
     /// of their values (eq. 15) along `d_aff + sigma d_diff`.
     fn step_to_boundary(&self, sigma: f64, tau: f64) -> (f64, f64) {
         let (mut alpha_primal, mut alpha_dual) = (1.0f64, 1.0f64);
-        for j in 0..self.gap.len() {
-            let d_gap = self.gap_affine[j] + sigma * self.gap_difference[j];
+        let gaps = self.gap.iter().zip(&self.gap_affine).zip(&self.gap_difference);
+        for ((gap, affine), difference) in gaps {
+            let d_gap = affine + sigma * difference;
             if d_gap < 0.0 {
-                alpha_primal = alpha_primal.min(-tau * self.gap[j] / d_gap);
+                alpha_primal = alpha_primal.min(-tau * gap / d_gap);
             }
-            let d_multiplier = self.multiplier_affine[j] + sigma * self.multiplier_difference[j];
+        }
+        let multipliers = self.multiplier.iter().zip(&self.multiplier_affine).zip(&self.multiplier_difference);
+        for ((multiplier, affine), difference) in multipliers {
+            let d_multiplier = affine + sigma * difference;
             if d_multiplier < 0.0 {
-                alpha_dual = alpha_dual.min(-tau * self.multiplier[j] / d_multiplier);
+                alpha_dual = alpha_dual.min(-tau * multiplier / d_multiplier);
             }
         }
         (alpha_primal, alpha_dual)
@@ -130,10 +134,10 @@ impl ComplementarityPairs {
     /// `alpha_dual` along `d_aff + sigma d_diff`.
     fn after(&self, sigma: f64, alpha_primal: f64, alpha_dual: f64) -> (f64, f64) {
         let (mut sum, mut squares) = (0.0, 0.0);
-        for j in 0..self.gap.len() {
-            let gap = self.gap[j] + alpha_primal * (self.gap_affine[j] + sigma * self.gap_difference[j]);
-            let multiplier = self.multiplier[j] + alpha_dual * (self.multiplier_affine[j] + sigma * self.multiplier_difference[j]);
-            let c = gap * multiplier;
+        let gaps = self.gap.iter().zip(&self.gap_affine).zip(&self.gap_difference);
+        let multipliers = self.multiplier.iter().zip(&self.multiplier_affine).zip(&self.multiplier_difference);
+        for (((gap, gap_affine), gap_difference), ((multiplier, multiplier_affine), multiplier_difference)) in gaps.zip(multipliers) {
+            let c = (gap + alpha_primal * (gap_affine + sigma * gap_difference)) * (multiplier + alpha_dual * (multiplier_affine + sigma * multiplier_difference));
             sum += c;
             squares += c * c;
         }
