@@ -3,7 +3,8 @@
 //!
 //! ```text
 //! cargo run --release --example contact_timing -- [--exp taylor4|exact] [--repeats 5]
-//!     [--reference ../shared/anchors/nguyen2022/results_srb_costdt.json] [jump ...]
+//!     [--reference ../shared/anchors/nguyen2022/results_srb_costdt.json]
+//!     [--barrier monotone|probing|quality-function|loqo] [jump ...]
 //! ```
 
 use legwork::ipocp::Settings;
@@ -18,6 +19,7 @@ fn main() -> anyhow::Result<()> {
     let mut reference: Option<serde_json::Value> = None;
     let mut names = Vec::new();
     let mut verbose = false;
+    let mut barrier_update = ContactTimingProblem::solver_settings().barrier_update;
     while let Some(a) = args.next() {
         match a.as_str() {
             "--exp" => {
@@ -33,6 +35,7 @@ fn main() -> anyhow::Result<()> {
                 reference = Some(serde_json::from_str(&std::fs::read_to_string(&path).map_err(|e| anyhow::anyhow!("{path}: {e}"))?)?);
             }
             "--verbose" => verbose = true,
+            "--barrier" => barrier_update = args.next().ok_or_else(|| anyhow::anyhow!("--barrier: a rule"))?.parse().map_err(anyhow::Error::msg)?,
             _ => names.push(a),
         }
     }
@@ -47,7 +50,7 @@ fn main() -> anyhow::Result<()> {
         let max_stance_speed = if reference.is_some() { f64::INFINITY } else { file.contact_timing.max_stance_speed };
         let settings = ContactTimingSettings { exp_map, max_stance_speed, ..file.contact_timing.clone() };
         let ct = ContactTimingProblem::new(&jump, &params, &settings)?;
-        let mut solver = ct.solver(Settings { verbose, ..Settings::default() })?;
+        let mut solver = ct.solver(Settings { verbose, barrier_update, ..Settings::default() })?;
         let mut times = Vec::new();
         let mut result = None;
         for _ in 0..repeats.max(1) {

@@ -6,7 +6,8 @@
 //! cargo run --release --example fullbody -- [--repeats 3] [--no-box] [--overhang 0.01]
 //!     [--pre-landing 10] [--parallel] [--max-iterations 300] [--verbose] [--limits]
 //!     [--no-restoration] [--plain-guess] [--reference-targets] [--w-acceleration W]
-//!     [--max-acceleration A] [--w-velocity W] [--max-stance-speed V] [--out DIR] [jump ...]
+//!     [--max-acceleration A] [--w-velocity W] [--max-stance-speed V] [--out DIR]
+//!     [--barrier RULE] [--ct-barrier RULE] [jump ...]
 //! ```
 //!
 //! `--w-acceleration`, `--max-acceleration`, `--w-velocity` override the settings' joint
@@ -48,6 +49,8 @@ fn main() -> anyhow::Result<()> {
     let mut w_velocity = None;
     let mut out_dir: Option<String> = None;
     let mut max_stance_speed = None;
+    let mut barrier_update = None;
+    let mut ct_barrier_update = None;
     while let Some(a) = args.next() {
         match a.as_str() {
             "--repeats" => repeats = args.next().ok_or_else(|| anyhow::anyhow!("--repeats: a number"))?.parse()?,
@@ -68,6 +71,8 @@ fn main() -> anyhow::Result<()> {
             "--out" => out_dir = Some(args.next().ok_or_else(|| anyhow::anyhow!("--out: a directory"))?),
             "--box-rows" => box_rows = true,
             "--lift-off-force" => lift_off_force = args.next().ok_or_else(|| anyhow::anyhow!("--lift-off-force: N"))?.parse()?,
+            "--barrier" => barrier_update = Some(args.next().ok_or_else(|| anyhow::anyhow!("--barrier: a rule"))?.parse().map_err(anyhow::Error::msg)?),
+            "--ct-barrier" => ct_barrier_update = Some(args.next().ok_or_else(|| anyhow::anyhow!("--ct-barrier: a rule"))?.parse().map_err(anyhow::Error::msg)?),
             "--foot-margin" => foot_margin = args.next().ok_or_else(|| anyhow::anyhow!("--foot-margin: metres"))?.parse()?,
             "--curvature-after" => curvature = Some(args.next().ok_or_else(|| anyhow::anyhow!("--curvature-after: iterations"))?.parse()?),
             _ => names.push(a),
@@ -77,7 +82,14 @@ fn main() -> anyhow::Result<()> {
     let params = SrbParams::a1()?;
     let defaults = FullBodySettings::default();
     let settings = FullBodySettings {
-        solver: Settings { verbose, parallel, restoration, max_iterations: max_iterations.unwrap_or(defaults.solver.max_iterations), ..defaults.solver.clone() },
+        solver: Settings {
+            verbose,
+            parallel,
+            restoration,
+            max_iterations: max_iterations.unwrap_or(defaults.solver.max_iterations),
+            barrier_update: barrier_update.unwrap_or(defaults.solver.barrier_update),
+            ..defaults.solver.clone()
+        },
         pre_landing_knots: pre_landing.unwrap_or(defaults.pre_landing_knots),
         w_acceleration: w_acceleration.unwrap_or(defaults.w_acceleration),
         max_joint_acceleration: max_acceleration.unwrap_or(defaults.max_joint_acceleration),
@@ -101,7 +113,8 @@ fn main() -> anyhow::Result<()> {
         let ct_defaults = ContactTimingSettings::default();
         let ct_settings = ContactTimingSettings { max_stance_speed: max_stance_speed.unwrap_or(ct_defaults.max_stance_speed), ..ct_defaults };
         let ct = ContactTimingProblem::new(jump, &params, &ct_settings)?;
-        let mut solver = ct.solver(Settings::default())?;
+        let ct_solver_settings = ContactTimingProblem::solver_settings();
+        let mut solver = ct.solver(Settings { barrier_update: ct_barrier_update.unwrap_or(ct_solver_settings.barrier_update), ..ct_solver_settings })?;
         let r = ct.solve(&mut solver)?;
         let srb = SrbTrajectory::from_solution(&ct, &r.last.primal)?.resample(settings.dt)?;
         let obstacle = match overhang {

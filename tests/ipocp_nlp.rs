@@ -1,7 +1,7 @@
 //! ipocp on Hock-Schittkowski problems (Hock & Schittkowski 1981, "Test Examples for
 //! Nonlinear Programming Codes"), each a one-stage problem, against the published optima.
 
-use legwork::ipocp::{nlp_problem, Nlp, Settings, Solver, Status};
+use legwork::ipocp::{nlp_problem, BarrierUpdate, MuOracle, Nlp, Settings, Solver, Status};
 use nalgebra::{DMatrix, DVector};
 
 const INF: f64 = f64::INFINITY;
@@ -141,6 +141,24 @@ fn hs071_reaches_the_published_optimum() {
     }
     // IPOPT takes 8 iterations on HS071 from this start.
     assert!(r.iterations <= 15, "{} iterations", r.iterations);
+}
+
+/// The adaptive barrier updates (Nocedal, Wächter & Waltz 2009) reach HS071's optimum too.
+#[test]
+fn hs071_with_the_adaptive_barrier_updates() {
+    for oracle in [MuOracle::Probing, MuOracle::QualityFunction, MuOracle::Loqo] {
+        let problem = nlp_problem(hs071()).unwrap();
+        let mut solver = Solver::new(&problem, Settings { barrier_update: BarrierUpdate::Adaptive(oracle), ..Settings::default() }).unwrap();
+        let r = solver.solve(&problem, &[DVector::from_column_slice(&[1.0, 5.0, 5.0, 1.0])]).unwrap();
+        assert_eq!(r.status, Status::Solved, "{oracle:?}");
+        assert!((r.objective - 17.014_017_3).abs() < 1e-6, "{oracle:?}: {}", r.objective);
+        let x = &r.last.primal[0];
+        let expected = [1.0, 4.742_999_64, 3.821_149_98, 1.379_408_29];
+        for i in 0..4 {
+            assert!((x[i] - expected[i]).abs() < 1e-6, "{oracle:?}: x = {x}");
+        }
+        assert!(r.iterations <= 15, "{oracle:?}: {} iterations", r.iterations);
+    }
 }
 
 #[test]

@@ -4,7 +4,7 @@
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
-use legwork::ipocp::{Problem, Settings, Solver, Stage, StageDims, StageJacobians, StageMultipliers, StageValues, Status};
+use legwork::ipocp::{BarrierUpdate, MuOracle, Problem, Settings, Solver, Stage, StageDims, StageJacobians, StageMultipliers, StageValues, Status};
 use nalgebra::{DMatrix, DVector};
 
 /// `l = 1/2 z^T W z + w^T z`, `x+ = F z`, `G z = c`, `lower <= H z <= upper`.
@@ -240,27 +240,30 @@ fn box_constrained_lq_matches_clarabel() {
     // pushes with -7.9 and reaches v = -1.1).
     let stages = double_integrator(Some(2.0), Some(-0.6));
     let pb = problem(&stages);
-    // The control weight is 0.01: at the default tolerance (1e-8 on the gradient) u is
-    // known to ~1e-6 only; 1e-10 makes the 1e-6 comparison below meaningful.
-    let mut solver = Solver::new(&pb, Settings { tolerance: 1e-10, ..Settings::default() }).unwrap();
-    let r = solver.solve(&pb, &zero_guess(&stages)).unwrap();
-    assert_eq!(r.status, Status::Solved);
     let st = stack(&stages);
     let (x, obj) = clarabel_solution(&st);
-    assert!((r.objective - obj).abs() < 1e-7 * obj.abs().max(1.0), "{} vs {obj}", r.objective);
-    let mut active = 0;
-    for (k, zk) in r.last.primal.iter().enumerate() {
-        for i in 0..zk.len() {
-            assert!((zk[i] - x[st.offsets[k] + i]).abs() < 1e-6, "stage {k} entry {i}: {} vs {}", zk[i], x[st.offsets[k] + i]);
+    // The monotone barrier update and the adaptive ones (Nocedal, Wächter & Waltz 2009).
+    for barrier_update in [BarrierUpdate::Monotone, BarrierUpdate::Adaptive(MuOracle::QualityFunction), BarrierUpdate::Adaptive(MuOracle::Probing), BarrierUpdate::Adaptive(MuOracle::Loqo)] {
+        // The control weight is 0.01: at the default tolerance (1e-8 on the gradient) u is
+        // known to ~1e-6 only; 1e-10 makes the 1e-6 comparison below meaningful.
+        let mut solver = Solver::new(&pb, Settings { tolerance: 1e-10, barrier_update, ..Settings::default() }).unwrap();
+        let r = solver.solve(&pb, &zero_guess(&stages)).unwrap();
+        assert_eq!(r.status, Status::Solved, "{barrier_update:?}");
+        assert!((r.objective - obj).abs() < 1e-7 * obj.abs().max(1.0), "{barrier_update:?}: {} vs {obj}", r.objective);
+        let mut active = 0;
+        for (k, zk) in r.last.primal.iter().enumerate() {
+            for i in 0..zk.len() {
+                assert!((zk[i] - x[st.offsets[k] + i]).abs() < 1e-6, "{barrier_update:?}: stage {k} entry {i}: {} vs {}", zk[i], x[st.offsets[k] + i]);
+            }
+            if k < N && (zk[2].abs() - 2.0).abs() < 1e-6 {
+                active += 1;
+            }
+            if k > 0 && (zk[1] + 0.6).abs() < 1e-6 {
+                active += 1;
+            }
         }
-        if k < N && (zk[2].abs() - 2.0).abs() < 1e-6 {
-            active += 1;
-        }
-        if k > 0 && (zk[1] + 0.6).abs() < 1e-6 {
-            active += 1;
-        }
+        assert!(active >= 3, "{barrier_update:?}: {active} active bounds");
     }
-    assert!(active >= 3, "{active} active bounds");
 }
 
 #[test]

@@ -69,11 +69,20 @@ pub enum BenchCommand {
         /// Jumps, comma-separated (default: the seven embedded ones).
         #[arg(long, value_delimiter = ',', value_name = "NAMES")]
         jumps: Vec<String>,
+        /// The contact timing's and the full body's barrier update (monotone, probing,
+        /// quality-function, loqo; default: the pipeline's).
+        #[arg(long, value_name = "RULE")]
+        barrier_contact_timing: Option<legwork::ipocp::BarrierUpdate>,
+        #[arg(long, value_name = "RULE")]
+        barrier_full_body: Option<legwork::ipocp::BarrierUpdate>,
+        /// The full body's barrier update in its curvature phase (default: as the rest).
+        #[arg(long, value_name = "RULE")]
+        barrier_curvature: Option<legwork::ipocp::BarrierUpdate>,
     },
 }
 
 /// `legwork bench jumps`.
-fn jumps(as_json: bool, repeats: usize, knots: Option<usize>, trials: usize, names: &[String]) -> Result<()> {
+fn jumps(as_json: bool, repeats: usize, knots: Option<usize>, trials: usize, names: &[String], barriers: [Option<legwork::ipocp::BarrierUpdate>; 3]) -> Result<()> {
     if repeats == 0 {
         bail!("--repeats: expected at least one solve per jump, got 0");
     }
@@ -85,7 +94,16 @@ fn jumps(as_json: bool, repeats: usize, knots: Option<usize>, trials: usize, nam
         bar.set_message(jump.name.clone());
         let model = embedded::load(&jump.robot)?;
         let settings = super::jump::settings_of(jump, knots)?;
-        let options = legwork::jump::PipelineOptions { contact_timing: settings, trials, ..legwork::jump::PipelineOptions::of(jump) };
+        let mut options = legwork::jump::PipelineOptions { contact_timing: settings, trials, ..legwork::jump::PipelineOptions::of(jump) };
+        if let Some(rule) = barriers[0] {
+            options.contact_timing_solver.barrier_update = rule;
+        }
+        if let Some(rule) = barriers[1] {
+            options.full_body.solver.barrier_update = rule;
+        }
+        if barriers[2].is_some() {
+            options.full_body.curvature_barrier_update = barriers[2];
+        }
         rows.push(legwork::jump::bench_jump(jump, &model, &options, repeats)?);
         bar.inc(1);
     }
@@ -132,7 +150,7 @@ fn cpu_name() -> String {
 
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
-        BenchCommand::Jumps { json, repeats, knots, trials, jumps: names } => jumps(json, repeats, knots, trials, &names),
+        BenchCommand::Jumps { json, repeats, knots, trials, jumps: names, barrier_contact_timing, barrier_full_body, barrier_curvature } => jumps(json, repeats, knots, trials, &names, [barrier_contact_timing, barrier_full_body, barrier_curvature]),
         BenchCommand::Slq { json, threads, iterations, check } => slq(json, threads, iterations, check.is_some()),
         BenchCommand::Terrain { trials, json, threads, scenarios } => terrain(trials, json, threads, &scenarios),
     }

@@ -222,7 +222,12 @@ impl FullBodyProblem {
             return Ok(self.plan(&first, t0.elapsed()));
         }
         self.shared.curvature.store(true, Ordering::Relaxed);
-        let second_settings = Settings { max_iterations: settings.solver.max_iterations - first.iterations, mu_init: first.mu, ..settings.solver.clone() };
+        let second_settings = Settings {
+            max_iterations: settings.solver.max_iterations - first.iterations,
+            mu_init: first.mu,
+            barrier_update: settings.curvature_barrier_update.unwrap_or(settings.solver.barrier_update),
+            ..settings.solver.clone()
+        };
         let mut solver = Solver::new(&self.problem, second_settings).map_err(solver_error)?;
         let last = &first.last;
         let duals = Duals {

@@ -1,7 +1,7 @@
 //! Settings of the full-body optimization and the box a jump starts from.
 
 use super::FullBodyError;
-use crate::ipocp::Settings;
+use crate::ipocp::{BarrierUpdate, Settings};
 use nalgebra::Vector3;
 
 /// An axis-aligned box in the world (the platform of `barrel_roll`, `double_barrel_roll`,
@@ -109,6 +109,8 @@ pub struct FullBodySettings {
     /// start the exact curvature with the first multipliers' estimates makes the steps worse
     /// (measured on lateral_down). `None`: Gauss-Newton throughout (the default).
     pub constraint_curvature_after: Option<usize>,
+    /// The barrier update of the curvature phase (`None`: the solver's, the default).
+    pub curvature_barrier_update: Option<BarrierUpdate>,
     /// The interior-point solver's settings (`ipocp` defaults, 300 iterations at most,
     /// optimality tolerance 1e-6, constraint violation 1e-6; `parallel` off: on this shared
     /// 2-core machine under load it measured no faster).
@@ -138,6 +140,7 @@ impl Default for FullBodySettings {
             w_acceleration: 0.0,
             max_joint_acceleration: f64::INFINITY,
             constraint_curvature_after: None,
+            curvature_barrier_update: None,
             solver: Settings { max_iterations: 300, tolerance: 1e-6, constraint_violation_tolerance: 1e-6, ..Settings::default() },
         }
     }

@@ -9,7 +9,8 @@
 //!   dynamics. A general NLP is a one-stage problem ([`nlp`]).
 //! - **Algorithm** ([`Solver`]): IPOPT's (Wächter & Biegler 2006): slacks and a log barrier
 //!   for the inequalities, primal-dual steps with the fraction-to-the-boundary rule, the
-//!   monotone barrier update, a filter line search with second-order corrections, inertia
+//!   monotone barrier update (or, as a setting, the adaptive one of Nocedal, Wächter & Waltz
+//!   2009: [`BarrierUpdate`]), a filter line search with second-order corrections, inertia
 //!   correction by regularizing the Hessian, and the feasibility restoration of sec. 3.3
 //!   ([`restoration`], stage-wise: the elastic variables of a stage's rows are its own) where
 //!   the filter line search fails from an infeasible point; if that finds no acceptable
@@ -35,6 +36,6 @@ mod stage;
 pub use iterate::{Duals, Iterate, SolveResult, Status, Timings};
 pub use nlp::{nlp_problem, Nlp, NlpStage};
 pub use problem::{Problem, ProblemError};
-pub use settings::{Settings, SettingsError};
+pub use settings::{BarrierUpdate, MuOracle, Settings, SettingsError};
 pub use solver::{SolveError, Solver};
 pub use stage::{Stage, StageDims, StageJacobians, StageMultipliers, StageValues};

@@ -36,7 +36,7 @@
 use super::filter::Filter;
 use super::iterate::{Duals, Iterate, Status, Timings};
 use super::problem::Problem;
-use super::settings::Settings;
+use super::settings::{BarrierUpdate, Settings};
 use super::solver::{barrier, violation_1, Solver};
 use super::stage::{Stage, StageDims, StageJacobians, StageMultipliers, StageValues};
 use nalgebra::{DMatrix, DVector};
@@ -338,6 +338,8 @@ pub(super) fn restore(problem: &Problem, it: &Iterate, mu: f64, settings: &Setti
         return failed(0, Timings::default());
     };
     let sub_settings = Settings {
+        // The restoration problem starts from the original problem's `mu` (sec. 3.3).
+        barrier_update: BarrierUpdate::Monotone,
         mu_init: mu_r,
         least_squares_multipliers: false,
         max_iterations: settings.restoration_max_iterations,

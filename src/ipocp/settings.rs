@@ -23,6 +23,26 @@ pub struct Settings {
     pub kappa_mu: f64,
     pub theta_mu: f64,
     pub kappa_epsilon: f64,
+    /// How the barrier parameter is chosen (the monotone rule above) [`mu_strategy`].
+    pub barrier_update: BarrierUpdate,
+    /// The adaptive update's bounds on `mu`: at least `adaptive_mu_min` (1e-11) [`mu_min`], at
+    /// most `adaptive_mu_max_factor` (1e3) times the first iterate's average complementarity
+    /// [`mu_max_fact`]; `mu = sigma avg(s z)` with the centering `sigma` in
+    /// `[sigma_min, sigma_max]` (1e-6, 100) [`sigma_min`, `sigma_max`].
+    pub adaptive_mu_min: f64,
+    pub adaptive_mu_max_factor: f64,
+    pub sigma_min: f64,
+    pub sigma_max: f64,
+    /// The adaptive update's globalization (Nocedal, Wächter & Waltz 2009, sec. 5, the KKT-error
+    /// test): free choice of `mu` while the optimality error is at most
+    /// `adaptive_mu_error_reduction` (0.9999) times one of the last
+    /// `adaptive_mu_error_references` (4) accepted errors [`adaptive_mu_kkterror_red_fact`,
+    /// `adaptive_mu_kkterror_red_iters`]; otherwise the monotone rule from
+    /// `mu = adaptive_mu_monotone_init_factor avg(s z)` (0.8) [`adaptive_mu_monotone_init_factor`]
+    /// until the error is that much below the references again.
+    pub adaptive_mu_error_reduction: f64,
+    pub adaptive_mu_error_references: usize,
+    pub adaptive_mu_monotone_init_factor: f64,
     /// Fraction-to-the-boundary `tau = max(tau_min, 1 - mu)` (0.99) [`tau_min`].
     pub tau_min: f64,
     /// Initial slacks pushed into the interior by `min(bound_push max(1, |bound|), bound_frac
@@ -108,6 +128,14 @@ impl Default for Settings {
             kappa_mu: 0.2,
             theta_mu: 1.5,
             kappa_epsilon: 10.0,
+            barrier_update: BarrierUpdate::Monotone,
+            adaptive_mu_min: 1e-11,
+            adaptive_mu_max_factor: 1e3,
+            sigma_min: 1e-6,
+            sigma_max: 100.0,
+            adaptive_mu_error_reduction: 0.9999,
+            adaptive_mu_error_references: 4,
+            adaptive_mu_monotone_init_factor: 0.8,
             tau_min: 0.99,
             bound_push: 1e-2,
             bound_frac: 1e-2,
@@ -146,6 +174,47 @@ impl Default for Settings {
     }
 }
 
+/// The barrier parameter's update.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BarrierUpdate {
+    /// Fiacco-McCormick: `mu` fixed until the barrier problem is solved to
+    /// `kappa_epsilon mu`, then decreased (Wächter & Biegler 2006, eq. 7) [`monotone`].
+    Monotone,
+    /// `mu` chosen at every iteration by the oracle (Nocedal, Wächter & Waltz 2009), with the
+    /// monotone rule as the fallback when the optimality error stops decreasing [`adaptive`].
+    Adaptive(MuOracle),
+}
+
+/// How the adaptive update picks `mu = sigma avg(s z)` (Nocedal, Wächter & Waltz 2009)
+/// [`mu_oracle`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MuOracle {
+    /// Mehrotra's probing (sec. 3): the affine-scaling step (`mu = 0`) to the boundary,
+    /// `sigma = (avg(s z) after it / avg(s z))^3` [`probing`].
+    Probing,
+    /// The quality function (sec. 4): `sigma` minimizes the linearized KKT error after the
+    /// step `d_aff + sigma d_cen`, by golden section on `log sigma` [`quality-function`].
+    QualityFunction,
+    /// LOQO's rule (eq. 3.6): `sigma = 0.1 min(0.05 (1 - xi) / xi, 2)^3`, `xi = min(s z) /
+    /// avg(s z)` [`loqo`].
+    Loqo,
+}
+
+impl std::str::FromStr for BarrierUpdate {
+    type Err = String;
+
+    /// `monotone`, or the adaptive update's oracle: `probing`, `quality-function`, `loqo`.
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        match name {
+            "monotone" => Ok(Self::Monotone),
+            "probing" => Ok(Self::Adaptive(MuOracle::Probing)),
+            "quality-function" => Ok(Self::Adaptive(MuOracle::QualityFunction)),
+            "loqo" => Ok(Self::Adaptive(MuOracle::Loqo)),
+            other => Err(format!("barrier update `{other}`: expected monotone, probing, quality-function or loqo")),
+        }
+    }
+}
+
 /// A setting out of its range.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("ipocp setting `{field}` = {value}: expected {expected}")]
@@ -173,6 +242,13 @@ impl Settings {
         check("regularization_first", self.regularization_first, self.regularization_first > 0.0, "> 0")?;
         check("restoration_penalty", self.restoration_penalty, self.restoration_penalty > 0.0, "> 0")?;
         check("restoration_reduction", self.restoration_reduction, self.restoration_reduction > 0.0 && self.restoration_reduction < 1.0, "in (0, 1)")?;
+        check("adaptive_mu_min", self.adaptive_mu_min, self.adaptive_mu_min > 0.0, "> 0")?;
+        check("adaptive_mu_max_factor", self.adaptive_mu_max_factor, self.adaptive_mu_max_factor > 0.0, "> 0")?;
+        check("sigma_min", self.sigma_min, self.sigma_min > 0.0 && self.sigma_min < 1.0, "in (0, 1)")?;
+        check("sigma_max", self.sigma_max, self.sigma_max >= 1.0, ">= 1")?;
+        check("adaptive_mu_error_reduction", self.adaptive_mu_error_reduction, self.adaptive_mu_error_reduction > 0.0 && self.adaptive_mu_error_reduction < 1.0, "in (0, 1)")?;
+        check("adaptive_mu_error_references", self.adaptive_mu_error_references as f64, self.adaptive_mu_error_references >= 1, ">= 1")?;
+        check("adaptive_mu_monotone_init_factor", self.adaptive_mu_monotone_init_factor, self.adaptive_mu_monotone_init_factor > 0.0, "> 0")?;
         check("regularization_increase", self.regularization_increase, self.regularization_increase > 1.0, "> 1")?;
         Ok(())
     }

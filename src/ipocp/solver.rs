@@ -5,7 +5,8 @@
 //! the barrier `-mu sum ln(s - lower) + ln(upper - s)`. One iteration:
 //!
 //! 1. optimality error `E_mu` (eq. 5); the monotone (Fiacco-McCormick) barrier update while
-//!    `E_mu <= kappa_epsilon mu` (eq. 7);
+//!    `E_mu <= kappa_epsilon mu` (eq. 7), or the adaptive update ([`BarrierUpdate::Adaptive`]:
+//!    `mu` from an oracle after the affine-scaling step, Nocedal, Wächter & Waltz 2009);
 //! 2. the primal-dual step: slacks and bound multipliers condensed out (eq. 13 with
 //!    `Sigma = Z_L / (s - l) + Z_U / (u - s)`), the remaining equality-constrained QP solved
 //!    by the Riccati recursion, with the Hessian regularized until its inertia is right
@@ -22,7 +23,7 @@ use super::iterate::{Duals, Iterate, SolveResult, Status, Timings};
 use super::problem::{Problem, ProblemError};
 use super::restoration;
 use super::riccati::{RiccatiSolver, StageQp, StageStep};
-use super::settings::{Settings, SettingsError};
+use super::settings::{BarrierUpdate, MuOracle, Settings, SettingsError};
 use super::stage::{StageJacobians, StageMultipliers, StageValues};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -53,6 +54,8 @@ struct StageBuffers {
     nonzero_start: Vec<usize>,
     /// Scratch: the stage's part of the Lagrangian gradient.
     lagrangian_gradient: DVector<f64>,
+    /// The QP's gradient at `mu = 0` (the quality-function oracle's affine step).
+    gradient_affine: DVector<f64>,
 }
 
 /// Runs `f` on every stage's buffers, on rayon's threads when `parallel` (the stages'
@@ -81,7 +84,75 @@ pub struct Solver {
     /// right-hand side while the correction is solved.
     correction: Vec<StageStep>,
     residuals: Vec<KktResidual>,
+    /// The adaptive barrier update's complementarity pairs and their steps.
+    pairs: ComplementarityPairs,
     filter: Filter,
+}
+
+/// The complementarity pairs `(gap, z)` of every finite bound (`gap = s - l` with `z_l`,
+/// `u - s` with `z_u`) and their steps along `d_aff + sigma d_diff` (the affine-scaling
+/// step and the difference of the centering step `d(avg) - d_aff`), flat: the oracles
+/// evaluate them many times per iteration.
+struct ComplementarityPairs {
+    gap: Vec<f64>,
+    multiplier: Vec<f64>,
+    gap_affine: Vec<f64>,
+    gap_difference: Vec<f64>,
+    multiplier_affine: Vec<f64>,
+    multiplier_difference: Vec<f64>,
+}
+
+impl ComplementarityPairs {
+    /// Room for `n` pairs (at most two per inequality row): no allocation in the iterations.
+    fn with_capacity(n: usize) -> Self {
+        let v = || Vec::with_capacity(n);
+        Self { gap: v(), multiplier: v(), gap_affine: v(), gap_difference: v(), multiplier_affine: v(), multiplier_difference: v() }
+    }
+
+    /// The largest primal and dual steps in `(0, 1]` that keep `gap` and `z` above `1 - tau`
+    /// of their values (eq. 15) along `d_aff + sigma d_diff`.
+    fn step_to_boundary(&self, sigma: f64, tau: f64) -> (f64, f64) {
+        let (mut alpha_primal, mut alpha_dual) = (1.0f64, 1.0f64);
+        let gaps = self.gap.iter().zip(&self.gap_affine).zip(&self.gap_difference);
+        for ((gap, affine), difference) in gaps {
+            let d_gap = affine + sigma * difference;
+            if d_gap < 0.0 {
+                alpha_primal = alpha_primal.min(-tau * gap / d_gap);
+            }
+        }
+        let multipliers = self.multiplier.iter().zip(&self.multiplier_affine).zip(&self.multiplier_difference);
+        for ((multiplier, affine), difference) in multipliers {
+            let d_multiplier = affine + sigma * difference;
+            if d_multiplier < 0.0 {
+                alpha_dual = alpha_dual.min(-tau * multiplier / d_multiplier);
+            }
+        }
+        (alpha_primal, alpha_dual)
+    }
+
+    /// Mean and mean square of the products `gap z` after the steps `alpha_primal`,
+    /// `alpha_dual` along `d_aff + sigma d_diff`.
+    fn after(&self, sigma: f64, alpha_primal: f64, alpha_dual: f64) -> (f64, f64) {
+        let (mut sum, mut squares) = (0.0, 0.0);
+        let gaps = self.gap.iter().zip(&self.gap_affine).zip(&self.gap_difference);
+        let multipliers = self.multiplier.iter().zip(&self.multiplier_affine).zip(&self.multiplier_difference);
+        for (((gap, gap_affine), gap_difference), ((multiplier, multiplier_affine), multiplier_difference)) in gaps.zip(multipliers) {
+            let c = (gap + alpha_primal * (gap_affine + sigma * gap_difference)) * (multiplier + alpha_dual * (multiplier_affine + sigma * multiplier_difference));
+            sum += c;
+            squares += c * c;
+        }
+        let n = self.gap.len().max(1) as f64;
+        (sum / n, squares / n)
+    }
+
+    /// The quality function of the step `d_aff + sigma d_diff` (Nocedal, Wächter & Waltz
+    /// 2009, sec. 4, mean squares): the dual and primal infeasibilities shrink by `1 - alpha`
+    /// along a Newton step, the complementarity is evaluated at the new point.
+    fn quality(&self, sigma: f64, tau: f64, errors: &Errors) -> f64 {
+        let (alpha_primal, alpha_dual) = self.step_to_boundary(sigma, tau);
+        let (_, complementarity_mean_square) = self.after(sigma, alpha_primal, alpha_dual);
+        (1.0 - alpha_dual).powi(2) * errors.dual_mean_square + (1.0 - alpha_primal).powi(2) * errors.primal_mean_square + complementarity_mean_square
+    }
 }
 
 /// The residual of one stage's rows of the KKT system at a step (see [`Solver::refine_step`]).
@@ -115,7 +186,40 @@ struct Errors {
     complementarity_0: f64,
     error_0: f64,
     error_mu: f64,
+    /// Mean squares of the primal and the dual infeasibility's entries (the quality function).
+    primal_mean_square: f64,
+    dual_mean_square: f64,
 }
+
+/// The adaptive barrier update's globalization (Nocedal, Wächter & Waltz 2009, sec. 5): in
+/// the free mode the oracle picks `mu` while the optimality error keeps decreasing against
+/// the last accepted errors; otherwise the monotone rule runs until it does again.
+struct AdaptiveBarrier {
+    free: bool,
+    /// The optimality errors of the last accepted free-mode iterates, oldest first.
+    references: std::collections::VecDeque<f64>,
+    /// Upper bound on `mu`: a multiple of the first iterate's average complementarity.
+    mu_max: f64,
+}
+
+impl AdaptiveBarrier {
+    /// Sufficient progress: `E_0 <= reduction * E_ref` for one of the full set of references
+    /// (IPOPT's KKT-error test; always true until the set is full).
+    fn sufficient_progress(&self, error: f64, s: &Settings) -> bool {
+        self.references.len() < s.adaptive_mu_error_references || self.references.iter().any(|&r| error <= s.adaptive_mu_error_reduction * r)
+    }
+
+    fn remember(&mut self, error: f64, s: &Settings) {
+        if self.references.len() == s.adaptive_mu_error_references {
+            self.references.pop_front();
+        }
+        self.references.push_back(error);
+    }
+}
+
+/// Golden-section steps of the quality-function oracle on `log sigma` (IPOPT's
+/// `quality_function_max_section_steps`).
+const QUALITY_SECTION_STEPS: usize = 8;
 
 impl Solver {
     /// A solver for problems with the stage sizes of `problem`.
@@ -142,6 +246,7 @@ impl Solver {
                 nonzeros: vec![0; d.nh * d.nz()],
                 nonzero_start: vec![0; d.nh + 1],
                 lagrangian_gradient: DVector::zeros(d.nz()),
+                gradient_affine: DVector::zeros(d.nz()),
             })
             .collect();
         Ok(Self {
@@ -151,6 +256,7 @@ impl Solver {
             saved_steps: problem.dims().iter().map(|&d| StageStep::zeros(d)).collect(),
             correction: problem.dims().iter().map(|&d| StageStep::zeros(d)).collect(),
             residuals: problem.dims().iter().map(|&d| KktResidual { stationarity: DVector::zeros(d.nz()), dynamics: DVector::zeros(d.nx_next), equalities: DVector::zeros(d.ng) }).collect(),
+            pairs: ComplementarityPairs::with_capacity(2 * problem.dims().iter().map(|d| d.nh).sum::<usize>()),
             settings,
             buffers,
             filter: Filter::default(),
@@ -195,6 +301,7 @@ impl Solver {
         let mut regularization_last = 0.0;
         let mut regularizations = 0;
         let mut kkt_solves = 0;
+        let mut adaptive: Option<AdaptiveBarrier> = None;
         let (mut restorations, mut restoration_iterations) = (0, 0);
 
         let mut best = it.clone();
@@ -247,19 +354,41 @@ impl Solver {
                 status = Status::MaxIterations;
                 break;
             }
-            // 1. Monotone barrier update (eq. 7), possibly several times.
-            let mu_min = s.tolerance / 10.0;
-            while errors.error_mu <= s.kappa_epsilon * mu && mu > mu_min {
-                mu = mu_min.max((s.kappa_mu * mu).min(mu.powf(s.theta_mu)));
-                self.filter.reset();
-                errors = self.errors(problem, &it, mu);
+            // 1. Barrier parameter: the monotone rule (eq. 7), or the adaptive update's mode
+            // (free: the oracle picks `mu` from the affine-scaling step of step 2).
+            let mut oracle = None;
+            match (s.barrier_update, complementarity(problem, &it)) {
+                (BarrierUpdate::Adaptive(o), Some((average, smallest))) => {
+                    let adaptive = adaptive.get_or_insert_with(|| AdaptiveBarrier { free: true, references: Default::default(), mu_max: s.adaptive_mu_max_factor * average });
+                    if adaptive.sufficient_progress(errors.error_0, &s) {
+                        adaptive.remember(errors.error_0, &s);
+                        adaptive.free = true;
+                        self.filter.reset();
+                        if o == MuOracle::Loqo {
+                            // LOQO's rule needs no step (Nocedal, Wächter & Waltz 2009, eq. 3.6).
+                            let xi = smallest / average;
+                            let sigma = 0.1 * (0.05 * (1.0 - xi) / xi).min(2.0).powi(3);
+                            mu = (sigma * average).clamp(s.adaptive_mu_min, adaptive.mu_max);
+                        } else {
+                            oracle = Some((o, average, adaptive.mu_max));
+                        }
+                    } else if adaptive.free {
+                        // No progress: the monotone rule from a fraction of the complementarity.
+                        adaptive.free = false;
+                        mu = (s.adaptive_mu_monotone_init_factor * average).clamp(s.adaptive_mu_min, adaptive.mu_max);
+                        self.filter.reset();
+                    } else {
+                        self.monotone_barrier_update(problem, &it, &mut mu, &mut errors);
+                    }
+                }
+                _ => self.monotone_barrier_update(problem, &it, &mut mu, &mut errors),
             }
-            let tau = s.tau_min.max(1.0 - mu);
             // 2. Primal-dual step with inertia correction.
             let t = Instant::now();
             let mut delta = 0.0;
             let mut attempts = 0;
-            self.assemble_qp(problem, &it, mu, 0.0, None);
+            // The free mode's first solve is the affine-scaling step (`mu = 0`).
+            self.assemble_qp(problem, &it, if oracle.is_some() { 0.0 } else { mu }, 0.0, None);
             loop {
                 kkt_solves += 1;
                 match self.riccati.solve(&self.qps, &mut self.steps) {
@@ -299,6 +428,20 @@ impl Solver {
                 regularization_last = delta;
                 regularizations += 1;
             }
+            if let Some((o, average, mu_max)) = oracle {
+                // The oracle's `mu` and the step for it (with the factorization just computed:
+                // only the right-hand side changes with `mu`).
+                let t = Instant::now();
+                let solved = self.oracle_mu(problem, &it, o, average, (s.adaptive_mu_min, mu_max), &errors);
+                timings.kkt += t.elapsed();
+                if let Some(m) = solved {
+                    mu = m;
+                } else {
+                    status = Status::NumericalFailure("the re-solve for the adaptive barrier parameter failed".into());
+                    break;
+                }
+            }
+            let tau = s.tau_min.max(1.0 - mu);
             self.refine_step();
             self.gather_step(problem, &it, mu);
             // 3. Fraction to the boundary (eq. 15).
@@ -534,18 +677,25 @@ impl Solver {
         let dims = problem.dims();
         let (mut objective, mut primal, mut dual, mut compl_0, mut compl_mu) = (0.0, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
         let (mut sum_mult, mut n_mult, mut sum_bound, mut n_bound) = (0.0, 0usize, 0.0, 0usize);
+        let (mut primal_squares, mut n_primal, mut dual_squares, mut n_dual) = (0.0, 0usize, 0.0, 0usize);
         for (k, b) in self.buffers.iter_mut().enumerate() {
             let d = dims[k];
             let (lo, up) = problem.bounds(k);
             objective += b.values.cost;
             // Primal: dynamics defects, equalities, h - s.
             for i in 0..d.nx_next {
-                primal = primal.max((b.values.dynamics[i] - it.primal[k + 1][i]).abs());
+                let r = b.values.dynamics[i] - it.primal[k + 1][i];
+                primal = primal.max(r.abs());
+                primal_squares += r * r;
             }
             primal = primal.max(b.values.equalities.amax());
+            primal_squares += b.values.equalities.norm_squared();
             for i in 0..d.nh {
-                primal = primal.max((b.values.inequalities[i] - it.slack[k][i]).abs());
+                let r = b.values.inequalities[i] - it.slack[k][i];
+                primal = primal.max(r.abs());
+                primal_squares += r * r;
             }
+            n_primal += d.nx_next + d.ng + d.nh;
             // Dual: grad l + F^T lambda + G^T nu + J_h^T y - [lambda_{k-1}; 0], and -y - zl + zu.
             let g = &mut b.lagrangian_gradient;
             g.copy_from(&b.jac.cost_gradient);
@@ -558,9 +708,12 @@ impl Solver {
                 }
             }
             dual = dual.max(g.amax());
+            dual_squares += g.norm_squared();
+            n_dual += d.nz() + d.nh;
             for i in 0..d.nh {
                 let (zl, zu, y, s) = (it.lower_bound_multiplier[k][i], it.upper_bound_multiplier[k][i], it.inequality_multiplier[k][i], it.slack[k][i]);
                 dual = dual.max((-y - zl + zu).abs());
+                dual_squares += (-y - zl + zu).powi(2);
                 if lo[i].is_finite() {
                     let c = (s - lo[i]) * zl;
                     compl_0 = compl_0.max(c.abs());
@@ -589,6 +742,8 @@ impl Solver {
             complementarity_0: compl_0,
             error_0: (dual / s_d).max(primal).max(compl_0 / s_c),
             error_mu: (dual / s_d).max(primal).max(compl_mu / s_c),
+            primal_mean_square: primal_squares / n_primal.max(1) as f64,
+            dual_mean_square: dual_squares / n_dual.max(1) as f64,
         }
     }
 
@@ -598,6 +753,16 @@ impl Solver {
     /// second-order correction (`Some(alpha)`: `alpha c(current) + c(trial)`, the trial values
     /// in `trial`; only the vectors are rebuilt, the matrices stay those of the corrected step).
     fn assemble_qp(&mut self, problem: &Problem, it: &Iterate, mu: f64, delta: f64, soc: Option<f64>) {
+        self.assemble_qp_parts(problem, it, mu, delta, soc, soc.is_none());
+    }
+
+    /// The vectors of [`Self::assemble_qp`] for another `mu` (the matrices do not depend on it:
+    /// the adaptive barrier update's re-solves).
+    fn assemble_qp_vectors(&mut self, problem: &Problem, it: &Iterate, mu: f64) {
+        self.assemble_qp_parts(problem, it, mu, 0.0, None, false);
+    }
+
+    fn assemble_qp_parts(&mut self, problem: &Problem, it: &Iterate, mu: f64, delta: f64, soc: Option<f64>, matrices: bool) {
         let n = self.buffers.len();
         for k in 0..n {
             let (lo, up) = problem.bounds(k);
@@ -631,7 +796,6 @@ impl Solver {
             }
             // A second-order correction changes the right-hand side only: the matrices (and
             // the Riccati factorization) stay those of the step it corrects.
-            let matrices = soc.is_none();
             if matrices {
                 self.qps[k].hessian.as_mut_slice().copy_from_slice(b.hess.as_slice());
                 if delta > 0.0 {
@@ -728,6 +892,125 @@ impl Solver {
             }
         }
         alpha
+    }
+
+    /// The monotone (Fiacco-McCormick) update (eq. 7): while the barrier problem is solved to
+    /// `kappa_epsilon mu`, `mu <- max(tol / 10, min(kappa_mu mu, mu^theta_mu))`.
+    fn monotone_barrier_update(&mut self, problem: &Problem, it: &Iterate, mu: &mut f64, errors: &mut Errors) {
+        let (mu_min, kappa_epsilon, kappa_mu, theta_mu) = (self.settings.tolerance / 10.0, self.settings.kappa_epsilon, self.settings.kappa_mu, self.settings.theta_mu);
+        while errors.error_mu <= kappa_epsilon * *mu && *mu > mu_min {
+            *mu = mu_min.max((kappa_mu * *mu).min(mu.powf(theta_mu)));
+            self.filter.reset();
+            *errors = self.errors(problem, it, *mu);
+        }
+    }
+
+    /// The adaptive update's `mu = sigma avg(s z)` (Nocedal, Wächter & Waltz 2009), within
+    /// `mu_bounds`, from the affine-scaling step in `steps` (solved with the QP's right-hand
+    /// side at `mu = 0`); leaves the QPs' vectors and the step of that `mu` in `qps` and
+    /// `steps`. `None` if a re-solve fails.
+    fn oracle_mu(&mut self, problem: &Problem, it: &Iterate, oracle: MuOracle, average: f64, mu_bounds: (f64, f64), errors: &Errors) -> Option<f64> {
+        let s = &self.settings;
+        let (sigma_min, sigma_max, tau) = (s.sigma_min, s.sigma_max, s.tau_min);
+        self.gather_step(problem, it, 0.0);
+        self.collect_pairs(problem, it, false);
+        match oracle {
+            MuOracle::Probing => {
+                // Mehrotra's probing (sec. 3): the complementarity after the affine step to
+                // the boundary, `sigma = (mu_aff / avg)^3`.
+                let (alpha_primal, alpha_dual) = self.pairs.step_to_boundary(0.0, 1.0);
+                let (mu_affine, _) = self.pairs.after(0.0, alpha_primal, alpha_dual);
+                let mu = ((mu_affine / average).powi(3).clamp(sigma_min, sigma_max) * average).clamp(mu_bounds.0, mu_bounds.1);
+                self.assemble_qp_vectors(problem, it, mu);
+                self.riccati.resolve(&self.qps, &mut self.steps).ok()?;
+                Some(mu)
+            }
+            MuOracle::QualityFunction => {
+                // The step is affine in `mu`: `d(sigma avg) = d_aff + sigma (d(avg) - d_aff)`,
+                // and so is the QPs' gradient (the affine ones kept for the combination).
+                for (k, b) in self.buffers.iter_mut().enumerate() {
+                    self.saved_steps[k].copy_from(&self.steps[k]);
+                    b.gradient_affine.copy_from(&self.qps[k].gradient);
+                }
+                self.assemble_qp_vectors(problem, it, average);
+                self.riccati.resolve(&self.qps, &mut self.steps).ok()?;
+                self.gather_step(problem, it, average);
+                self.collect_pairs(problem, it, true);
+                let pairs = &self.pairs;
+                let quality = |log_sigma: f64| pairs.quality(log_sigma.exp(), tau, errors);
+                // The side of sigma = 1 on which the quality decreases, then golden section
+                // on `log sigma` there (sec. 4), keeping the best sigma met.
+                let (mut lo, mut hi) = if quality(0.99f64.ln()) < quality(0.0) { (sigma_min.ln(), 0.0) } else { (0.0, sigma_max.ln()) };
+                let golden = 0.5 * (5f64.sqrt() - 1.0);
+                let (mut a, mut b) = (hi - golden * (hi - lo), lo + golden * (hi - lo));
+                let (mut qa, mut qb) = (quality(a), quality(b));
+                let mut best = [(lo, quality(lo)), (hi, quality(hi)), (a, qa), (b, qb)].into_iter().fold((0.0, f64::INFINITY), |m, p| if p.1 < m.1 { p } else { m });
+                for _ in 0..QUALITY_SECTION_STEPS {
+                    if qa <= qb {
+                        (hi, b, qb) = (b, a, qa);
+                        a = hi - golden * (hi - lo);
+                        qa = quality(a);
+                        if qa < best.1 {
+                            best = (a, qa);
+                        }
+                    } else {
+                        (lo, a, qa) = (a, b, qb);
+                        b = lo + golden * (hi - lo);
+                        qb = quality(b);
+                        if qb < best.1 {
+                            best = (b, qb);
+                        }
+                    }
+                }
+                let mu = (best.0.exp() * average).clamp(mu_bounds.0, mu_bounds.1);
+                let sigma = mu / average;
+                for (k, b) in self.buffers.iter().enumerate() {
+                    let (step, affine) = (&mut self.steps[k], &self.saved_steps[k]);
+                    for (d, a) in [(&mut step.dz, &affine.dz), (&mut step.dynamics_multiplier, &affine.dynamics_multiplier), (&mut step.equality_multiplier, &affine.equality_multiplier), (&mut self.qps[k].gradient, &b.gradient_affine)] {
+                        // d <- a + sigma (d - a)
+                        d.axpy(1.0 - sigma, a, sigma);
+                    }
+                }
+                Some(mu)
+            }
+            MuOracle::Loqo => unreachable!("LOQO's rule needs no affine step"),
+        }
+    }
+
+    /// Fills [`ComplementarityPairs`] from the iterate and the step in `ds`, `dzl`, `dzu`:
+    /// as the affine-scaling step (`centering = false`, no difference yet), or as the
+    /// centering step `d(avg)` whose difference to the affine step is kept.
+    fn collect_pairs(&mut self, problem: &Problem, it: &Iterate, centering: bool) {
+        let p = &mut self.pairs;
+        if !centering {
+            for v in [&mut p.gap, &mut p.multiplier, &mut p.gap_affine, &mut p.gap_difference, &mut p.multiplier_affine, &mut p.multiplier_difference] {
+                v.clear();
+            }
+        }
+        let mut j = 0;
+        for (k, b) in self.buffers.iter().enumerate() {
+            let (lo, up) = problem.bounds(k);
+            for i in 0..b.ds.len() {
+                let s = it.slack[k][i];
+                // (gap, z, d gap, d z) of the lower and the upper bound.
+                let lower = lo[i].is_finite().then(|| (s - lo[i], it.lower_bound_multiplier[k][i], b.ds[i], b.dzl[i]));
+                let upper = up[i].is_finite().then(|| (up[i] - s, it.upper_bound_multiplier[k][i], -b.ds[i], b.dzu[i]));
+                for (gap, z, d_gap, d_z) in [lower, upper].into_iter().flatten() {
+                    if centering {
+                        p.gap_difference[j] = d_gap - p.gap_affine[j];
+                        p.multiplier_difference[j] = d_z - p.multiplier_affine[j];
+                    } else {
+                        p.gap.push(gap);
+                        p.multiplier.push(z);
+                        p.gap_affine.push(d_gap);
+                        p.multiplier_affine.push(d_z);
+                        p.gap_difference.push(0.0);
+                        p.multiplier_difference.push(0.0);
+                    }
+                    j += 1;
+                }
+            }
+        }
     }
 
     fn max_dual_step(&self, it: &Iterate, tau: f64) -> f64 {
@@ -1066,6 +1349,31 @@ fn row_nonzeros(jac: &DMatrix<f64>, start: &mut [usize], columns: &mut [usize]) 
         start[i + 1] = start[i];
     }
     start[0] = 0;
+}
+
+/// The average and the smallest complementarity product `(s - l) z_l`, `(u - s) z_u` over all
+/// bounds; `None` without bounds.
+fn complementarity(problem: &Problem, it: &Iterate) -> Option<(f64, f64)> {
+    let (mut sum, mut smallest, mut count) = (0.0, f64::INFINITY, 0usize);
+    for k in 0..it.slack.len() {
+        let (lo, up) = problem.bounds(k);
+        for i in 0..it.slack[k].len() {
+            let s = it.slack[k][i];
+            if lo[i].is_finite() {
+                let c = (s - lo[i]) * it.lower_bound_multiplier[k][i];
+                sum += c;
+                smallest = smallest.min(c);
+                count += 1;
+            }
+            if up[i].is_finite() {
+                let c = (up[i] - s) * it.upper_bound_multiplier[k][i];
+                sum += c;
+                smallest = smallest.min(c);
+                count += 1;
+            }
+        }
+    }
+    (count > 0).then(|| (sum / count as f64, smallest))
 }
 
 /// `-mu sum ln(s - l) + ln(u - s)`; `+inf` outside the interior.

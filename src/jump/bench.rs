@@ -3,7 +3,6 @@
 use super::pipeline::{plan_contact_timing, run, PipelineOptions, Verdict};
 use super::spec::{Jump, PaperRow};
 use super::PipelineError;
-use crate::ipocp::Settings as SolverSettings;
 use crate::model::Model;
 use crate::srb::SrbParams;
 use serde::Serialize;
@@ -45,7 +44,7 @@ pub fn bench_jump(jump: &Jump, model: &Model, options: &PipelineOptions, repeats
     let report = run(jump, model, options, |_, _| {})?;
     let mut times = vec![report.contact_timing.solve_time_s];
     for _ in 1..repeats {
-        times.push(plan_contact_timing(jump, &params, &options.contact_timing, SolverSettings::default())?.solve_time_s);
+        times.push(plan_contact_timing(jump, &params, &options.contact_timing, options.contact_timing_solver.clone())?.solve_time_s);
     }
     times.sort_by(f64::total_cmp);
     let ct = &report.contact_timing;

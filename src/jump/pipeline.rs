@@ -131,6 +131,8 @@ pub const FULL_BODY_GAUSS_NEWTON_ITERATIONS: usize = 100;
 #[derive(Clone, Debug)]
 pub struct PipelineOptions {
     pub contact_timing: ContactTimingSettings,
+    /// The contact timing's solver settings (the full body's are in `full_body`).
+    pub contact_timing_solver: SolverSettings,
     pub full_body: FullBodySettings,
     pub controllers: JumpSettings,
     pub criteria: SuccessCriteria,
@@ -146,6 +148,7 @@ impl PipelineOptions {
     pub fn of(jump: &Jump) -> Self {
         Self {
             contact_timing: jump.contact_timing.clone(),
+            contact_timing_solver: ContactTimingProblem::solver_settings(),
             full_body: {
                 let defaults = FullBodySettings::default();
                 FullBodySettings {
@@ -321,7 +324,7 @@ pub fn run(jump: &Jump, model: &Model, options: &PipelineOptions, mut progress: 
     let radius = model.feet.iter().map(|f| f.radius).fold(0.0, f64::max);
     let terrain = jump.terrain();
     progress(Stage::ContactTiming, false);
-    let contact_timing = plan_contact_timing(jump, &params, &options.contact_timing, SolverSettings::default())?;
+    let contact_timing = plan_contact_timing(jump, &params, &options.contact_timing, options.contact_timing_solver.clone())?;
     progress(Stage::ContactTiming, true);
     let mut report = JumpReport {
         full_body: StageState::Skipped("the contact timing did not converge".into()),
