@@ -36,9 +36,11 @@ pub struct JumpSettings {
     pub extension: LegExtension,
     pub posing_tolerance: PosingTolerance,
     /// How early each lifting leg ends its push ([`JumpReference::with_lift_off_lead`], s).
-    /// Default 4 ms: the time legwork's compliant A1 contact takes to unload after a
-    /// ~500 N push (measured: 3-5 ms land the barrel roll, 0 and 2 ms do not; see
-    /// `docs/experiments/jump-flip.md`).
+    /// Default 4 ms: about the time legwork's compliant A1 contact takes to unload after a
+    /// ~500 N push (measured on barrel_roll: 3 and 4 ms land, 0 and 5 ms do not;
+    /// `docs/experiments/jump-flip.md`). Measured, not derived, and not right for every
+    /// jump: lateral_down, whose plan ends its push at 20 N, lands 20/20 without it and
+    /// 11/20 with it.
     pub lift_off_lead: f64,
     /// The simulator: default [`SimConfig::default`] (2 kHz physics, 1 kHz control, the
     /// motors' effort limits enforced).
