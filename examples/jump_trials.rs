@@ -11,7 +11,7 @@
 //! ```
 //!
 //! `--jump NAME` runs on the embedded jump's terrain (its box); flat ground otherwise.
-//! `--lift-off-lead S` overrides `JumpSettings::lift_off_lead` (s).
+//! `--lift-off-lead S` sets `JumpSettings::lift_off_lead` to the constant lead `S` (s).
 //!
 //! `REFERENCE.json` is a trajectory file (`io::Trajectory`, 10 ms knots) of the full-body
 //! optimization; `drop:0.15:0.6` is the built-in ballistic reference
@@ -110,7 +110,7 @@ fn main() -> anyhow::Result<()> {
         Trajectory::load_file(source)?
     };
     let defaults = JumpSettings::default();
-    let settings = JumpSettings { lift_off_lead: lift_off_lead.unwrap_or(defaults.lift_off_lead), ..defaults };
+    let settings = JumpSettings { lift_off_lead: lift_off_lead.or(defaults.lift_off_lead), ..defaults };
     if let Ok(path) = std::env::var("JUMP_REFERENCE_OUT") {
         reference.save_file(&path)?;
     }

@@ -13,7 +13,7 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use legwork::contact::ContactForce;
 use legwork::io::Trajectory;
-use legwork::jump::control::{JumpController, JumpReference, JumpSettings};
+use legwork::jump::control::{JumpController, JumpSettings};
 use legwork::sim::{Controller, FootState, SimState};
 use nalgebra::{DVector, Vector3};
 use serde::Deserialize;
@@ -55,7 +55,7 @@ fn serve(args: ServeArgs) -> Result<()> {
     let (model, _) = super::robot::load(&reference.metadata.robot)?;
     reference.check_against(&model, &args.reference.display().to_string())?;
     let settings = JumpSettings::default();
-    let jump_reference = JumpReference::new(&model, &reference, settings.posing_tolerance)?.with_lift_off_lead(settings.lift_off_lead)?;
+    let jump_reference = settings.reference(&model, &reference)?;
     let mut controller = JumpController::new(&model, jump_reference, settings.jump_gains, settings.landing, settings.extension)?;
     let nfeet = model.feet.len();
     let mut feet: Vec<FootState> = (0..nfeet)

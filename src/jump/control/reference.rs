@@ -81,8 +81,13 @@ pub struct JumpReference {
     in_contact: Vec<Vec<bool>>,
     /// Per foot (model order): the leg's actuated velocity indices.
     leg_dofs: Vec<[usize; 3]>,
-    /// [`JumpReference::with_lift_off_lead`] (s); 0 by default.
-    lift_off_lead: f64,
+    /// Per knot `k` and foot: the plan's normal force over `[t_k, t_k+1)` (N; 0 where the
+    /// trajectory carries no forces).
+    normal_force: Vec<Vec<f64>>,
+    /// Per knot `k` and foot: how early a foot lifting off at knot `k + 1` ends its push
+    /// (s; [`JumpReference::with_lift_off_lead`], [`JumpReference::with_lift_off_release`]);
+    /// 0 by default.
+    lift_off_lead: Vec<Vec<f64>>,
     /// `T_posing`: start of the pre-landing configuration (s).
     t_posing: f64,
     /// The pre-landing configuration: the last knot (`nq`).
@@ -118,7 +123,8 @@ impl JumpReference {
             foot_velocity: vec![],
             in_contact: vec![],
             leg_dofs: vec![],
-            lift_off_lead: 0.0,
+            normal_force: vec![],
+            lift_off_lead: vec![],
             t_posing: 0.0,
             pre_landing: DVector::zeros(model.nq),
             target: JumpTarget { position: Vector3::zeros(), yaw: 0.0 },
@@ -130,6 +136,8 @@ impl JumpReference {
         }
         for k in &trajectory.knots {
             r.in_contact.push(if k.in_contact.len() == model.feet.len() { k.in_contact.clone() } else { vec![false; model.feet.len()] });
+            r.normal_force.push(if k.contact_force.len() == model.feet.len() { k.contact_force.iter().map(|f| f[2].max(0.0)).collect() } else { vec![0.0; model.feet.len()] });
+            r.lift_off_lead.push(vec![0.0; model.feet.len()]);
             let q = DVector::from_column_slice(&k.q);
             let v = DVector::from_column_slice(&k.v);
             let mut tau = DVector::zeros(model.nv);
@@ -181,21 +189,44 @@ impl JumpReference {
     }
 
     /// The same reference with each leg's feed-forward switched to its lift-off knot's
-    /// `lead` seconds before that knot (s, at most one 10 ms interval).
+    /// `lead` seconds before that knot (s, at most one 10 ms interval), whatever its push.
     ///
     /// Why: the plan's contact is rigid, the simulators' is compliant. At the end of a push
-    /// the ground is pressed in by `f / k_n` (legwork's A1 contact: ~2 cm under the 500 N
-    /// of barrel_roll's last push), and the foot only unloads once the leg has retracted
-    /// that far: with the plan's timing the foot went on pushing ~5 ms after the plan's
-    /// lift-off and the barrel roll left with 12 % more roll momentum than planned
-    /// (`docs/experiments/jump-flip.md`). Ending the push `lead` early on the lifting legs
-    /// only hands the unloading the time it takes; the stance legs keep the plan's timing.
+    /// the ground is pressed in by about `f / k_n` (legwork's A1 contact: ~9 mm under the
+    /// 260 N per foot of barrel_roll's last push), and the foot only unloads once the leg has
+    /// retracted that far: with the plan's timing the foot went on pushing ~5 ms after the
+    /// plan's lift-off and the barrel roll left with 12 % more roll momentum than planned
+    /// (`docs/experiments/jump-flip.md`). Ending the push early on the lifting legs only
+    /// hands the unloading the time it takes; the stance legs keep the plan's timing.
     pub fn with_lift_off_lead(mut self, lead: f64) -> Result<Self, JumpControlError> {
         let interval = self.t.windows(2).map(|w| w[1] - w[0]).fold(f64::INFINITY, f64::min);
         if !(lead.is_finite() && lead >= 0.0 && lead <= interval) {
             return Err(JumpControlError::Setting { field: "lift_off_lead", expected: format!("a time in [0, {interval}] s (one knot interval), got {lead}") });
         }
-        self.lift_off_lead = lead;
+        self.lift_off_lead.iter_mut().for_each(|leads| leads.iter_mut().for_each(|l| *l = lead));
+        Ok(self)
+    }
+
+    /// The same reference with each lifting leg's push ended by the time its foot needs to
+    /// rise out of the ground its last push pressed in ([`JumpReference::with_lift_off_lead`]
+    /// for why): `lead = (f_n / k_n) / v_r`, at most the interval, with `f_n` the plan's normal
+    /// force over the foot's last pushing interval, `k_n` the contact's normal stiffness
+    /// (N/m) and `v_r` the retraction speed (m/s). A push that ends lightly loaded (20 N at
+    /// lateral_down's lift-off) gets no lead, a hard one (260 N at barrel_roll's) ~4 ms.
+    pub fn with_lift_off_release(mut self, normal_stiffness: f64, retraction_speed: f64) -> Result<Self, JumpControlError> {
+        if !(normal_stiffness.is_finite() && normal_stiffness > 0.0 && retraction_speed.is_finite() && retraction_speed > 0.0) {
+            return Err(JumpControlError::Setting {
+                field: "lift_off_retraction_speed",
+                expected: format!("a positive stiffness and speed, got {normal_stiffness} N/m and {retraction_speed} m/s"),
+            });
+        }
+        for k in 0..self.t.len() - 1 {
+            let interval = self.t[k + 1] - self.t[k];
+            for f in 0..self.lift_off_lead[k].len() {
+                let pressed_in = self.normal_force[k][f] / normal_stiffness;
+                self.lift_off_lead[k][f] = (pressed_in / retraction_speed).min(interval);
+            }
+        }
         Ok(self)
     }
 
@@ -249,12 +280,11 @@ impl JumpReference {
         // `[t_k, t_k+1)`, semi-implicit Euler). Interpolated, the last stance interval's
         // push would fade towards the flight torques and deliver half its impulse.
         out.tau.copy_from(&self.tau[k]);
-        if self.lift_off_lead > 0.0 && self.t[k + 1] - t <= self.lift_off_lead {
-            for (f, dofs) in self.leg_dofs.iter().enumerate() {
-                if self.in_contact[k][f] && !self.in_contact[k + 1][f] {
-                    for &i in dofs {
-                        out.tau[i] = self.tau[k + 1][i];
-                    }
+        for (f, dofs) in self.leg_dofs.iter().enumerate() {
+            let lead = self.lift_off_lead[k][f];
+            if lead > 0.0 && self.t[k + 1] - t <= lead && self.in_contact[k][f] && !self.in_contact[k + 1][f] {
+                for &i in dofs {
+                    out.tau[i] = self.tau[k + 1][i];
                 }
             }
         }

@@ -35,13 +35,17 @@ pub struct JumpSettings {
     pub landing: LandingSettings,
     pub extension: LegExtension,
     pub posing_tolerance: PosingTolerance,
-    /// How early each lifting leg ends its push ([`JumpReference::with_lift_off_lead`], s).
-    /// Default 4 ms: about the time legwork's compliant A1 contact takes to unload after a
-    /// ~500 N push (measured on barrel_roll: 3 and 4 ms land, 0 and 5 ms do not;
-    /// `docs/experiments/jump-flip.md`). Measured, not derived, and not right for every
-    /// jump: lateral_down, whose plan ends its push at 20 N, lands 20/20 without it and
-    /// 11/20 with it.
-    pub lift_off_lead: f64,
+    /// How early each lifting leg ends its push: `None` (the default), by the time its foot
+    /// needs to rise out of the ground its last push pressed in, at
+    /// `lift_off_retraction_speed` ([`JumpReference::with_lift_off_release`]); `Some(lead)`,
+    /// the same lead for every lifting leg ([`JumpReference::with_lift_off_lead`], s).
+    pub lift_off_lead: Option<f64>,
+    /// `v_r` of [`JumpReference::with_lift_off_release`] (2.3 m/s): measured, not derived.
+    /// barrel_roll's last push (260 N per foot, ~9 mm into legwork's A1 contact) lands
+    /// with a constant lead of 3 or 4 ms, not 0 or 5 ms (docs/experiments/jump-flip.md);
+    /// 2.3 m/s gives it 4 ms, and lateral_down's 20 N push 0.3 ms (it lands 20/20 without
+    /// a lead and 11/20 with 4 ms).
+    pub lift_off_retraction_speed: f64,
     /// The simulator: default [`SimConfig::default`] (2 kHz physics, 1 kHz control, the
     /// motors' effort limits enforced).
     pub sim: SimConfig,
@@ -55,6 +59,18 @@ pub struct JumpSettings {
     pub fall: FallCriteria,
 }
 
+impl JumpSettings {
+    /// The controllers' reference of `trajectory`, with the lift-off lead of these settings
+    /// (the release time of `model`'s contact, or the constant lead).
+    pub fn reference(&self, model: &Model, trajectory: &Trajectory) -> Result<JumpReference, JumpControlError> {
+        let reference = JumpReference::new(model, trajectory, self.posing_tolerance)?;
+        match self.lift_off_lead {
+            Some(lead) => reference.with_lift_off_lead(lead),
+            None => reference.with_lift_off_release(model.contact.normal_stiffness, self.lift_off_retraction_speed),
+        }
+    }
+}
+
 impl Default for JumpSettings {
     fn default() -> Self {
         Self {
@@ -62,7 +78,8 @@ impl Default for JumpSettings {
             landing: LandingSettings::default(),
             extension: LegExtension::default(),
             posing_tolerance: PosingTolerance::default(),
-            lift_off_lead: 0.004,
+            lift_off_lead: None,
+            lift_off_retraction_speed: 2.3,
             sim: SimConfig::default(),
             settle_time: 1.0,
             max_late_landing: 1.0,
@@ -120,7 +137,7 @@ pub fn run_jump_on(plant: &Model, model: &Model, terrain: &dyn Terrain, referenc
     if plant.nq != model.nq || plant.feet.len() != model.feet.len() {
         return Err(JumpControlError::Robot(format!("the simulated robot '{}' and the controller's '{}' differ in structure", plant.name, model.name)));
     }
-    let reference = JumpReference::new(model, reference, settings.posing_tolerance)?.with_lift_off_lead(settings.lift_off_lead)?;
+    let reference = settings.reference(model, reference)?;
     let target = reference.target();
     let t_end = reference.duration_end();
     let (q0, v0) = reference.initial_state();

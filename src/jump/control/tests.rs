@@ -341,3 +341,56 @@ fn a_sideways_drop_lands_upright_near_its_target() {
     let duration = run.trajectory.knots.last().unwrap().t;
     assert!((duration - (td + 1.0)).abs() < 0.011, "{duration}");
 }
+
+#[test]
+fn the_release_lead_grows_with_the_last_push_and_stops_at_the_interval() {
+    // Feet 0 and 1 lift off at knot 11 after pushes of 260 N and 20 N; foot 2 after 1e6 N
+    // (a lead longer than the interval is cut to it); foot 3 stays down. Each knot's torques
+    // are its index, so the sample says which knot's feed-forward a leg gets.
+    let (model, _, mut trajectory) = a1_standing_reference();
+    let dt = trajectory.knots[1].t - trajectory.knots[0].t;
+    for (k, knot) in trajectory.knots.iter_mut().enumerate() {
+        knot.tau.iter_mut().for_each(|t| *t = k as f64);
+        knot.in_contact = vec![true; model.feet.len()];
+        knot.contact_force = vec![[0.0, 0.0, 50.0]; model.feet.len()];
+        if k == 10 {
+            knot.contact_force[0][2] = 260.0;
+            knot.contact_force[1][2] = 20.0;
+            knot.contact_force[2][2] = 1e6;
+        }
+        if k >= 11 {
+            knot.in_contact[0] = false;
+            knot.in_contact[1] = false;
+            knot.in_contact[2] = false;
+        }
+    }
+    let (k_n, v_r) = (28_000.0, 2.3);
+    let reference = JumpReference::new(&model, &trajectory, PosingTolerance::default()).unwrap().with_lift_off_release(k_n, v_r).unwrap();
+    let legs = crate::control::whole_body::leg_chains(&model).unwrap();
+    let dofs_of = |foot: usize| legs.iter().find(|l| l.foot == foot).unwrap().v_index;
+    let mut sample = ReferenceSample::new(&model);
+    let t_lift = trajectory.knots[0].t + 11.0 * dt;
+    // Switches between `t_lift - lead` (knot 10's push) and after it (knot 11's).
+    let switches = |sample: &mut ReferenceSample, foot: usize, lead: f64| {
+        reference.sample(&model, t_lift - lead - 1e-5, sample);
+        let before = sample.tau[dofs_of(foot)[0]];
+        reference.sample(&model, t_lift - lead + 1e-5, sample);
+        let after = sample.tau[dofs_of(foot)[0]];
+        (before, after)
+    };
+    let lead_260 = 260.0 / k_n / v_r;
+    assert!((0.003..0.005).contains(&lead_260));
+    assert_eq!(switches(&mut sample, 0, lead_260), (10.0, 11.0));
+    let lead_20 = 20.0 / k_n / v_r;
+    assert_eq!(switches(&mut sample, 1, lead_20), (10.0, 11.0));
+    // The lightly loaded foot is still pushing where the hard one has stopped.
+    reference.sample(&model, t_lift - 0.5 * lead_260, &mut sample);
+    assert_eq!((sample.tau[dofs_of(0)[0]], sample.tau[dofs_of(1)[0]]), (11.0, 10.0));
+    // At most one interval: foot 2 gets knot 11's torques over all of knot 10's interval.
+    reference.sample(&model, t_lift - dt + 1e-5, &mut sample);
+    assert_eq!(sample.tau[dofs_of(2)[0]], 11.0);
+    // A stance foot keeps the plan's timing.
+    reference.sample(&model, t_lift - 1e-5, &mut sample);
+    assert_eq!(sample.tau[dofs_of(3)[0]], 10.0);
+    assert!(JumpReference::new(&model, &trajectory, PosingTolerance::default()).unwrap().with_lift_off_release(0.0, v_r).is_err());
+}
