@@ -192,7 +192,7 @@ impl JumpReference {
     /// `lead` seconds before that knot (s, at most one 10 ms interval), whatever its push.
     ///
     /// Why: the plan's contact is rigid, the simulators' is compliant. At the end of a push
-    /// the ground is pressed in by about `f / k_n` (legwork's A1 contact: ~9 mm under the
+    /// the ground is pressed in by about `f / k_n` (legwork's A1 contact: ~8 mm under the
     /// 260 N per foot of barrel_roll's last push), and the foot only unloads once the leg has
     /// retracted that far: with the plan's timing the foot went on pushing ~5 ms after the
     /// plan's lift-off and the barrel roll left with 12 % more roll momentum than planned
@@ -212,8 +212,8 @@ impl JumpReference {
     /// for why): `lead = (f_n / k_n) / v_r`, at most the interval, with `f_n` the plan's normal
     /// force over the foot's last pushing interval, `k_n` the contact's normal stiffness
     /// (N/m) and `v_r` the retraction speed (m/s). A push that ends lightly loaded (20 N at
-    /// lateral_down's lift-off) gets 0.3 ms (A1: `k_n` ~28,000 N/m, `v_r` 2.3 m/s), a hard
-    /// one (260 N at barrel_roll's) 4 ms.
+    /// lateral_down's lift-off) gets 0.3 ms (A1: `k_n` 30,900 N/m, `v_r` 2.3 m/s), a hard
+    /// one (260 N at barrel_roll's) 3.7 ms.
     pub fn with_lift_off_release(mut self, normal_stiffness: f64, retraction_speed: f64) -> Result<Self, JumpControlError> {
         if !(normal_stiffness.is_finite() && normal_stiffness > 0.0 && retraction_speed.is_finite() && retraction_speed > 0.0) {
             return Err(JumpControlError::Setting {

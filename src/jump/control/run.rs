@@ -41,9 +41,9 @@ pub struct JumpSettings {
     /// the same lead for every lifting leg ([`JumpReference::with_lift_off_lead`], s).
     pub lift_off_lead: Option<f64>,
     /// `v_r` of [`JumpReference::with_lift_off_release`] (2.3 m/s): measured, not derived.
-    /// barrel_roll's last push (260 N per foot, ~9 mm into legwork's A1 contact) lands
+    /// barrel_roll's last push (260 N per foot, ~8 mm into legwork's A1 contact) lands
     /// with a constant lead of 3 or 4 ms, not 0 or 5 ms (docs/experiments/jump-flip.md);
-    /// 2.3 m/s gives it 4 ms, and lateral_down's 20 N push 0.3 ms (it lands 20/20 without
+    /// 2.3 m/s gives it 3.7 ms, and lateral_down's 20 N push 0.3 ms (it lands 20/20 without
     /// a lead and 11/20 with 4 ms).
     pub lift_off_retraction_speed: f64,
     /// The simulator: default [`SimConfig::default`] (2 kHz physics, 1 kHz control, the
