@@ -13,19 +13,13 @@ use legwork::dynamics::{base_orientation, centroidal_momentum, Data};
 use legwork::io::Trajectory;
 use legwork::jump::control::{run_jump, JumpSettings};
 use legwork::model::embedded;
-use legwork::terrain::Plane;
 use nalgebra::DVector;
+
+mod common;
 
 fn main() -> anyhow::Result<()> {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
-    let terrain: Box<dyn legwork::terrain::Terrain> = match args.iter().position(|a| a == "--jump") {
-        Some(i) => {
-            let name = args.get(i + 1).context("--jump: a jump name")?.clone();
-            args.drain(i..i + 2);
-            Box::new(legwork::jump::Jump::embedded(&name)?.terrain())
-        }
-        None => Box::new(Plane::flat(0.0)),
-    };
+    let terrain = common::jump_terrain(&mut args)?;
     let plan = Trajectory::load_file(args.first().context("usage: jump_momentum PLAN.json [FROM TO]")?)?;
     let from: f64 = args.get(1).map(|s| s.parse()).transpose()?.unwrap_or(0.0);
     let to: f64 = args.get(2).map(|s| s.parse()).transpose()?.unwrap_or(f64::INFINITY);

@@ -22,19 +22,11 @@ use legwork::dynamics::{center_of_mass, centroidal_momentum, Data};
 use legwork::io::{Knot, Trajectory};
 use legwork::jump::control::{run_jump, JumpSettings};
 use legwork::model::{embedded, Model};
-use legwork::terrain::Plane;
 use nalgebra::{DVector, Vector3};
 
-fn take(args: &mut Vec<String>, flag: &str) -> anyhow::Result<Option<String>> {
-    match args.iter().position(|a| a == flag) {
-        Some(i) => {
-            let value = args.get(i + 1).with_context(|| format!("{flag}: a value"))?.clone();
-            args.drain(i..i + 2);
-            Ok(Some(value))
-        }
-        None => Ok(None),
-    }
-}
+mod common;
+
+use common::take;
 
 /// CoM position and velocity (world) and the angular momentum about the CoM (world axes) of
 /// a knot.
@@ -58,10 +50,7 @@ fn holding(trajectory: &Trajectory, t: f64) -> &Knot {
 
 fn main() -> anyhow::Result<()> {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
-    let terrain: Box<dyn legwork::terrain::Terrain> = match take(&mut args, "--jump")? {
-        Some(name) => Box::new(legwork::jump::Jump::embedded(&name)?.terrain()),
-        None => Box::new(Plane::flat(0.0)),
-    };
+    let terrain = common::jump_terrain(&mut args)?;
     let show_feet = match args.iter().position(|a| a == "--feet") {
         Some(i) => {
             args.remove(i);
@@ -71,10 +60,11 @@ fn main() -> anyhow::Result<()> {
     };
     let every: f64 = take(&mut args, "--every")?.map(|s| s.parse()).transpose()?.unwrap_or(0.01);
     let other = take(&mut args, "--other")?.map(Trajectory::load_file).transpose()?;
+    // Every flag is taken before the positional arguments are read.
+    let stiffness_scale: Option<f64> = take(&mut args, "--stiffness-scale")?.map(|s| s.parse()).transpose()?;
     let plan = Trajectory::load_file(args.first().context("usage: jump_takeoff PLAN.json [FROM TO]")?)?;
     let from: f64 = args.get(1).map(|s| s.parse()).transpose()?.unwrap_or(0.0);
     let to: f64 = args.get(2).map(|s| s.parse()).transpose()?.unwrap_or(plan.duration());
-    let stiffness_scale: Option<f64> = take(&mut args, "--stiffness-scale")?.map(|s| s.parse()).transpose()?;
     let mut model = embedded::load("a1")?;
     let mut settings = JumpSettings { record_dt: 0.001, ..JumpSettings::default() };
     if let Some(scale) = stiffness_scale {

@@ -26,6 +26,8 @@ use legwork::jump::trials::{run_trials, TrialSettings};
 use legwork::model::embedded;
 use legwork::terrain::Plane;
 
+mod common;
+
 fn row(name: &str, run: &JumpRun, success: Option<bool>) {
     let t = |x: Option<f64>| x.map_or("-".to_string(), |t| format!("{t:.3}"));
     println!(
@@ -76,22 +78,8 @@ fn initial_guess_reference(model: &legwork::model::Model, name: &str, solve: boo
 
 fn main() -> anyhow::Result<()> {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
-    let terrain: Box<dyn legwork::terrain::Terrain> = match args.iter().position(|a| a == "--jump") {
-        Some(i) => {
-            let name = args.get(i + 1).context("--jump: a jump name")?.clone();
-            args.drain(i..i + 2);
-            Box::new(legwork::jump::Jump::embedded(&name)?.terrain())
-        }
-        None => Box::new(Plane::flat(0.0)),
-    };
-    let lift_off_lead = match args.iter().position(|a| a == "--lift-off-lead") {
-        Some(i) => {
-            let lead: f64 = args.get(i + 1).context("--lift-off-lead: a time (s)")?.parse().context("--lift-off-lead: a time (s)")?;
-            args.drain(i..i + 2);
-            Some(lead)
-        }
-        None => None,
-    };
+    let terrain = common::jump_terrain(&mut args)?;
+    let lift_off_lead: Option<f64> = common::take(&mut args, "--lift-off-lead")?.map(|s| s.parse()).transpose().context("--lift-off-lead: a time (s)")?;
     let Some(source) = args.first() else { bail!("usage: jump_trials REFERENCE.json|drop:HEIGHT:VY [TRIALS]") };
     let trials: usize = args.get(1).map(|s| s.parse()).transpose().context("TRIALS must be a whole number")?.unwrap_or(20);
     let model = embedded::load("a1")?;
