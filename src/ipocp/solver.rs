@@ -1171,17 +1171,11 @@ impl Solver {
         let mut solves = 0;
         let mut ratio = self.kkt_residual();
         while ratio > self.settings.refinement_residual_ratio && solves < self.settings.max_refinement_steps {
-            for (qp, r) in self.qps.iter_mut().zip(&mut self.residuals) {
-                std::mem::swap(&mut qp.gradient, &mut r.stationarity);
-                std::mem::swap(&mut qp.defect, &mut r.dynamics);
-                std::mem::swap(&mut qp.equality_residual, &mut r.equalities);
-            }
+            // The correction solves K c = r: the residuals stand in for the QPs' right-hand
+            // sides for one re-solve, then the right-hand sides are put back.
+            self.swap_right_hand_sides_with_residuals();
             let ok = self.riccati.resolve(&self.qps, &mut self.correction).is_ok();
-            for (qp, r) in self.qps.iter_mut().zip(&mut self.residuals) {
-                std::mem::swap(&mut qp.gradient, &mut r.stationarity);
-                std::mem::swap(&mut qp.defect, &mut r.dynamics);
-                std::mem::swap(&mut qp.equality_residual, &mut r.equalities);
-            }
+            self.swap_right_hand_sides_with_residuals();
             solves += 1;
             if !ok {
                 break;
@@ -1199,6 +1193,16 @@ impl Solver {
             }
         }
         solves
+    }
+
+    /// Exchanges the QPs' right-hand sides (gradient, defect, equality residual) with the
+    /// KKT residuals of [`Self::kkt_residual`]; twice is the identity.
+    fn swap_right_hand_sides_with_residuals(&mut self) {
+        for (qp, r) in self.qps.iter_mut().zip(&mut self.residuals) {
+            std::mem::swap(&mut qp.gradient, &mut r.stationarity);
+            std::mem::swap(&mut qp.defect, &mut r.dynamics);
+            std::mem::swap(&mut qp.equality_residual, &mut r.equalities);
+        }
     }
 
     /// The residuals of the KKT system of the QPs at `steps` into `residuals`:
