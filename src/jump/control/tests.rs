@@ -229,19 +229,27 @@ fn the_feed_forward_is_held_over_each_interval_as_the_plan_applied_it() {
     }
 }
 
-#[test]
-fn a_lifting_leg_ends_its_push_the_lift_off_lead_early_and_the_others_keep_the_plans_timing() {
-    // Knot 11 is foot 0's lift-off knot (in contact at 10, not at 11); every other foot
-    // stays down. Each knot's torques are its index, so the sample says which knot's it is.
+/// The A1's standing reference with each knot's torques set to its index (a sample says
+/// which knot's feed-forward it holds), every foot down, and `lifting` in the air from knot
+/// 11 on; and the knot interval.
+fn numbered_reference_lifting_at_knot_11(lifting: &[usize]) -> (crate::model::Model, Trajectory, f64) {
     let (model, _, mut trajectory) = a1_standing_reference();
     let dt = trajectory.knots[1].t - trajectory.knots[0].t;
     for (k, knot) in trajectory.knots.iter_mut().enumerate() {
         knot.tau.iter_mut().for_each(|t| *t = k as f64);
         knot.in_contact = vec![true; model.feet.len()];
         if k >= 11 {
-            knot.in_contact[0] = false;
+            lifting.iter().for_each(|&f| knot.in_contact[f] = false);
         }
     }
+    (model, trajectory, dt)
+}
+
+#[test]
+fn a_lifting_leg_ends_its_push_the_lift_off_lead_early_and_the_others_keep_the_plans_timing() {
+    // Knot 11 is foot 0's lift-off knot (in contact at 10, not at 11); every other foot
+    // stays down. Each knot's torques are its index, so the sample says which knot's it is.
+    let (model, trajectory, dt) = numbered_reference_lifting_at_knot_11(&[0]);
     let lead = 0.004;
     let reference = JumpReference::new(&model, &trajectory, PosingTolerance::default()).unwrap().with_lift_off_lead(lead).unwrap();
     let lifting: Vec<usize> = crate::control::whole_body::leg_chains(&model).unwrap().into_iter().find(|l| l.foot == 0).unwrap().v_index.to_vec();
@@ -347,21 +355,13 @@ fn the_release_lead_grows_with_the_last_push_and_stops_at_the_interval() {
     // Feet 0 and 1 lift off at knot 11 after pushes of 260 N and 20 N; foot 2 after 1e6 N
     // (a lead longer than the interval is cut to it); foot 3 stays down. Each knot's torques
     // are its index, so the sample says which knot's feed-forward a leg gets.
-    let (model, _, mut trajectory) = a1_standing_reference();
-    let dt = trajectory.knots[1].t - trajectory.knots[0].t;
+    let (model, mut trajectory, dt) = numbered_reference_lifting_at_knot_11(&[0, 1, 2]);
     for (k, knot) in trajectory.knots.iter_mut().enumerate() {
-        knot.tau.iter_mut().for_each(|t| *t = k as f64);
-        knot.in_contact = vec![true; model.feet.len()];
         knot.contact_force = vec![[0.0, 0.0, 50.0]; model.feet.len()];
         if k == 10 {
             knot.contact_force[0][2] = 260.0;
             knot.contact_force[1][2] = 20.0;
             knot.contact_force[2][2] = 1e6;
-        }
-        if k >= 11 {
-            knot.in_contact[0] = false;
-            knot.in_contact[1] = false;
-            knot.in_contact[2] = false;
         }
     }
     let (k_n, v_r) = (28_000.0, 2.3);
