@@ -7,8 +7,18 @@
 //!     [--pre-landing 10] [--parallel] [--max-iterations 300] [--verbose] [--limits]
 //!     [--no-restoration] [--plain-guess] [--reference-targets] [--w-acceleration W]
 //!     [--max-acceleration A] [--w-velocity W] [--max-stance-speed V] [--out DIR]
-//!     [--barrier RULE] [--ct-barrier RULE] [jump ...]
+//!     [--barrier RULE] [--ct-barrier RULE] [--curvature-after N] [--curvature-violation V]
+//!     [--curvature-by-jacobians] [--id-torques] [--foot-margin M] [--lift-off-force F]
+//!     [jump ...]
 //! ```
+//!
+//! The pipeline's settings (`legwork jump`, `legwork bench jumps`) are `--curvature-after 100
+//! --foot-margin 0.01` plus the jump file's `--lift-off-force` (lateral_down: 20); without
+//! them the example solves Gauss-Newton throughout. `--curvature-violation V`: hand over to
+//! the curvature phase at violation V (default 1); `--curvature-by-jacobians`: that
+//! curvature by central differences of the full Jacobians (the reference) instead of
+//! forward differences of the multiplier-weighted gradient; `--id-torques`: the start's
+//! torques by inverse dynamics of the guess.
 //!
 //! `--w-acceleration`, `--max-acceleration`, `--w-velocity` override the settings' joint
 //! acceleration weight and bound and velocity weight; `--out DIR` writes each plan to
@@ -41,6 +51,9 @@ fn main() -> anyhow::Result<()> {
     let mut max_iterations = None;
     let mut box_rows = false;
     let mut curvature = None;
+    let mut curvature_violation = None;
+    let mut curvature_by_jacobians = false;
+    let mut id_torques = false;
     let mut foot_margin = 0.0;
     let mut lift_off_force = f64::INFINITY;
     let mut names = Vec::new();
@@ -74,6 +87,9 @@ fn main() -> anyhow::Result<()> {
             "--barrier" => barrier_update = Some(args.next().ok_or_else(|| anyhow::anyhow!("--barrier: a rule"))?.parse().map_err(anyhow::Error::msg)?),
             "--ct-barrier" => ct_barrier_update = Some(args.next().ok_or_else(|| anyhow::anyhow!("--ct-barrier: a rule"))?.parse().map_err(anyhow::Error::msg)?),
             "--foot-margin" => foot_margin = args.next().ok_or_else(|| anyhow::anyhow!("--foot-margin: metres"))?.parse()?,
+            "--curvature-violation" => curvature_violation = Some(args.next().ok_or_else(|| anyhow::anyhow!("--curvature-violation: a bound"))?.parse::<f64>()?),
+            "--curvature-by-jacobians" => curvature_by_jacobians = true,
+            "--id-torques" => id_torques = true,
             "--curvature-after" => curvature = Some(args.next().ok_or_else(|| anyhow::anyhow!("--curvature-after: iterations"))?.parse()?),
             _ => names.push(a),
         }
@@ -95,6 +111,8 @@ fn main() -> anyhow::Result<()> {
         max_joint_acceleration: max_acceleration.unwrap_or(defaults.max_joint_acceleration),
         w_velocity: w_velocity.unwrap_or(defaults.w_velocity),
         constraint_curvature_after: curvature,
+        curvature_max_violation: curvature_violation.unwrap_or(defaults.curvature_max_violation),
+        start_torques_by_inverse_dynamics: id_torques,
         airborne_foot_margin: foot_margin,
         lift_off_normal_force: lift_off_force,
         ..defaults
@@ -129,6 +147,7 @@ fn main() -> anyhow::Result<()> {
         };
         let guess = initial_guess_clear_of(&model, &srb, settings.pre_landing_knots, if plain_guess { None } else { obstacle.as_ref() })?;
         let fb = FullBodyProblem::new(&model, &srb, &guess, &settings, obstacle)?;
+        fb.set_curvature_by_jacobians(curvature_by_jacobians);
         let mut times = Vec::new();
         let mut plan = None;
         for _ in 0..repeats.max(1) {

@@ -241,6 +241,49 @@ fn constraint_curvature_matches_differences_of_the_jacobians() {
     fb.set_constraint_curvature(false);
 }
 
+/// The constraint curvature by forward differences of the multiplier-weighted gradient (the
+/// default) against the reference, central differences of the full Jacobians, at perturbed
+/// points with random multipliers: knots with held feet, lift-off, flight, the box rows and
+/// the joint-acceleration rows.
+#[test]
+fn constraint_curvature_by_gradients_matches_the_jacobian_differences() {
+    let model = embedded::load("a1").unwrap();
+    let srb = srb_solution("lateral30").resample(0.01).unwrap();
+    let obstacle = BoxObstacle { top: -0.02, x: [-0.3, 0.3], y: [-0.2, 0.0] };
+    let settings = FullBodySettings { max_joint_acceleration: 500.0, ..FullBodySettings::default() };
+    let guess = initial_guess(&model, &srb, settings.pre_landing_knots).unwrap();
+    for (fb, seed) in [(lateral_problem(Some(obstacle)).0, 5), (FullBodyProblem::new(&model, &srb, &guess, &settings, Some(obstacle)).unwrap(), 9)] {
+        fb.set_constraint_curvature(true);
+        let mut rng = Lcg(seed);
+        let n = fb.problem.len();
+        let lift_off = fb.anchors().iter().rposition(|a| a[0].is_some()).unwrap();
+        for k in [0, 1, lift_off - 1, lift_off, lift_off + 2, n - 2, n - 1] {
+            let stage = fb.problem.stage(k);
+            let d = stage.dims();
+            let nz = d.nz();
+            let z = DVector::from_fn(nz, |i, _| fb.start[k][i] + if i < 36 { 0.02 } else { 0.5 } * rng.next());
+            let lam = DVector::from_fn(d.nx_next, |_, _| 10.0 * rng.next());
+            let nu = DVector::from_fn(d.ng, |_, _| 10.0 * rng.next());
+            let y = DVector::from_fn(d.nh, |_, _| 10.0 * rng.next());
+            let m = StageMultipliers { cost: 0.0, dynamics: lam.as_slice(), equalities: nu.as_slice(), inequalities: y.as_slice() };
+            let hessian = |by_jacobians: bool| {
+                fb.set_curvature_by_jacobians(by_jacobians);
+                let mut h = DMatrix::zeros(nz, nz);
+                stage.lagrangian_hessian(z.as_slice(), m, &mut h);
+                h
+            };
+            let (new, reference) = (hessian(false), hessian(true));
+            let scale = reference.amax().max(1.0);
+            let err = (&new - &reference).amax();
+            eprintln!("knot {k}: |H - H_ref| {err:.2e}, |H_ref| {scale:.2e}");
+            assert!(err < 1e-5 * scale, "knot {k}: curvature off by {err:.2e} (largest entry {scale:.2e})");
+            assert!((&new - new.transpose()).amax() < 1e-12, "Hessian not symmetric");
+        }
+        fb.set_curvature_by_jacobians(false);
+        fb.set_constraint_curvature(false);
+    }
+}
+
 #[test]
 fn lateral_jump_solves_end_to_end_within_every_limit() {
     let (fb, _) = lateral_problem(None);

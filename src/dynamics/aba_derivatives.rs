@@ -106,6 +106,35 @@ fn invert_mass_matrix(model: &Model, data: &mut Data) {
     );
 }
 
+/// `x <- M^-1 x` for the mass matrix in `data.mass_matrix` (as [`crba`] or
+/// `compute_rnea_derivatives` leave it), by the sparse `L^T D L` factor (Featherstone 2008,
+/// Table 6.4): `L^T y = x` from the leaves up, `y <- D^-1 y`, `L x = y` from the root down.
+/// `O(n d)` for depth `d`, no inverse formed; the factor is left in `data.ltdl`.
+pub fn mass_matrix_solve(model: &Model, data: &mut Data, x: &mut [f64]) {
+    let n = model.nv;
+    let lambda = &model.dof_parent;
+    data.ltdl.copy_from(&data.mass_matrix);
+    let h = data.ltdl.as_mut_slice();
+    ltdl_in_place(h, n, lambda);
+    for i in (0..n).rev() {
+        let mut j = lambda[i];
+        while j != ROOT {
+            x[j] -= h[i + j * n] * x[i];
+            j = lambda[j];
+        }
+    }
+    for i in 0..n {
+        x[i] /= h[i + i * n];
+    }
+    for i in 0..n {
+        let mut j = lambda[i];
+        while j != ROOT {
+            x[i] -= h[i + j * n] * x[j];
+            j = lambda[j];
+        }
+    }
+}
+
 /// Partial derivatives of forward dynamics `qdd = ABA(q, v, tau)`: `data.ddq_dq`,
 /// `data.ddq_dv` (tangent-space convention of `shared/fixtures/README.md`) and
 /// `data.minv` (`= d qdd / d tau`). Also sets `data.ddq`.
@@ -117,4 +146,31 @@ pub fn compute_aba_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>,
     invert_mass_matrix(model, data);
     data.ddq_dq.gemm(-1.0, &data.minv, &data.dtau_dq, 0.0);
     data.ddq_dv.gemm(-1.0, &data.minv, &data.dtau_dv, 0.0);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dynamics::random_configuration;
+
+    /// `mass_matrix_solve` against `M^-1 x` of the inverse (A1, random configurations).
+    #[test]
+    fn mass_matrix_solve_matches_the_inverse() {
+        let model = crate::model::embedded::load("a1").unwrap();
+        let mut data = Data::new(&model);
+        let mut seed = 3u64;
+        let mut uniform = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..3 {
+            let q = random_configuration(&model, &mut uniform);
+            let x = DVector::from_fn(model.nv, |i, _| (i as f64 * 0.7).sin() * 3.0);
+            let expected = compute_minverse(&model, &mut data, &q) * &x;
+            let mut solved = x.clone();
+            mass_matrix_solve(&model, &mut data, solved.as_mut_slice());
+            let err = (&solved - &expected).amax();
+            assert!(err < 1e-10 * expected.amax().max(1.0), "M^-1 x off by {err:.2e}");
+        }
+    }
 }

@@ -21,11 +21,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// Largest constraint violation at which the Gauss-Newton phase hands over to the curvature
-/// phase of `constraint_curvature_after` (lateral_down: 0.46-1.1 after 100 iterations, and
-/// solved; double_barrel_roll: 6e-4 after 300).
-const CURVATURE_MAX_VIOLATION: f64 = 1.0;
-
 /// The full-body problem of a jump.
 pub struct FullBodyProblem {
     pub problem: Problem,
@@ -71,6 +66,44 @@ pub struct FullBodyPlan {
     pub limits: LimitReport,
 }
 
+/// The start's joint torques by inverse dynamics (eq. 3 solved for `tau`): at every knot with
+/// dynamics, the joint rows of `M(q_k) qdd_k + b(q_k, v_k) = S^T tau_k + sum_s J_s^T lambda_s`
+/// with `qdd_k = (v_{k+1} - v_k) / dt` of the guess's velocities and the SRB's forces,
+/// clamped to 95 % of the torque limits (the base rows stay as the SRB's forces leave them).
+/// The massless-leg torques of the guess leave the legs' accelerations off by thousands of
+/// rad/s^2 (lateral_down: a start dynamics defect of 60).
+fn start_torques_by_inverse_dynamics(shared: &Shared, specs: &[KnotSpec], start: &mut [DVector<f64>]) {
+    use super::kinematics::{foot_position, point_jacobian};
+    use crate::dynamics::{compute_joint_jacobians, rnea, Data};
+    let model = &shared.model;
+    let nv = model.nv;
+    let nj = nv - 6;
+    let dt = shared.settings.dt;
+    let mut data = Data::new(model);
+    let mut jac = nalgebra::Matrix3xX::zeros(nv);
+    for k in 0..specs.len().saturating_sub(1) {
+        let spec = &specs[k];
+        let v = start[k].rows(nv, nv).into_owned();
+        let qdd = (start[k + 1].rows(nv, nv) - &v) / dt;
+        let mut tau = rnea(model, &mut data, &spec.qbar, &v, &qdd).clone();
+        compute_joint_jacobians(model, &mut data, &spec.qbar);
+        let mut i = 2 * nv + nj;
+        for f in 0..4 {
+            if spec.contacts[f] {
+                let p = foot_position(model, &data, &shared.legs[f]);
+                point_jacobian(model, &data, shared.legs[f].knee_joint, &p, &mut jac);
+                let force = start[k].fixed_rows::<3>(i).into_owned();
+                tau.gemv_tr(-1.0, &jac, &force, 1.0);
+                i += 3;
+            }
+        }
+        for j in 0..nj {
+            let limit = 0.95 * shared.torque_limit[j];
+            start[k][2 * nv + j] = tau[6 + j].clamp(-limit, limit);
+        }
+    }
+}
+
 impl FullBodyProblem {
     /// The problem on the grid of `srb` (resampled at `settings.dt`), around `guess` (from
     /// [`super::initial_guess`] on the same grid), with the box the jump starts from, if any.
@@ -113,6 +146,7 @@ impl FullBodyProblem {
             torque_limit: joints.iter().map(|j| j.limits.effort[0]).collect(),
             foot_radius: model.feet[0].radius,
             curvature: AtomicBool::new(false),
+            curvature_by_jacobians: AtomicBool::new(false),
         });
         let q_final = DVector::from_column_slice(&guess.knots[last].q);
         let qbar: Vec<DVector<f64>> = (0..n)
@@ -181,6 +215,9 @@ impl FullBodyProblem {
             stages.push(Box::new(stage));
             specs.push(spec);
         }
+        if settings.start_torques_by_inverse_dynamics {
+            start_torques_by_inverse_dynamics(&shared, &specs, &mut start);
+        }
         Ok(Self {
             problem: Problem::new(stages).map_err(|e| FullBodyError::Model(format!("full-body problem: {e}")))?,
             start,
@@ -203,7 +240,8 @@ impl FullBodyProblem {
             return Ok(self.plan(&result, t0.elapsed()));
         };
         // Phase 1: Gauss-Newton for at least `gauss_newton_iterations`, then until the
-        // violation is at most CURVATURE_MAX_VIOLATION: the curvature is worth its cost near a
+        // violation is at most `curvature_max_violation` (1: lateral_down 0.46-1.1 after
+        // 100 iterations, and solved; double_barrel_roll 6e-4 after 300): the curvature is worth its cost near a
         // solution, where the multipliers mean something, not after a local infeasibility or
         // far from feasible (the violation after a fixed count is not a robust test:
         // lateral_down 0.46 or 1.1 at 100 iterations with round-off-level changes of the
@@ -213,7 +251,7 @@ impl FullBodyProblem {
         self.shared.curvature.store(false, Ordering::Relaxed);
         let mut switched = false;
         let mut stop = |iteration: usize, violation: f64| {
-            switched = iteration >= gauss_newton_iterations && violation <= CURVATURE_MAX_VIOLATION;
+            switched = iteration >= gauss_newton_iterations && violation <= settings.curvature_max_violation;
             switched
         };
         let mut solver = Solver::new(&self.problem, settings.solver.clone()).map_err(solver_error)?;
@@ -252,6 +290,13 @@ impl FullBodyProblem {
     /// second phase of [`Self::solve`] with `constraint_curvature_after` does.
     pub fn set_constraint_curvature(&self, on: bool) {
         self.shared.curvature.store(on, Ordering::Relaxed);
+    }
+
+    /// Takes the constraints' curvature by central differences of the full constraint
+    /// Jacobians (`2 nx` Jacobian passes per knot, the reference) instead of forward
+    /// differences of the multiplier-weighted gradient (`nx + 1` gradient passes, the default).
+    pub fn set_curvature_by_jacobians(&self, on: bool) {
+        self.shared.curvature_by_jacobians.store(on, Ordering::Relaxed);
     }
 
     /// The plan of a solve's last iterate.

@@ -109,6 +109,13 @@ pub struct FullBodySettings {
     /// start the exact curvature with the first multipliers' estimates makes the steps worse
     /// (measured on lateral_down). `None`: Gauss-Newton throughout (the default).
     pub constraint_curvature_after: Option<usize>,
+    /// The largest constraint violation at which the Gauss-Newton phase hands over to the
+    /// curvature phase (1.0; infinite: after `constraint_curvature_after` iterations whatever
+    /// the violation).
+    pub curvature_max_violation: f64,
+    /// Start the joint torques from inverse dynamics of the guess's motion with the SRB's
+    /// forces (false: the guess's massless-leg torques `-J^T f`, the default).
+    pub start_torques_by_inverse_dynamics: bool,
     /// The barrier update of the curvature phase (`None`: the solver's, the default).
     pub curvature_barrier_update: Option<BarrierUpdate>,
     /// The interior-point solver's settings (`ipocp` defaults, 300 iterations at most,
@@ -140,6 +147,8 @@ impl Default for FullBodySettings {
             w_acceleration: 0.0,
             max_joint_acceleration: f64::INFINITY,
             constraint_curvature_after: None,
+            curvature_max_violation: 1.0,
+            start_torques_by_inverse_dynamics: false,
             curvature_barrier_update: None,
             solver: Settings { max_iterations: 300, tolerance: 1e-6, constraint_violation_tolerance: 1e-6, ..Settings::default() },
         }
@@ -180,6 +189,7 @@ impl FullBodySettings {
         ] {
             check(field, v, v >= 0.0 && v.is_finite(), ">= 0")?;
         }
+        check("curvature_max_violation", self.curvature_max_violation, self.curvature_max_violation > 0.0 && !self.curvature_max_violation.is_nan(), "> 0 (infinite: no bound)")?;
         check("max_joint_acceleration", self.max_joint_acceleration, self.max_joint_acceleration > 0.0 && !self.max_joint_acceleration.is_nan(), "> 0 (infinite: no bound)")?;
         // Positive weights on every control and velocity keep the Gauss-Newton Hessian definite.
         for (field, v) in [("w_velocity", self.w_velocity), ("w_torque", self.w_torque), ("w_force", self.w_force)] {

@@ -22,8 +22,10 @@
 //! Mansard 2018 plus the contact forces' `d (J^T lambda) / dq`) and of every constraint;
 //! the Hessian is Gauss-Newton (`2 J_r^T W J_r` of the cost residuals; the curvature of the
 //! dynamics and constraints, weighted by their multipliers, is left out), or with
-//! `FullBodySettings::constraint_curvature` that curvature added by central differences of
-//! the exact constraint Jacobians ([`FullBodyStage::add_constraint_curvature`]).
+//! `FullBodySettings::constraint_curvature_after` that curvature added by forward
+//! differences of the multiplier-weighted constraint gradient (`curvature.rs`), or, as a
+//! reference, by central differences of the exact constraint Jacobians
+//! ([`FullBodyStage::add_constraint_curvature`]).
 
 // Index loops over rows and columns read like the equations they implement.
 #![allow(clippy::needless_range_loop)]
@@ -40,6 +42,8 @@ use nalgebra::{DMatrix, DVector, DVectorView, Matrix3, Matrix3xX, Vector3};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
+mod curvature;
+
 /// What all knots share.
 pub(crate) struct Shared {
     pub model: Model,
@@ -55,6 +59,9 @@ pub(crate) struct Shared {
     /// Add the constraints' curvature to the Hessian (the second phase of
     /// `FullBodySettings::constraint_curvature_after`).
     pub curvature: AtomicBool,
+    /// Take that curvature by central differences of the full Jacobians (the reference, `2 nx`
+    /// Jacobian passes) instead of forward differences of the multiplier-weighted gradient.
+    pub curvature_by_jacobians: AtomicBool,
 }
 
 /// What one knot is.
@@ -155,6 +162,8 @@ pub(crate) struct FullBodyStage {
     ws: Mutex<Workspace>,
     /// Buffers of the constraint curvature by differences (allocated on first use).
     fd: Mutex<Option<CurvatureWorkspace>>,
+    /// Buffers of the constraint curvature by differences of the gradient (allocated on first use).
+    gradient_fd: Mutex<Option<curvature::GradientCurvature>>,
 }
 
 /// Buffers of [`FullBodyStage::add_constraint_curvature`].
@@ -217,7 +226,7 @@ impl FullBodyStage {
             acceleration_jac: DMatrix::zeros(nv - 6, 2 * nv + nu),
             acceleration_z: DVector::from_element(2 * nv + nu, f64::NAN),
         };
-        Self { dims: StageDims { nx: 2 * nv, nu, nx_next, ng, nh }, shared, spec, ws: Mutex::new(ws), fd: Mutex::new(None) }
+        Self { dims: StageDims { nx: 2 * nv, nu, nx_next, ng, nh }, shared, spec, ws: Mutex::new(ws), fd: Mutex::new(None), gradient_fd: Mutex::new(None) }
     }
 
     /// The kind of every inequality row, in order.
@@ -789,7 +798,11 @@ impl Stage for FullBodyStage {
         }
         drop(guard);
         if sh.curvature.load(Ordering::Relaxed) {
-            self.add_constraint_curvature(z, &multipliers, out);
+            if sh.curvature_by_jacobians.load(Ordering::Relaxed) {
+                self.add_constraint_curvature(z, &multipliers, out);
+            } else {
+                self.add_constraint_curvature_by_gradients(z, &multipliers, out);
+            }
         }
     }
 }
