@@ -18,8 +18,9 @@
 //! cancels in the differences: they are left out. The joint-acceleration rows
 //! (`(v'_j - v_j) / dt`) fold into `mu`. One gradient costs an ABA, the RNEA derivatives and
 //! a sparse `M` solve, against the full Jacobian pass's ABA derivatives (`M^-1` formed and
-//! multiplied) and its `nv x nz` products; forward differences take `nx + 1` gradients
-//! where the central differences of the Jacobians took `2 nx` Jacobian passes.
+//! multiplied) and its `nv x nz` products; forward differences take `nx + 2` gradients
+//! (the velocity's `nv` of them without the kinematics) where the central differences of
+//! the Jacobians took `2 nx` Jacobian passes.
 
 use super::{FullBodyStage, Workspace, TRUNK_CORNERS};
 use crate::dynamics::{aba, compute_joint_jacobians, compute_rnea_derivatives, difference, integrate, integrate_jacobians, mass_matrix_solve};
@@ -40,6 +41,11 @@ pub(super) struct GradientCurvature {
     mu: DVector<f64>,
     w: DVector<f64>,
     t: DVector<f64>,
+    /// The kinematic rows' part of `t` and of the gradient, and `d tau_gen / dq`, at the
+    /// last configuration evaluated: a velocity perturbation changes the dynamics only.
+    t_kinematics: DVector<f64>,
+    gradient_kinematics: DVector<f64>,
+    dgen_dq: DMatrix<f64>,
 }
 
 impl GradientCurvature {
@@ -53,6 +59,9 @@ impl GradientCurvature {
             mu: DVector::zeros(nv),
             w: DVector::zeros(nv),
             t: DVector::zeros(nv),
+            t_kinematics: DVector::zeros(nv),
+            gradient_kinematics: DVector::zeros(nz),
+            dgen_dq: DMatrix::zeros(nv, nv),
         }
     }
 }
@@ -76,13 +85,19 @@ impl FullBodyStage {
         let fd = guard.get_or_insert_with(|| GradientCurvature::new(self.nv(), nz, nx));
         let mut ws_guard = self.ws.lock().unwrap_or_else(|e| e.into_inner());
         let ws = &mut *ws_guard;
+        let nv = self.nv();
         fd.z.copy_from_slice(z);
-        self.constraint_gradient(ws, fd, m);
+        self.constraint_gradient(ws, fd, m, true);
         std::mem::swap(&mut fd.gradient, &mut fd.perturbed);
+        // The configuration's columns, then (the kinematics at z again) the velocity's, which
+        // reuse the kinematics and redo the dynamics only.
         for j in 0..nx {
+            if j == nv {
+                self.constraint_gradient(ws, fd, m, true);
+            }
             let h = step(z[j]);
             fd.z[j] = z[j] + h;
-            self.constraint_gradient(ws, fd, m);
+            self.constraint_gradient(ws, fd, m, j < nv);
             fd.z[j] = z[j];
             for i in 0..nz {
                 fd.curvature[(i, j)] = (fd.perturbed[i] - fd.gradient[i]) / h;
@@ -102,7 +117,10 @@ impl FullBodyStage {
 
     /// `fd.perturbed = J_c(fd.z)^T m` up to a constant (the linear rows left out): the
     /// multiplier-weighted gradient of the rows with curvature, no Jacobian formed.
-    fn constraint_gradient(&self, ws: &mut Workspace, fd: &mut GradientCurvature, m: &StageMultipliers<'_>) {
+    /// `kinematics` false: the configuration part of `fd.z` is the last call's (only `v`
+    /// moved), whose kinematics (`Jd`, the feet's Jacobians, the kinematic rows' part,
+    /// `d tau_gen / dq`) are reused.
+    fn constraint_gradient(&self, ws: &mut Workspace, fd: &mut GradientCurvature, m: &StageMultipliers<'_>, kinematics: bool) {
         let sh = &self.shared;
         let s = &sh.settings;
         let model = &sh.model;
@@ -111,98 +129,111 @@ impl FullBodyStage {
         let spec = &self.spec;
         let z = fd.z.as_slice();
         let g = &mut fd.perturbed;
-        g.fill(0.0);
-        ws.dq.copy_from_slice(&z[..nv]);
-        integrate(model, &spec.qbar, &ws.dq, &mut ws.q);
-        // d q / d dq: Jr(dq) on the base, identity on the joints.
-        integrate_jacobians(model, &ws.dq, &mut ws.scratch, &mut ws.jd);
         ws.v.copy_from_slice(&z[nv..2 * nv]);
-        compute_joint_jacobians(model, &mut ws.data, &ws.q);
-        let feet: [Vector3<f64>; 4] = std::array::from_fn(|f| foot_position(model, &ws.data, &sh.legs[f]));
-        let knees: [Vector3<f64>; 4] = std::array::from_fn(|f| knee_position(&ws.data, &sh.legs[f]));
-        let base = ws.data.o_m_i[1];
-        for f in 0..4 {
-            point_jacobian(model, &ws.data, sh.legs[f].knee_joint, &feet[f], &mut ws.feet_jac[f]);
-            point_jacobian(model, &ws.data, sh.legs[f].knee_joint, &knees[f], &mut ws.knee_jac[f]);
+        // Inequalities: the linear rows first, then the acceleration rows (if any), then the
+        // trunk clearance, legs apart and box clearance.
+        let y = m.inequalities;
+        let mut first_nonlinear_row = 2 * nj;
+        let mut acceleration_rows = None;
+        if !spec.last {
+            first_nonlinear_row += nj;
+            if s.max_joint_acceleration.is_finite() {
+                acceleration_rows = Some(first_nonlinear_row);
+                first_nonlinear_row += nj;
+            }
+            first_nonlinear_row += 5 * spec.contacts.iter().filter(|&&c| c).count();
         }
         // `t` accumulates the world-tangent gradient `d/dq` (before `Jd^T`).
         let t = &mut fd.t;
-        t.fill(0.0);
-        // Equalities: the held feet (the others are linear).
-        if !spec.initial {
-            let mut r = 0;
+        if kinematics {
+            ws.dq.copy_from_slice(&z[..nv]);
+            integrate(model, &spec.qbar, &ws.dq, &mut ws.q);
+            // d q / d dq: Jr(dq) on the base, identity on the joints.
+            integrate_jacobians(model, &ws.dq, &mut ws.scratch, &mut ws.jd);
+            compute_joint_jacobians(model, &mut ws.data, &ws.q);
+            let feet: [Vector3<f64>; 4] = std::array::from_fn(|f| foot_position(model, &ws.data, &sh.legs[f]));
+            let knees: [Vector3<f64>; 4] = std::array::from_fn(|f| knee_position(&ws.data, &sh.legs[f]));
+            let base = ws.data.o_m_i[1];
             for f in 0..4 {
-                if spec.pinned[f].is_some() {
-                    let nu = Vector3::new(m.equalities[r], m.equalities[r + 1], m.equalities[r + 2]);
-                    t.gemv_tr(1.0, &ws.feet_jac[f], &nu, 1.0);
-                    r += 3;
+                point_jacobian(model, &ws.data, sh.legs[f].knee_joint, &feet[f], &mut ws.feet_jac[f]);
+                point_jacobian(model, &ws.data, sh.legs[f].knee_joint, &knees[f], &mut ws.knee_jac[f]);
+            }
+            g.fill(0.0);
+            t.fill(0.0);
+            // Equalities: the held feet (the others are linear).
+            if !spec.initial {
+                let mut r = 0;
+                for f in 0..4 {
+                    if spec.pinned[f].is_some() {
+                        let nu = Vector3::new(m.equalities[r], m.equalities[r + 1], m.equalities[r + 2]);
+                        t.gemv_tr(1.0, &ws.feet_jac[f], &nu, 1.0);
+                        r += 3;
+                    }
                 }
             }
-        }
-        // Inequalities: skip the linear rows, to the acceleration rows (if any), then the
-        // trunk clearance, legs apart and box clearance.
-        let y = m.inequalities;
-        let mut r = 2 * nj;
-        let mut acceleration_rows = None;
-        if !spec.last {
-            r += nj;
-            if s.max_joint_acceleration.is_finite() {
-                acceleration_rows = Some(r);
-                r += nj;
-            }
-            r += 5 * spec.contacts.iter().filter(|&&c| c).count();
-        }
-        let rt: Matrix3<f64> = base.rotation.transpose();
-        // d (p_b)_axis / d q_leg = (R^T d p / d q_leg)_axis, onto the leg's joint columns.
-        let add_base_row = |g: &mut DVector<f64>, weight: f64, jac: &nalgebra::Matrix3xX<f64>, f: usize, axis: usize| {
-            for c in sh.legs[f].v_index {
-                g[c] += weight * (0..3).map(|b| rt[(axis, b)] * jac[(b, c)]).sum::<f64>();
-            }
-        };
-        for f in 0..4 {
-            add_base_row(g, y[r], &ws.knee_jac[f], f, 2);
-            add_base_row(g, y[r + 1], &ws.feet_jac[f], f, 2);
-            r += 2;
-        }
-        for (jacs, row) in [(&ws.feet_jac, r), (&ws.knee_jac, r + 4)] {
-            for (k, (fa, fb, axis)) in [(0, 1, 1), (2, 3, 1), (0, 2, 0), (1, 3, 0)].into_iter().enumerate() {
-                add_base_row(g, y[row + k], &jacs[fa], fa, axis);
-                add_base_row(g, -y[row + k], &jacs[fb], fb, axis);
-            }
-        }
-        r += 8;
-        if let Some(b) = &sh.obstacle {
-            let add_point = |t: &mut DVector<f64>, weight: f64, p: &Vector3<f64>, jac: &nalgebra::Matrix3xX<f64>| {
-                let grad = b.signed_distance(p).1 * weight;
-                t.gemv_tr(1.0, jac, &grad, 1.0);
+            let mut r = first_nonlinear_row;
+            let rt: Matrix3<f64> = base.rotation.transpose();
+            // d (p_b)_axis / d q_leg = (R^T d p / d q_leg)_axis, onto the leg's joint columns.
+            let add_base_row = |g: &mut DVector<f64>, weight: f64, jac: &nalgebra::Matrix3xX<f64>, f: usize, axis: usize| {
+                for c in sh.legs[f].v_index {
+                    g[c] += weight * (0..3).map(|b| rt[(axis, b)] * jac[(b, c)]).sum::<f64>();
+                }
             };
             for f in 0..4 {
-                add_point(t, y[r], &knees[f], &ws.knee_jac[f]);
-                r += 1;
+                add_base_row(g, y[r], &ws.knee_jac[f], f, 2);
+                add_base_row(g, y[r + 1], &ws.feet_jac[f], f, 2);
+                r += 2;
             }
-            for c in 0..8 {
-                let corner = base.act_point(&s.trunk_half_extents.component_mul(&Vector3::from(TRUNK_CORNERS[c])));
-                point_jacobian(model, &ws.data, 1, &corner, &mut ws.point_jac);
-                add_point(t, y[r], &corner, &ws.point_jac);
-                r += 1;
-            }
-            for f in 0..4 {
-                if spec.airborne[f] {
-                    add_point(t, y[r], &feet[f], &ws.feet_jac[f]);
-                    r += 1;
+            for (jacs, row) in [(&ws.feet_jac, r), (&ws.knee_jac, r + 4)] {
+                for (k, (fa, fb, axis)) in [(0, 1, 1), (2, 3, 1), (0, 2, 0), (1, 3, 0)].into_iter().enumerate() {
+                    add_base_row(g, y[row + k], &jacs[fa], fa, axis);
+                    add_base_row(g, -y[row + k], &jacs[fb], fb, axis);
                 }
             }
+            r += 8;
+            if let Some(b) = &sh.obstacle {
+                let add_point = |t: &mut DVector<f64>, weight: f64, p: &Vector3<f64>, jac: &nalgebra::Matrix3xX<f64>| {
+                    let grad = b.signed_distance(p).1 * weight;
+                    t.gemv_tr(1.0, jac, &grad, 1.0);
+                };
+                for f in 0..4 {
+                    add_point(t, y[r], &knees[f], &ws.knee_jac[f]);
+                    r += 1;
+                }
+                for c in 0..8 {
+                    let corner = base.act_point(&s.trunk_half_extents.component_mul(&Vector3::from(TRUNK_CORNERS[c])));
+                    point_jacobian(model, &ws.data, 1, &corner, &mut ws.point_jac);
+                    add_point(t, y[r], &corner, &ws.point_jac);
+                    r += 1;
+                }
+                for f in 0..4 {
+                    if spec.airborne[f] {
+                        add_point(t, y[r], &feet[f], &ws.feet_jac[f]);
+                        r += 1;
+                    }
+                }
+            }
+            fd.t_kinematics.copy_from(t);
+            fd.gradient_kinematics.copy_from(g);
+            fd.dgen_dq.fill(0.0);
+            for f in 0..4 {
+                if let Some(l) = self.force(z, f) {
+                    add_point_force_derivative(&ws.data, &sh.legs[f], &feet[f], &l, &mut fd.dgen_dq);
+                }
+            }
+        } else {
+            t.copy_from(&fd.t_kinematics);
+            g.copy_from(&fd.gradient_kinematics);
         }
         if !spec.last {
             let dt = s.dt;
             // qdd = ABA(q, v, S^T tau + sum_f J_f^T lambda_f) and d tau_gen / dq.
             ws.tau.fill(0.0);
             ws.tau.as_mut_slice()[6..].copy_from_slice(&z[2 * nv..2 * nv + nj]);
-            ws.dgen_dq.fill(0.0);
+            ws.dgen_dq.copy_from(&fd.dgen_dq);
             for f in 0..4 {
                 if let Some(l) = self.force(z, f) {
                     ws.tau.gemv_tr(1.0, &ws.feet_jac[f], &l, 1.0);
-                    add_point_force_derivative(&ws.data, &sh.legs[f], &feet[f], &l, &mut ws.dgen_dq);
                 }
             }
             aba(model, &mut ws.data, &ws.q, &ws.v, &ws.tau);
