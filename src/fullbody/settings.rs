@@ -104,8 +104,9 @@ pub struct FullBodySettings {
     /// `Some(n)`: after `n` Gauss-Newton iterations without convergence, at the first
     /// iterate whose constraint violation is at most 1, continue from that
     /// iterate (primal and duals, warm) with the dynamics' and constraints' curvature
-    /// (weighted by their multipliers) added to the Hessian, by central differences of the
-    /// exact Jacobians; each Hessian then costs `2 nz` Jacobian evaluations per knot. From the
+    /// (weighted by their multipliers) added to the Hessian, by forward differences of the
+    /// multiplier-weighted constraint gradient (`nx + 2` gradient passes per knot, ~4
+    /// Gauss-Newton iterations' worth per Hessian; docs/experiments/fb-speed.md). From the
     /// start the exact curvature with the first multipliers' estimates makes the steps worse
     /// (measured on lateral_down). `None`: Gauss-Newton throughout (the default).
     pub constraint_curvature_after: Option<usize>,
