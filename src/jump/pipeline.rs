@@ -143,8 +143,9 @@ pub struct PipelineOptions {
 impl PipelineOptions {
     /// The jump file's contact-timing settings, the full body's defaults with the constraint
     /// curvature after [`FULL_BODY_GAUSS_NEWTON_ITERATIONS`], airborne feet kept
-    /// `clearance` (1 cm) beyond their radius from the box and the jump file's
-    /// `[full_body]` settings (the lift-off force bound), every other setting its default.
+    /// `clearance` (1 cm) beyond their radius from the box, and the jump file's
+    /// `[full_body]` settings (the lift-off force bound, the airborne feet's margin), every
+    /// other setting its default.
     pub fn of(jump: &Jump) -> Self {
         Self {
             contact_timing: jump.contact_timing.clone(),
@@ -153,7 +154,7 @@ impl PipelineOptions {
                 let defaults = FullBodySettings::default();
                 FullBodySettings {
                     constraint_curvature_after: Some(FULL_BODY_GAUSS_NEWTON_ITERATIONS),
-                    airborne_foot_margin: defaults.clearance,
+                    airborne_foot_margin: jump.full_body.airborne_foot_margin.unwrap_or(defaults.clearance),
                     lift_off_normal_force: jump.full_body.lift_off_normal_force.unwrap_or(defaults.lift_off_normal_force),
                     ..defaults
                 }

@@ -25,6 +25,8 @@
 //!
 //! [full_body]                        # optional: the jump's full-body plan settings
 //! lift_off_normal_force = 20.0       # N, bound on a lifting foot's last push (default none)
+//! airborne_foot_margin = 0.01        # m, an airborne foot's clearance from the box beyond
+//!                                    # its radius (default: the pipeline's, 0.01)
 //!
 //! [paper]                            # optional: the paper's Table I row
 //! timings_10ms = [52, 35]
@@ -100,6 +102,9 @@ pub struct FullBodyOverrides {
     /// `FullBodySettings::lift_off_normal_force` (N): the bound on each foot's normal force
     /// over its last pushing interval. Absent: no bound.
     pub lift_off_normal_force: Option<f64>,
+    /// `FullBodySettings::airborne_foot_margin` (m): an airborne foot's clearance from the
+    /// box beyond its radius. Absent: the pipeline's (`PipelineOptions::of`).
+    pub airborne_foot_margin: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -355,6 +360,11 @@ impl Jump {
                 return bad("full_body.lift_off_normal_force", "a positive force (N)", f.to_string());
             }
         }
+        if let Some(m) = file.full_body.airborne_foot_margin {
+            if !(m.is_finite() && m >= 0.0) {
+                return bad("full_body.airborne_foot_margin", "a non-negative distance (m)", m.to_string());
+            }
+        }
         if let Some(p) = &file.paper {
             if p.timings_10ms.len() != phases.len() || !finite(&p.timings_10ms) {
                 return bad("paper.timings_10ms", &format!("{} finite durations (one per phase)", phases.len()), format!("{:?}", p.timings_10ms));
@@ -489,6 +499,8 @@ mod tests {
         assert!(e.contains("field `contact_timing.mu`: expected > 0, got -1"), "{e}");
         let e = error_of(&LATERAL.replace("[paper]", "[full_body]\nlift_off_normal_force = -1.0\n\n[paper]"));
         assert!(e.contains("field `full_body.lift_off_normal_force`: expected a positive force (N), got -1"), "{e}");
+        let e = error_of(&LATERAL.replace("[paper]", "[full_body]\nairborne_foot_margin = -0.01\n\n[paper]"));
+        assert!(e.contains("field `full_body.airborne_foot_margin`: expected a non-negative distance (m), got -0.01"), "{e}");
         let e = error_of(&LATERAL.replace("[paper]", "[contact_timing]\nknots = 3\n\n[paper]"));
         assert!(e.contains("knots"), "{e}");
         let e = error_of(&LATERAL.replace("timings_10ms = [50, 28]", "timings_10ms = [50]"));
