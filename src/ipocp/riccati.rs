@@ -119,6 +119,8 @@ struct ConstrainedPolicy {
     reduced_linear: DVector<f64>,
     /// `M_uu Z` (`nu x nu`, leading columns used).
     rz: DMatrix<f64>,
+    /// Scratch of [`cholesky_solve_columns`] (`nu x nx`).
+    transposed: Vec<f64>,
 }
 
 impl ConstrainedPolicy {
@@ -132,6 +134,7 @@ impl ConstrainedPolicy {
             reduced_cross: DMatrix::zeros(nu, nx),
             reduced_linear: DVector::zeros(nu),
             rz: DMatrix::zeros(nu, nu),
+            transposed: vec![0.0; nu * nx],
         }
     }
 
@@ -182,10 +185,7 @@ impl ConstrainedPolicy {
             if !cholesky_in_place(&mut self.reduced, nu) {
                 return false;
             }
-            let ld = self.reduced_cross.nrows();
-            for col in 0..nx {
-                cholesky_solve_in_place(&self.reduced, nu, &mut self.reduced_cross.as_mut_slice()[col * ld..col * ld + nu]);
-            }
+            cholesky_solve_columns(&self.reduced, nu, &mut self.reduced_cross, nx, &mut self.transposed);
             cholesky_solve_in_place(&self.reduced, nu, self.reduced_linear.as_mut_slice());
             self.gain.copy_from(&self.reduced_cross);
             self.gain.neg_mut();
@@ -212,10 +212,7 @@ impl ConstrainedPolicy {
             }
             // w = -(Z^T R Z)^{-1} [cross | lin]; K -= Z (.), k -= Z (.)
             // L L^T x = b: the factor is in the lower triangle (the upper one is stale).
-            let ld = self.reduced_cross.nrows();
-            for col in 0..nx {
-                cholesky_solve_in_place(&self.reduced, nf, &mut self.reduced_cross.as_mut_slice()[col * ld..col * ld + nf]);
-            }
+            cholesky_solve_columns(&self.reduced, nf, &mut self.reduced_cross, nx, &mut self.transposed);
             cholesky_solve_in_place(&self.reduced, nf, &mut self.reduced_linear.as_mut_slice()[..nf]);
             let z = self.null_basis.columns(0, nf);
             self.gain.gemm(-1.0, &z, &self.reduced_cross.rows(0, nf), 1.0);
@@ -307,6 +304,62 @@ fn cholesky_solve_in_place(l: &DMatrix<f64>, n: usize, x: &mut [f64]) {
             s -= l * xk;
         }
         x[i] = s / col[i];
+    }
+}
+
+/// Solves `L L^T X = B` in place for the leading `n x cols` block `B` of `b` (all
+/// columns at once) with the factor of [`cholesky_in_place`]. The rows of `B` are copied
+/// into the contiguous columns of `scratch` (`B^T`), so each elimination step is one
+/// contiguous `axpy` over all right-hand sides instead of a short strided loop per column;
+/// the operations per entry are those of [`cholesky_solve_in_place`], in the same order.
+fn cholesky_solve_columns(l: &DMatrix<f64>, n: usize, b: &mut DMatrix<f64>, cols: usize, scratch: &mut [f64]) {
+    if n == 0 || cols == 0 {
+        return;
+    }
+    let ld = l.nrows();
+    let f = l.as_slice();
+    let ldb = b.nrows();
+    let xt = &mut scratch[..n * cols];
+    // xt column i (contiguous, `cols` long) is row i of B.
+    for (c, column) in b.as_slice().chunks_exact(ldb).take(cols).enumerate() {
+        for i in 0..n {
+            xt[i * cols + c] = column[i];
+        }
+    }
+    // L Y = B
+    for k in 0..n {
+        let lk = &f[k * ld..k * ld + n];
+        let (done, rest) = xt.split_at_mut((k + 1) * cols);
+        let yk = &mut done[k * cols..];
+        for v in yk.iter_mut() {
+            *v /= lk[k];
+        }
+        for (i, row) in rest.chunks_exact_mut(cols).enumerate() {
+            let lik = lk[k + 1 + i];
+            for (x, y) in row.iter_mut().zip(yk.iter()) {
+                *x -= lik * y;
+            }
+        }
+    }
+    // L^T X = Y
+    for i in (0..n).rev() {
+        let li = &f[i * ld..i * ld + n];
+        let (head, solved) = xt.split_at_mut((i + 1) * cols);
+        let xi = &mut head[i * cols..];
+        for (k, row) in solved.chunks_exact(cols).enumerate() {
+            let lki = li[i + 1 + k];
+            for (x, y) in xi.iter_mut().zip(row) {
+                *x -= lki * y;
+            }
+        }
+        for v in xi.iter_mut() {
+            *v /= li[i];
+        }
+    }
+    for (c, column) in b.as_mut_slice().chunks_exact_mut(ldb).take(cols).enumerate() {
+        for i in 0..n {
+            column[i] = xt[i * cols + c];
+        }
     }
 }
 
@@ -661,11 +714,15 @@ fn forward_stage(st: &mut StageWork, qp: &StageQp, next: Option<&mut StageWork>,
     let mut du = step.dz.rows_mut(nx, nu);
     du.copy_from(&st.policy.feedforward);
     du.gemv(1.0, &st.policy.gain, &st.dx, 1.0);
-    // Control gradient of the model at dz.
-    st.grad.copy_from(&st.mv);
-    st.grad.gemv(1.0, &st.m, &step.dz, 1.0);
+    // Control gradient of the model at dz, (M dz + m)_u = M[:, u]^T dz + m_u (M symmetric),
+    // needed only for the multipliers of the stage's rows.
     let rx = st.red.rank_x;
-    row_multipliers(&st.red, &st.grad.as_slice()[nx..], &st.eta[..rx], &mut st.reduced_mult, &mut st.row_mult);
+    if st.red.rows > 0 {
+        let mut g_u = st.grad.rows_mut(nx, nu);
+        g_u.copy_from(&st.mv.rows(nx, nu));
+        g_u.gemv_tr(1.0, &st.m.columns(nx, nu), &step.dz, 1.0);
+        row_multipliers(&st.red, &st.grad.as_slice()[nx..], &st.eta[..rx], &mut st.reduced_mult, &mut st.row_mult);
+    }
     for i in 0..d.ng {
         step.equality_multiplier[i] = st.row_mult[i];
     }

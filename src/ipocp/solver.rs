@@ -47,11 +47,12 @@ struct StageBuffers {
     saved_ineq_residual: DVector<f64>,
     trial_primal: DVector<f64>,
     trial_slack: DVector<f64>,
-    /// Scratch: the condensed linear term per inequality row; the nonzero columns of the
-    /// inequality Jacobian's rows (row `i`: `nonzeros[nonzero_start[i]..nonzero_start[i + 1]]`).
+    /// Scratch: the condensed linear term per inequality row.
     lin: DVector<f64>,
-    nonzeros: Vec<usize>,
-    nonzero_start: Vec<usize>,
+    /// The inequality Jacobian's nonzeros by row, gathered once per derivative evaluation:
+    /// most rows are simple bounds with one nonzero, so every product with `J_h` goes over
+    /// these lists.
+    jh_rows: SparseRows,
     /// Scratch: the stage's part of the Lagrangian gradient.
     lagrangian_gradient: DVector<f64>,
     /// The QP's gradient at `mu = 0` (the quality-function oracle's affine step).
@@ -96,6 +97,9 @@ pub struct Solver {
 struct ComplementarityPairs {
     gap: Vec<f64>,
     multiplier: Vec<f64>,
+    /// `1 / gap`, `1 / z`: the steps to the boundary without a division per pair.
+    gap_inverse: Vec<f64>,
+    multiplier_inverse: Vec<f64>,
     gap_affine: Vec<f64>,
     gap_difference: Vec<f64>,
     multiplier_affine: Vec<f64>,
@@ -106,43 +110,42 @@ impl ComplementarityPairs {
     /// Room for `n` pairs (at most two per inequality row): no allocation in the iterations.
     fn with_capacity(n: usize) -> Self {
         let v = || Vec::with_capacity(n);
-        Self { gap: v(), multiplier: v(), gap_affine: v(), gap_difference: v(), multiplier_affine: v(), multiplier_difference: v() }
+        Self { gap: v(), multiplier: v(), gap_inverse: v(), multiplier_inverse: v(), gap_affine: v(), gap_difference: v(), multiplier_affine: v(), multiplier_difference: v() }
     }
 
     /// The largest primal and dual steps in `(0, 1]` that keep `gap` and `z` above `1 - tau`
-    /// of their values (eq. 15) along `d_aff + sigma d_diff`.
+    /// of their values (eq. 15) along `d_aff + sigma d_diff`: `alpha = min(1, tau / max(-d /
+    /// v))` over the pairs.
     fn step_to_boundary(&self, sigma: f64, tau: f64) -> (f64, f64) {
-        let (mut alpha_primal, mut alpha_dual) = (1.0f64, 1.0f64);
-        let gaps = self.gap.iter().zip(&self.gap_affine).zip(&self.gap_difference);
-        for ((gap, affine), difference) in gaps {
-            let d_gap = affine + sigma * difference;
-            if d_gap < 0.0 {
-                alpha_primal = alpha_primal.min(-tau * gap / d_gap);
-            }
-        }
-        let multipliers = self.multiplier.iter().zip(&self.multiplier_affine).zip(&self.multiplier_difference);
-        for ((multiplier, affine), difference) in multipliers {
-            let d_multiplier = affine + sigma * difference;
-            if d_multiplier < 0.0 {
-                alpha_dual = alpha_dual.min(-tau * multiplier / d_multiplier);
-            }
-        }
-        (alpha_primal, alpha_dual)
+        let alpha = |largest_ratio: f64| if largest_ratio > tau { tau / largest_ratio } else { 1.0 };
+        let primal = largest_decrease_ratio(&self.gap_inverse, &self.gap_affine, &self.gap_difference, sigma);
+        let dual = largest_decrease_ratio(&self.multiplier_inverse, &self.multiplier_affine, &self.multiplier_difference, sigma);
+        (alpha(primal), alpha(dual))
     }
 
     /// Mean and mean square of the products `gap z` after the steps `alpha_primal`,
-    /// `alpha_dual` along `d_aff + sigma d_diff`.
+    /// `alpha_dual` along `d_aff + sigma d_diff` (four partial sums: the loop is bound by
+    /// the additions' latency otherwise).
     fn after(&self, sigma: f64, alpha_primal: f64, alpha_dual: f64) -> (f64, f64) {
-        let (mut sum, mut squares) = (0.0, 0.0);
-        let gaps = self.gap.iter().zip(&self.gap_affine).zip(&self.gap_difference);
-        let multipliers = self.multiplier.iter().zip(&self.multiplier_affine).zip(&self.multiplier_difference);
-        for (((gap, gap_affine), gap_difference), ((multiplier, multiplier_affine), multiplier_difference)) in gaps.zip(multipliers) {
-            let c = (gap + alpha_primal * (gap_affine + sigma * gap_difference)) * (multiplier + alpha_dual * (multiplier_affine + sigma * multiplier_difference));
-            sum += c;
-            squares += c * c;
+        const LANES: usize = 4;
+        let (mut sum, mut squares) = ([0.0; LANES], [0.0; LANES]);
+        let n = self.gap.len();
+        let whole = n - n % LANES;
+        let product = |j: usize| (self.gap[j] + alpha_primal * (self.gap_affine[j] + sigma * self.gap_difference[j])) * (self.multiplier[j] + alpha_dual * (self.multiplier_affine[j] + sigma * self.multiplier_difference[j]));
+        for start in (0..whole).step_by(LANES) {
+            for lane in 0..LANES {
+                let c = product(start + lane);
+                sum[lane] += c;
+                squares[lane] += c * c;
+            }
         }
-        let n = self.gap.len().max(1) as f64;
-        (sum / n, squares / n)
+        for j in whole..n {
+            let c = product(j);
+            sum[0] += c;
+            squares[0] += c * c;
+        }
+        let n = n.max(1) as f64;
+        (sum.iter().sum::<f64>() / n, squares.iter().sum::<f64>() / n)
     }
 
     /// The quality function of the step `d_aff + sigma d_diff` (Nocedal, Wächter & Waltz
@@ -153,6 +156,31 @@ impl ComplementarityPairs {
         let (_, complementarity_mean_square) = self.after(sigma, alpha_primal, alpha_dual);
         (1.0 - alpha_dual).powi(2) * errors.dual_mean_square + (1.0 - alpha_primal).powi(2) * errors.primal_mean_square + complementarity_mean_square
     }
+}
+
+/// `max(0, max_j -(affine_j + sigma difference_j) inverse_j)`: the largest relative decrease
+/// of a positive quantity (`inverse = 1 / value`) along the step, in four lanes.
+fn largest_decrease_ratio(inverse: &[f64], affine: &[f64], difference: &[f64], sigma: f64) -> f64 {
+    const LANES: usize = 4;
+    let mut largest = [0.0f64; LANES];
+    let (inverse, affine, difference) = (&inverse[..affine.len()], affine, &difference[..affine.len()]);
+    let whole = affine.len() - affine.len() % LANES;
+    for start in (0..whole).step_by(LANES) {
+        for lane in 0..LANES {
+            let j = start + lane;
+            let r = -(affine[j] + sigma * difference[j]) * inverse[j];
+            if r > largest[lane] {
+                largest[lane] = r;
+            }
+        }
+    }
+    for j in whole..affine.len() {
+        let r = -(affine[j] + sigma * difference[j]) * inverse[j];
+        if r > largest[0] {
+            largest[0] = r;
+        }
+    }
+    largest.iter().fold(0.0, |m, &r| if r > m { r } else { m })
 }
 
 /// The residual of one stage's rows of the KKT system at a step (see [`Solver::refine_step`]).
@@ -243,8 +271,7 @@ impl Solver {
                 trial_primal: DVector::zeros(d.nz()),
                 trial_slack: DVector::zeros(d.nh),
                 lin: DVector::zeros(d.nh),
-                nonzeros: vec![0; d.nh * d.nz()],
-                nonzero_start: vec![0; d.nh + 1],
+                jh_rows: SparseRows::new(d.nh, d.nz()),
                 lagrangian_gradient: DVector::zeros(d.nz()),
                 gradient_affine: DVector::zeros(d.nz()),
             })
@@ -603,18 +630,28 @@ impl Solver {
         let t = Instant::now();
         for (k, b) in self.buffers.iter_mut().enumerate() {
             problem.stage(k).jacobians(it.primal[k].as_slice(), &mut b.jac);
+            b.jh_rows.gather(&b.jac.inequalities);
         }
         timings.evaluation += t.elapsed();
         let t = Instant::now();
         for (k, b) in self.buffers.iter_mut().enumerate() {
-            let jh = &b.jac.inequalities;
             let nz = b.hess.nrows();
             self.qps[k].hessian.fill(0.0);
             self.qps[k].hessian.fill_diagonal(1.0);
-            self.qps[k].hessian.gemm_tr(1.0, jh, jh, 1.0);
-            let c = &it.upper_bound_multiplier[k] - &it.lower_bound_multiplier[k];
-            self.qps[k].gradient.copy_from(&b.jac.cost_gradient);
-            self.qps[k].gradient.gemv_tr(1.0, jh, &c, 1.0);
+            // I + J_h^T J_h and J_h^T (z_u - z_l) over the rows' nonzeros.
+            let qp = &mut self.qps[k];
+            qp.gradient.copy_from(&b.jac.cost_gradient);
+            let (hessian, gradient) = (qp.hessian.as_mut_slice(), qp.gradient.as_mut_slice());
+            for i in 0..b.ds.len() {
+                let (columns, values) = b.jh_rows.row(i);
+                let c = it.upper_bound_multiplier[k][i] - it.lower_bound_multiplier[k][i];
+                for (&a, &ja) in columns.iter().zip(values) {
+                    gradient[a] += ja * c;
+                    for (&r, &jr) in columns.iter().zip(values) {
+                        hessian[a * nz + r] += ja * jr;
+                    }
+                }
+            }
             self.qps[k].dynamics.copy_from(&b.jac.dynamics);
             self.qps[k].defect.fill(0.0);
             self.qps[k].equality_jacobian.copy_from(&b.jac.equalities);
@@ -628,10 +665,12 @@ impl Solver {
         }
         let mut largest: f64 = 0.0;
         for (k, b) in self.buffers.iter().enumerate() {
-            let c = &it.upper_bound_multiplier[k] - &it.lower_bound_multiplier[k];
-            let y = &b.jac.inequalities * &self.steps[k].dz + c;
+            // y = J_h dz + z_u - z_l
+            let y = &mut it.inequality_multiplier[k];
+            y.copy_from(&it.upper_bound_multiplier[k]);
+            *y -= &it.lower_bound_multiplier[k];
+            b.jh_rows.add_times(self.steps[k].dz.as_slice(), y.as_mut_slice());
             largest = largest.max(y.amax()).max(self.steps[k].dynamics_multiplier.amax()).max(self.steps[k].equality_multiplier.amax());
-            it.inequality_multiplier[k] = y;
             it.dynamics_multiplier[k].copy_from(&self.steps[k].dynamics_multiplier);
             it.equality_multiplier[k].copy_from(&self.steps[k].equality_multiplier);
         }
@@ -669,6 +708,7 @@ impl Solver {
                 inequalities: it.inequality_multiplier[k].as_slice(),
             };
             stage.lagrangian_hessian(z, m, &mut b.hess);
+            b.jh_rows.gather(&b.jac.inequalities);
         });
     }
 
@@ -701,7 +741,7 @@ impl Solver {
             g.copy_from(&b.jac.cost_gradient);
             g.gemv_tr(1.0, &b.jac.dynamics, &it.dynamics_multiplier[k], 1.0);
             g.gemv_tr(1.0, &b.jac.equalities, &it.equality_multiplier[k], 1.0);
-            g.gemv_tr(1.0, &b.jac.inequalities, &it.inequality_multiplier[k], 1.0);
+            b.jh_rows.add_transpose_times(it.inequality_multiplier[k].as_slice(), g.as_mut_slice());
             if k > 0 {
                 for i in 0..d.nx {
                     g[i] -= it.dynamics_multiplier[k - 1][i];
@@ -821,21 +861,19 @@ impl Solver {
                 b.lin[i] = sigma * b.ineq_residual[i] + c;
             }
             // J_h^T Sigma J_h and J_h^T lin row by row over each row's nonzeros (most rows
-            // are simple bounds with one).
-            let jh = &b.jac.inequalities;
+            // are simple bounds with one; gathered by `evaluate_derivatives`).
             let qp = &mut self.qps[k];
-            if matrices {
-                row_nonzeros(jh, &mut b.nonzero_start, &mut b.nonzeros);
-            }
+            let nz = d.nz();
+            let (gradient, hessian) = (qp.gradient.as_mut_slice(), qp.hessian.as_mut_slice());
             for i in 0..d.nh {
                 let (sigma, lin) = (b.sigma[i], b.lin[i]);
-                let row = &b.nonzeros[b.nonzero_start[i]..b.nonzero_start[i + 1]];
-                for &a in row {
-                    let ja = jh[(i, a)];
-                    qp.gradient[a] += ja * lin;
+                let (columns, values) = b.jh_rows.row(i);
+                for (&a, &ja) in columns.iter().zip(values) {
+                    gradient[a] += ja * lin;
                     if sigma != 0.0 && matrices {
-                        for &c in row {
-                            qp.hessian[(c, a)] += sigma * ja * jh[(i, c)];
+                        let hessian_column = &mut hessian[a * nz..(a + 1) * nz];
+                        for (&c, &jc) in columns.iter().zip(values) {
+                            hessian_column[c] += sigma * ja * jc;
                         }
                     }
                 }
@@ -853,7 +891,7 @@ impl Solver {
             let (lo, up) = problem.bounds(k);
             let nh = b.ds.len();
             b.ds.copy_from(&b.ineq_residual);
-            b.ds.gemv(1.0, &b.jac.inequalities, &self.steps[k].dz, 1.0);
+            b.jh_rows.add_times(self.steps[k].dz.as_slice(), b.ds.as_mut_slice());
             for i in 0..nh {
                 let s = it.slack[k][i];
                 let ds = b.ds[i];
@@ -940,11 +978,17 @@ impl Solver {
                 let quality = |log_sigma: f64| pairs.quality(log_sigma.exp(), tau, errors);
                 // The side of sigma = 1 on which the quality decreases, then golden section
                 // on `log sigma` there (sec. 4), keeping the best sigma met.
-                let (mut lo, mut hi) = if quality(0.99f64.ln()) < quality(0.0) { (sigma_min.ln(), 0.0) } else { (0.0, sigma_max.ln()) };
+                // (The quality at sigma = 1 is one end of the interval: evaluated once.)
+                let quality_at_one = quality(0.0);
+                let ((mut lo, mut hi), (q_lo, q_hi)) = if quality(0.99f64.ln()) < quality_at_one {
+                    ((sigma_min.ln(), 0.0), (quality(sigma_min.ln()), quality_at_one))
+                } else {
+                    ((0.0, sigma_max.ln()), (quality_at_one, quality(sigma_max.ln())))
+                };
                 let golden = 0.5 * (5f64.sqrt() - 1.0);
                 let (mut a, mut b) = (hi - golden * (hi - lo), lo + golden * (hi - lo));
                 let (mut qa, mut qb) = (quality(a), quality(b));
-                let mut best = [(lo, quality(lo)), (hi, quality(hi)), (a, qa), (b, qb)].into_iter().fold((0.0, f64::INFINITY), |m, p| if p.1 < m.1 { p } else { m });
+                let mut best = [(lo, q_lo), (hi, q_hi), (a, qa), (b, qb)].into_iter().fold((0.0, f64::INFINITY), |m, p| if p.1 < m.1 { p } else { m });
                 for _ in 0..QUALITY_SECTION_STEPS {
                     if qa <= qb {
                         (hi, b, qb) = (b, a, qa);
@@ -983,7 +1027,7 @@ impl Solver {
     fn collect_pairs(&mut self, problem: &Problem, it: &Iterate, centering: bool) {
         let p = &mut self.pairs;
         if !centering {
-            for v in [&mut p.gap, &mut p.multiplier, &mut p.gap_affine, &mut p.gap_difference, &mut p.multiplier_affine, &mut p.multiplier_difference] {
+            for v in [&mut p.gap, &mut p.multiplier, &mut p.gap_inverse, &mut p.multiplier_inverse, &mut p.gap_affine, &mut p.gap_difference, &mut p.multiplier_affine, &mut p.multiplier_difference] {
                 v.clear();
             }
         }
@@ -1002,6 +1046,8 @@ impl Solver {
                     } else {
                         p.gap.push(gap);
                         p.multiplier.push(z);
+                        p.gap_inverse.push(1.0 / gap);
+                        p.multiplier_inverse.push(1.0 / z);
                         p.gap_affine.push(d_gap);
                         p.multiplier_affine.push(d_z);
                         p.gap_difference.push(0.0);
@@ -1322,37 +1368,63 @@ fn acceptance(filter: &Filter, s: &Settings, theta: f64, phi: f64, dphi: f64, al
     None
 }
 
-/// The nonzero columns of every row of `jac`, by row, in increasing column order (the
-/// storage is column-major: one pass counts, one fills, both down contiguous columns).
-fn row_nonzeros(jac: &DMatrix<f64>, start: &mut [usize], columns: &mut [usize]) {
-    let rows = jac.nrows();
-    start.fill(0);
-    if rows == 0 {
-        return;
+/// The nonzeros of a matrix by row (row `i`'s columns, increasing, and values in slots
+/// `i * cols ..`), gathered in one pass down its contiguous columns.
+struct SparseRows {
+    cols: usize,
+    count: Vec<usize>,
+    columns: Vec<usize>,
+    values: Vec<f64>,
+}
+
+impl SparseRows {
+    fn new(rows: usize, cols: usize) -> Self {
+        Self { cols, count: vec![0; rows], columns: vec![0; rows * cols], values: vec![0.0; rows * cols] }
     }
-    for column in jac.as_slice().chunks_exact(rows) {
-        for (count, v) in start[1..].iter_mut().zip(column) {
-            if *v != 0.0 {
-                *count += 1;
+
+    fn gather(&mut self, a: &DMatrix<f64>) {
+        let (rows, cols) = (a.nrows(), self.cols);
+        self.count.fill(0);
+        if rows == 0 {
+            return;
+        }
+        for (j, column) in a.as_slice().chunks_exact(rows).enumerate() {
+            for (i, &v) in column.iter().enumerate() {
+                if v != 0.0 {
+                    let slot = i * cols + self.count[i];
+                    self.columns[slot] = j;
+                    self.values[slot] = v;
+                    self.count[i] += 1;
+                }
             }
         }
     }
-    for i in 0..rows {
-        start[i + 1] += start[i];
+
+    /// Columns and values of row `i`'s nonzeros.
+    fn row(&self, i: usize) -> (&[usize], &[f64]) {
+        let range = i * self.cols..i * self.cols + self.count[i];
+        (&self.columns[range.clone()], &self.values[range])
     }
-    // The fill moves `start[i]` to the end of row i; shifted back below.
-    for (j, column) in jac.as_slice().chunks_exact(rows).enumerate() {
-        for (next, v) in start[..rows].iter_mut().zip(column) {
-            if *v != 0.0 {
-                columns[*next] = j;
-                *next += 1;
+
+    /// `out += A x`.
+    fn add_times(&self, x: &[f64], out: &mut [f64]) {
+        for (i, o) in out.iter_mut().enumerate() {
+            let (columns, values) = self.row(i);
+            for (&a, &v) in columns.iter().zip(values) {
+                *o += v * x[a];
             }
         }
     }
-    for i in (0..rows).rev() {
-        start[i + 1] = start[i];
+
+    /// `out += A^T y`.
+    fn add_transpose_times(&self, y: &[f64], out: &mut [f64]) {
+        for (i, &yi) in y.iter().enumerate() {
+            let (columns, values) = self.row(i);
+            for (&a, &v) in columns.iter().zip(values) {
+                out[a] += v * yi;
+            }
+        }
     }
-    start[0] = 0;
 }
 
 /// The average and the smallest complementarity product `(s - l) z_l`, `(u - s) z_u` over all
