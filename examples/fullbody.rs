@@ -7,7 +7,8 @@
 //!     [--pre-landing 10] [--parallel] [--max-iterations 300] [--verbose] [--limits]
 //!     [--no-restoration] [--plain-guess] [--reference-targets] [--w-acceleration W]
 //!     [--max-acceleration A] [--w-velocity W] [--max-stance-speed V] [--out DIR]
-//!     [--barrier RULE] [--ct-barrier RULE] [jump ...]
+//!     [--barrier RULE] [--ct-barrier RULE] [--ballistic off|angular|full]
+//!     [--w-flight-momentum W] [--stance-balance] [jump ...]
 //! ```
 //!
 //! `--w-acceleration`, `--max-acceleration`, `--w-velocity` override the settings' joint
@@ -51,6 +52,9 @@ fn main() -> anyhow::Result<()> {
     let mut max_stance_speed = None;
     let mut barrier_update = None;
     let mut ct_barrier_update = None;
+    let mut ballistic_flight = None;
+    let mut w_flight_momentum = None;
+    let mut stance_balance = false;
     while let Some(a) = args.next() {
         match a.as_str() {
             "--repeats" => repeats = args.next().ok_or_else(|| anyhow::anyhow!("--repeats: a number"))?.parse()?,
@@ -70,6 +74,9 @@ fn main() -> anyhow::Result<()> {
             "--max-stance-speed" => max_stance_speed = Some(args.next().ok_or_else(|| anyhow::anyhow!("--max-stance-speed: m/s"))?.parse::<f64>()?),
             "--out" => out_dir = Some(args.next().ok_or_else(|| anyhow::anyhow!("--out: a directory"))?),
             "--box-rows" => box_rows = true,
+            "--stance-balance" => stance_balance = true,
+            "--ballistic" => ballistic_flight = Some(args.next().ok_or_else(|| anyhow::anyhow!("--ballistic: off, angular or full"))?.parse().map_err(anyhow::Error::msg)?),
+            "--w-flight-momentum" => w_flight_momentum = Some(args.next().ok_or_else(|| anyhow::anyhow!("--w-flight-momentum: a weight"))?.parse::<f64>()?),
             "--lift-off-force" => lift_off_force = args.next().ok_or_else(|| anyhow::anyhow!("--lift-off-force: N"))?.parse()?,
             "--barrier" => barrier_update = Some(args.next().ok_or_else(|| anyhow::anyhow!("--barrier: a rule"))?.parse().map_err(anyhow::Error::msg)?),
             "--ct-barrier" => ct_barrier_update = Some(args.next().ok_or_else(|| anyhow::anyhow!("--ct-barrier: a rule"))?.parse().map_err(anyhow::Error::msg)?),
@@ -97,6 +104,9 @@ fn main() -> anyhow::Result<()> {
         constraint_curvature_after: curvature,
         airborne_foot_margin: foot_margin,
         lift_off_normal_force: lift_off_force,
+        ballistic_flight: ballistic_flight.unwrap_or(defaults.ballistic_flight),
+        w_flight_momentum: w_flight_momentum.unwrap_or(defaults.w_flight_momentum),
+        momentum_balance_in_stance: stance_balance || defaults.momentum_balance_in_stance,
         ..defaults
     };
     // The files' jumps under the reference script's names.
