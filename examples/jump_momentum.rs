@@ -7,6 +7,7 @@
 //! ```
 //!
 //! `--jump NAME` runs on the embedded jump's terrain (its box); flat ground otherwise.
+//! `--lift-off-lead S`: the controllers' constant lift-off lead (`JumpSettings::lift_off_lead`).
 //!
 //! First line: the plan's flight drift, the centroidal angular momentum of every flight knot
 //! (no foot in contact) against the first one's: in flight only gravity acts, so physics
@@ -24,12 +25,13 @@ mod common;
 fn main() -> anyhow::Result<()> {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     let terrain = common::jump_terrain(&mut args)?;
+    let lift_off_lead: Option<f64> = common::take(&mut args, "--lift-off-lead")?.map(|s| s.parse()).transpose().context("--lift-off-lead: a time (s)")?;
     let plan = Trajectory::load_file(args.first().context("usage: jump_momentum PLAN.json [FROM TO]")?)?;
     let from: f64 = args.get(1).map(|s| s.parse()).transpose()?.unwrap_or(0.0);
     let to: f64 = args.get(2).map(|s| s.parse()).transpose()?.unwrap_or(f64::INFINITY);
     let model = embedded::load("a1")?;
     print_flight_drift(&model, &plan);
-    let run = run_jump(&model, terrain.as_ref(), &plan, &JumpSettings::default())?;
+    let run = run_jump(&model, terrain.as_ref(), &plan, &JumpSettings { lift_off_lead, ..JumpSettings::default() })?;
     println!("run: lift-off {:?} touch-down {:?} fell {}", run.lift_off, run.touch_down, run.fell);
     let mut data = Data::new(&model);
     let mut describe = |k: &legwork::io::Knot| {

@@ -715,7 +715,7 @@ impl Stage for FullBodyStage {
                             ws.momentum_jac[(3 + a, i + b)] -= s.dt * arm_x[(a, b)];
                         }
                     }
-                    // ws.row: (J_f Jd - J_c Jd) column by column.
+                    // d (p_f - c) / d dq = (J_f - J_c) Jd (ws.com_jac has its Jd), column by column.
                     for c in 0..nv {
                         let d_arm: Vector3<f64> = (0..nv).map(|m| ws.feet_jac[f].column(m) * ws.jd[(m, c)]).sum::<Vector3<f64>>() - ws.com_jac.column(c);
                         let d_ang = -(l_x * d_arm) * s.dt;

@@ -12,7 +12,7 @@ use super::spec::{Jump, StanceConflict};
 use super::trials::{run_trials, SuccessCriteria, TrialSettings, TrialsReport};
 use crate::control::whole_body::{leg_chains, legs_inverse_kinematics};
 use crate::dynamics::Data;
-use crate::fullbody::{initial_guess_clear_of, BallisticFlight, BoxObstacle, FullBodyPlan, FullBodyProblem, FullBodySettings};
+use crate::fullbody::{initial_guess_clear_of, BoxObstacle, FullBodyPlan, FullBodyProblem, FullBodySettings};
 use crate::io::{Knot, Trajectory};
 use crate::ipocp::{Settings as SolverSettings, Status};
 use crate::model::Model;
@@ -155,7 +155,6 @@ impl PipelineOptions {
                     constraint_curvature_after: Some(FULL_BODY_GAUSS_NEWTON_ITERATIONS),
                     airborne_foot_margin: defaults.clearance,
                     lift_off_normal_force: jump.full_body.lift_off_normal_force.unwrap_or(defaults.lift_off_normal_force),
-                    ballistic_flight: BallisticFlight::Angular,
                     ..defaults
                 }
             },
