@@ -9,7 +9,7 @@
 //!     [--max-acceleration A] [--w-velocity W] [--max-stance-speed V] [--out DIR]
 //!     [--barrier RULE] [--ct-barrier RULE] [--curvature-after N] [--curvature-violation V]
 //!     [--curvature-by-jacobians] [--id-torques] [--foot-margin M] [--lift-off-force F]
-//!     [jump ...]
+//!     [--ballistic off|angular|full] [--w-flight-momentum W] [--stance-balance] [jump ...]
 //! ```
 //!
 //! The pipeline's settings (`legwork jump`, `legwork bench jumps`) are `--curvature-after 100
@@ -64,6 +64,9 @@ fn main() -> anyhow::Result<()> {
     let mut max_stance_speed = None;
     let mut barrier_update = None;
     let mut ct_barrier_update = None;
+    let mut ballistic_flight = None;
+    let mut w_flight_momentum = None;
+    let mut stance_balance = false;
     while let Some(a) = args.next() {
         match a.as_str() {
             "--repeats" => repeats = args.next().ok_or_else(|| anyhow::anyhow!("--repeats: a number"))?.parse()?,
@@ -83,6 +86,9 @@ fn main() -> anyhow::Result<()> {
             "--max-stance-speed" => max_stance_speed = Some(args.next().ok_or_else(|| anyhow::anyhow!("--max-stance-speed: m/s"))?.parse::<f64>()?),
             "--out" => out_dir = Some(args.next().ok_or_else(|| anyhow::anyhow!("--out: a directory"))?),
             "--box-rows" => box_rows = true,
+            "--stance-balance" => stance_balance = true,
+            "--ballistic" => ballistic_flight = Some(args.next().ok_or_else(|| anyhow::anyhow!("--ballistic: off, angular or full"))?.parse().map_err(anyhow::Error::msg)?),
+            "--w-flight-momentum" => w_flight_momentum = Some(args.next().ok_or_else(|| anyhow::anyhow!("--w-flight-momentum: a weight"))?.parse::<f64>()?),
             "--lift-off-force" => lift_off_force = args.next().ok_or_else(|| anyhow::anyhow!("--lift-off-force: N"))?.parse()?,
             "--barrier" => barrier_update = Some(args.next().ok_or_else(|| anyhow::anyhow!("--barrier: a rule"))?.parse().map_err(anyhow::Error::msg)?),
             "--ct-barrier" => ct_barrier_update = Some(args.next().ok_or_else(|| anyhow::anyhow!("--ct-barrier: a rule"))?.parse().map_err(anyhow::Error::msg)?),
@@ -115,6 +121,9 @@ fn main() -> anyhow::Result<()> {
         start_torques_by_inverse_dynamics: id_torques,
         airborne_foot_margin: foot_margin,
         lift_off_normal_force: lift_off_force,
+        ballistic_flight: ballistic_flight.unwrap_or(defaults.ballistic_flight),
+        w_flight_momentum: w_flight_momentum.unwrap_or(defaults.w_flight_momentum),
+        momentum_balance_in_stance: stance_balance || defaults.momentum_balance_in_stance,
         ..defaults
     };
     // The files' jumps under the reference script's names.

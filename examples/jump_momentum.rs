@@ -7,6 +7,11 @@
 //! ```
 //!
 //! `--jump NAME` runs on the embedded jump's terrain (its box); flat ground otherwise.
+//! `--lift-off-lead S`: the controllers' constant lift-off lead (`JumpSettings::lift_off_lead`).
+//!
+//! First line: the plan's flight drift, the centroidal angular momentum of every flight knot
+//! (no foot in contact) against the first one's: in flight only gravity acts, so physics
+//! keeps it constant.
 
 use anyhow::Context;
 use legwork::dynamics::{base_orientation, centroidal_momentum, Data};
@@ -20,11 +25,13 @@ mod common;
 fn main() -> anyhow::Result<()> {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     let terrain = common::jump_terrain(&mut args)?;
+    let lift_off_lead: Option<f64> = common::take(&mut args, "--lift-off-lead")?.map(|s| s.parse()).transpose().context("--lift-off-lead: a time (s)")?;
     let plan = Trajectory::load_file(args.first().context("usage: jump_momentum PLAN.json [FROM TO]")?)?;
     let from: f64 = args.get(1).map(|s| s.parse()).transpose()?.unwrap_or(0.0);
     let to: f64 = args.get(2).map(|s| s.parse()).transpose()?.unwrap_or(f64::INFINITY);
     let model = embedded::load("a1")?;
-    let run = run_jump(&model, terrain.as_ref(), &plan, &JumpSettings::default())?;
+    print_flight_drift(&model, &plan);
+    let run = run_jump(&model, terrain.as_ref(), &plan, &JumpSettings { lift_off_lead, ..JumpSettings::default() })?;
     println!("run: lift-off {:?} touch-down {:?} fell {}", run.lift_off, run.touch_down, run.fell);
     let mut data = Data::new(&model);
     let mut describe = |k: &legwork::io::Knot| {
@@ -44,4 +51,28 @@ fn main() -> anyhow::Result<()> {
         println!("{:.3} | {} | {}", k.t, describe(k), describe(r));
     }
     Ok(())
+}
+
+/// The plan's angular momentum over its flight (knots with no foot in contact): first, last,
+/// and the largest deviation from the first, absolute and relative to its norm.
+fn print_flight_drift(model: &legwork::model::Model, plan: &Trajectory) {
+    let mut data = Data::new(model);
+    let flight: Vec<_> = plan
+        .knots
+        .iter()
+        .filter(|k| k.in_contact.iter().all(|&c| !c))
+        .map(|k| {
+            let h = centroidal_momentum(model, &mut data, &DVector::from_column_slice(&k.q), &DVector::from_column_slice(&k.v));
+            (k.t, h.n)
+        })
+        .collect();
+    let (Some(first), Some(last)) = (flight.first(), flight.last()) else {
+        println!("plan flight drift: no flight knot");
+        return;
+    };
+    let (t_worst, worst) = flight.iter().map(|(t, n)| (*t, (n - first.1).norm())).fold((first.0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+    println!(
+        "plan flight drift: {} knots {:.3}-{:.3} s, L first {:.3} {:.3} {:.3}, last {:.3} {:.3} {:.3} N m s, max |L - L_first| {:.3} N m s ({:.1} %) at {:.3} s",
+        flight.len(), first.0, last.0, first.1.x, first.1.y, first.1.z, last.1.x, last.1.y, last.1.z, worst, 100.0 * worst / first.1.norm().max(1e-12), t_worst
+    );
 }

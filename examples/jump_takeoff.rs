@@ -11,7 +11,8 @@
 //! robot's normal contact stiffness and damping by `S` and runs the physics at 0.25 ms, to
 //! see how much of a take-off depends on how far the loaded feet sink.
 //!
-//! `--feet` adds each foot's position.
+//! `--feet` adds each foot's position. `--lift-off-lead S`: the controllers' constant lift-off
+//! lead (`JumpSettings::lift_off_lead`).
 //!
 //! `--every S` prints every `S` seconds (default 0.01; the legwork run is recorded at 1 ms,
 //! the plan is interpolated between its knots). The CoM is what a take-off decides: its
@@ -62,11 +63,12 @@ fn main() -> anyhow::Result<()> {
     let other = take(&mut args, "--other")?.map(Trajectory::load_file).transpose()?;
     // Every flag is taken before the positional arguments are read.
     let stiffness_scale: Option<f64> = take(&mut args, "--stiffness-scale")?.map(|s| s.parse()).transpose()?;
+    let lift_off_lead: Option<f64> = take(&mut args, "--lift-off-lead")?.map(|s| s.parse()).transpose()?;
     let plan = Trajectory::load_file(args.first().context("usage: jump_takeoff PLAN.json [FROM TO]")?)?;
     let from: f64 = args.get(1).map(|s| s.parse()).transpose()?.unwrap_or(0.0);
     let to: f64 = args.get(2).map(|s| s.parse()).transpose()?.unwrap_or(plan.duration());
     let mut model = embedded::load("a1")?;
-    let mut settings = JumpSettings { record_dt: 0.001, ..JumpSettings::default() };
+    let mut settings = JumpSettings { record_dt: 0.001, lift_off_lead, ..JumpSettings::default() };
     if let Some(scale) = stiffness_scale {
         model.contact.normal_stiffness *= scale;
         model.contact.normal_damping *= scale;

@@ -197,6 +197,36 @@ fn joint_acceleration_cost_and_bound_derivatives_match_finite_differences() {
     }
 }
 
+/// The ballistic flight's momentum balance (off by default): six rows on the flight knots
+/// before the pre-landing window (with `Full`; with the stance balance also on the pushing
+/// knots), none in the window; derivatives against central differences, the penalty's
+/// Gauss-Newton term in the Hessian.
+#[test]
+fn ballistic_flight_rows_and_penalty_derivatives_match_finite_differences() {
+    use legwork::fullbody::BallisticFlight;
+    let model = embedded::load("a1").unwrap();
+    let srb = srb_solution("lateral30").resample(0.01).unwrap();
+    let plain = FullBodySettings::default();
+    let settings = FullBodySettings { ballistic_flight: BallisticFlight::Full, momentum_balance_in_stance: true, w_flight_momentum: 10.0, ..plain.clone() };
+    let guess = initial_guess(&model, &srb, settings.pre_landing_knots).unwrap();
+    let fb = FullBodyProblem::new(&model, &srb, &guess, &settings, None).unwrap();
+    let fb_plain = FullBodyProblem::new(&model, &srb, &guess, &plain, None).unwrap();
+    let mut rng = Lcg(13);
+    let n = fb.problem.len();
+    let a = plain.pre_landing_knots;
+    let lift_off = fb.anchors().iter().rposition(|a| a[0].is_some()).unwrap();
+    for (k, rows) in [(1, 6), (lift_off - 1, 6), (lift_off, 6), (lift_off + 2, 6), (n - 2 - a, 6), (n - 1 - a, 0), (n - 2, 0), (n - 1, 0)] {
+        let stage = fb.problem.stage(k);
+        assert_eq!(stage.dims().ng, fb_plain.problem.stage(k).dims().ng + rows, "knot {k}");
+        check_stage(stage, &fb.start[k], &mut rng);
+    }
+    // Angular rows only: three.
+    let angular = FullBodySettings { ballistic_flight: BallisticFlight::Angular, ..plain.clone() };
+    let fb_angular = FullBodyProblem::new(&model, &srb, &guess, &angular, None).unwrap();
+    assert_eq!(fb_angular.problem.stage(lift_off + 2).dims().ng, fb_plain.problem.stage(lift_off + 2).dims().ng + 3);
+    assert_eq!(fb_angular.problem.stage(lift_off - 1).dims().ng, fb_plain.problem.stage(lift_off - 1).dims().ng);
+}
+
 /// With the constraint curvature on and the cost weight 0, the Hessian is `sum m_i Hess c_i`:
 /// against central differences of `J_c(z)^T m` over every column (the stage differences only
 /// the state columns, the control-control block taken as zero).

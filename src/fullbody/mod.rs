@@ -13,6 +13,7 @@
 mod initial_guess;
 pub mod kinematics;
 mod limits;
+mod momentum;
 mod problem;
 mod settings;
 mod stage;
@@ -20,7 +21,7 @@ mod stage;
 pub use initial_guess::{initial_guess, initial_guess_clear_of, pre_landing_configuration, BOX_MARGIN, IK_TOLERANCE, NOMINAL_POSE};
 pub use limits::{check_limits, LimitReport, LimitRow, STANCE_DRIFT};
 pub use problem::{FullBodyPlan, FullBodyProblem, SolveReport};
-pub use settings::{BoxObstacle, FullBodySettings};
+pub use settings::{BallisticFlight, BoxObstacle, FullBodySettings};
 pub use stage::ConstraintKind;
 
 /// What is wrong with a full-body problem's inputs.

@@ -101,6 +101,25 @@ pub struct FullBodySettings {
     /// Bound on every joint acceleration `|qdd_j|` of every interval (rad/s^2; infinite =
     /// no rows): the same error bounded as a constraint.
     pub max_joint_acceleration: f64,
+    /// Ballistic flight: over every flight interval with free joints (no foot pushing, before
+    /// the pre-landing window), the centroidal momentum as equalities
+    /// `h_G(x_{k+1}) = h_G(x_k) + dt [m g; 0]` (Nguyen 2022, sec. II-C: only gravity acts in
+    /// flight), its angular rows or all six. Why: the semi-implicit step does not conserve
+    /// `h_G` (double_barrel_roll's plan gained 8-30 % roll momentum in the air,
+    /// docs/experiments/jump-flip.md, jump-flip-2.md), so the plan's rotation is not what the
+    /// joints' motion gives under physics. The pre-landing window has no rows: its joints are
+    /// held, the step has no freedom left to meet them. Default off.
+    pub ballistic_flight: BallisticFlight,
+    /// Weight of `|h_G(x_{k+1}) - h_G(x_k) - dt [m g; 0]|^2` over the same intervals (a
+    /// penalty instead of equalities; 0 = off, the default).
+    pub w_flight_momentum: f64,
+    /// The same balance over every stance interval, with the stance feet's impulse
+    /// `dt [sum lambda; sum (p_f(q_k) - c(q_k)) x lambda]` (the step applies the forces at
+    /// `q_k`): the last push before lift-off decides the flight's momentum, and the
+    /// semi-implicit step's defect there is as large as in flight (double_barrel_roll: the
+    /// run leaves 10 % short of the plan with its push tracked to 0.5 % up to the last
+    /// interval). Only with `ballistic_flight` on (its rows). Default off.
+    pub momentum_balance_in_stance: bool,
     /// `Some(n)`: after `n` Gauss-Newton iterations without convergence, at the first
     /// iterate whose constraint violation is at most 1, continue from that
     /// iterate (primal and duals, warm) with the dynamics' and constraints' curvature
@@ -125,6 +144,39 @@ pub struct FullBodySettings {
     pub solver: Settings,
 }
 
+/// Which rows of the flight's centroidal momentum balance are equalities
+/// ([`FullBodySettings::ballistic_flight`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BallisticFlight {
+    Off,
+    /// The angular momentum about the CoM (3 rows).
+    Angular,
+    /// Linear and angular (6 rows).
+    Full,
+}
+
+impl BallisticFlight {
+    pub fn rows(self) -> usize {
+        match self {
+            Self::Off => 0,
+            Self::Angular => 3,
+            Self::Full => 6,
+        }
+    }
+}
+
+impl std::str::FromStr for BallisticFlight {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "off" => Ok(Self::Off),
+            "angular" => Ok(Self::Angular),
+            "full" => Ok(Self::Full),
+            _ => Err(format!("ballistic flight: expected off, angular or full, got `{s}`")),
+        }
+    }
+}
+
 impl Default for FullBodySettings {
     fn default() -> Self {
         Self {
@@ -147,6 +199,9 @@ impl Default for FullBodySettings {
             w_force: 1e-4,
             w_acceleration: 0.0,
             max_joint_acceleration: f64::INFINITY,
+            ballistic_flight: BallisticFlight::Off,
+            w_flight_momentum: 0.0,
+            momentum_balance_in_stance: false,
             constraint_curvature_after: None,
             curvature_max_violation: 1.0,
             start_torques_by_inverse_dynamics: false,

@@ -31,13 +31,15 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::kinematics::{add_point_force_derivative, foot_position, knee_position, point_jacobian, Leg};
-use super::settings::{BoxObstacle, FullBodySettings};
+use super::momentum::{centroidal_momentum_derivatives, MomentumWorkspace};
+use super::settings::{BallisticFlight, BoxObstacle, FullBodySettings};
 use crate::dynamics::{
     aba, center_of_mass, com_jacobian, compute_aba_derivatives, compute_joint_jacobians, difference, integrate,
     integrate_jacobians, Data,
 };
 use crate::ipocp::{Stage, StageDims, StageJacobians, StageMultipliers, StageValues};
 use crate::model::Model;
+use crate::spatial::skew;
 use nalgebra::{DMatrix, DVector, DVectorView, Matrix3, Matrix3xX, Vector3};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -153,6 +155,11 @@ struct Workspace {
     /// at: the Gauss-Newton term of the acceleration cost reuses the Jacobian pass's.
     acceleration_jac: DMatrix<f64>,
     acceleration_z: DVector<f64>,
+    /// The centroidal momentum of the ballistic flight rows, their residual
+    /// `h_G(x_{k+1}) - h_G(x_k) - dt [m g; 0]` and its Jacobian (at `acceleration_z`).
+    momentum: MomentumWorkspace,
+    momentum_residual: nalgebra::Vector6<f64>,
+    momentum_jac: DMatrix<f64>,
 }
 
 pub(crate) struct FullBodyStage {
@@ -194,7 +201,8 @@ impl FullBodyStage {
         let ng = if spec.initial { 2 * nv } else { 3 * spec.pinned.iter().filter(|p| p.is_some()).count() }
             + if spec.pre_landing { nv - 6 } else { 0 }
             + if spec.pre_landing_first { nv - 6 } else { 0 }
-            + if spec.is_final { 6 } else { 0 };
+            + if spec.is_final { 6 } else { 0 }
+            + if Self::has_momentum_rows(&shared, &spec) { shared.settings.ballistic_flight.rows() } else { 0 };
         let nh = Self::kinds_of(&shared, &spec).len();
         let model = &shared.model;
         let ws = Workspace {
@@ -225,6 +233,9 @@ impl FullBodyStage {
             row: DVector::zeros(nv),
             acceleration_jac: DMatrix::zeros(nv - 6, 2 * nv + nu),
             acceleration_z: DVector::from_element(2 * nv + nu, f64::NAN),
+            momentum: MomentumWorkspace::new(model),
+            momentum_residual: nalgebra::Vector6::zeros(),
+            momentum_jac: DMatrix::zeros(6, 2 * nv + nu),
         };
         Self { dims: StageDims { nx: 2 * nv, nu, nx_next, ng, nh }, shared, spec, ws: Mutex::new(ws), fd: Mutex::new(None), gradient_fd: Mutex::new(None) }
     }
@@ -253,6 +264,21 @@ impl FullBodyStage {
             k.extend(std::iter::repeat_n(BoxClearance, spec.airborne.iter().filter(|&&a| a).count()));
         }
         k
+    }
+
+    /// The interval from this knot is a flight the momentum rows hold over
+    /// (`FullBodySettings::ballistic_flight`): no foot pushes and the joints are free (before
+    /// the pre-landing window, whose held joints leave the step no freedom).
+    pub fn is_ballistic(spec: &KnotSpec) -> bool {
+        !spec.last && !spec.pre_landing && spec.contacts.iter().all(|&c| !c)
+    }
+
+    /// The interval has the momentum balance's equality rows: a ballistic flight, or with
+    /// `momentum_balance_in_stance` a stance interval.
+    fn has_momentum_rows(shared: &Shared, spec: &KnotSpec) -> bool {
+        let s = &shared.settings;
+        s.ballistic_flight != BallisticFlight::Off
+            && (Self::is_ballistic(spec) || (s.momentum_balance_in_stance && !spec.last && spec.contacts.iter().any(|&c| c)))
     }
 
     fn nv(&self) -> usize {
@@ -415,6 +441,29 @@ impl Stage for FullBodyStage {
         }
         if spec.is_final {
             g.rows_mut(r, 6).copy_from_slice(&z[..6]);
+            r += 6;
+        }
+        let flight_penalty = s.w_flight_momentum > 0.0 && Self::is_ballistic(spec);
+        if Self::has_momentum_rows(sh, spec) || flight_penalty {
+            Self::flight_momentum(model, s.dt, ws, false);
+            // Stance: less the feet's impulse, their forces applied at q_k.
+            for f in 0..4 {
+                if let Some(l) = self.force(z, f) {
+                    let lin = l * s.dt;
+                    let ang = (feet[f] - com).cross(&l) * s.dt;
+                    for i in 0..3 {
+                        ws.momentum_residual[i] -= lin[i];
+                        ws.momentum_residual[3 + i] -= ang[i];
+                    }
+                }
+            }
+            if flight_penalty {
+                out.cost += s.w_flight_momentum * ws.momentum_residual.norm_squared();
+            }
+            if Self::has_momentum_rows(sh, spec) {
+                let rows = s.ballistic_flight.rows();
+                g.rows_mut(r, rows).copy_from(&ws.momentum_residual.rows(6 - rows, rows));
+            }
         }
         // Inequalities.
         let h = &mut out.inequalities;
@@ -653,6 +702,45 @@ impl Stage for FullBodyStage {
             for i in 0..6 {
                 g[(r + i, i)] = 1.0;
             }
+            r += 6;
+        }
+        let flight_penalty = s.w_flight_momentum > 0.0 && Self::is_ballistic(spec);
+        if Self::has_momentum_rows(sh, spec) || flight_penalty {
+            Self::flight_momentum(model, s.dt, ws, true);
+            // Stance: less the feet's impulse dt [lambda; (p_f - c) x lambda] at q_k, whose
+            // derivatives are dt [I; [p_f - c]x] in lambda and
+            // -dt [lambda]x (J_f - J_c) Jd in dq.
+            for f in 0..4 {
+                if let (Some(i), Some(l)) = (self.force_index(f), self.force(z, f)) {
+                    let arm = feet[f] - com;
+                    let (arm_x, l_x) = (skew(&arm), skew(&l));
+                    let lin = l * s.dt;
+                    let ang = arm.cross(&l) * s.dt;
+                    for a in 0..3 {
+                        ws.momentum_residual[a] -= lin[a];
+                        ws.momentum_residual[3 + a] -= ang[a];
+                        ws.momentum_jac[(a, i + a)] -= s.dt;
+                        for b in 0..3 {
+                            ws.momentum_jac[(3 + a, i + b)] -= s.dt * arm_x[(a, b)];
+                        }
+                    }
+                    // d (p_f - c) / d dq = (J_f - J_c) Jd (ws.com_jac has its Jd), column by column.
+                    for c in 0..nv {
+                        let d_arm: Vector3<f64> = (0..nv).map(|m| ws.feet_jac[f].column(m) * ws.jd[(m, c)]).sum::<Vector3<f64>>() - ws.com_jac.column(c);
+                        let d_ang = -(l_x * d_arm) * s.dt;
+                        for a in 0..3 {
+                            ws.momentum_jac[(3 + a, c)] -= d_ang[a];
+                        }
+                    }
+                }
+            }
+            if Self::has_momentum_rows(sh, spec) {
+                let rows = s.ballistic_flight.rows();
+                g.rows_mut(r, rows).copy_from(&ws.momentum_jac.rows(6 - rows, rows));
+            }
+            if flight_penalty {
+                out.cost_gradient.gemv_tr(2.0 * s.w_flight_momentum, &ws.momentum_jac, &ws.momentum_residual, 1.0);
+            }
         }
         // Inequalities.
         let h = &mut out.inequalities;
@@ -753,7 +841,8 @@ impl Stage for FullBodyStage {
         let nj = nv - 6;
         let w = multipliers.cost;
         let with_acceleration = s.w_acceleration > 0.0 && !self.spec.last;
-        if with_acceleration {
+        let with_momentum = s.w_flight_momentum > 0.0 && Self::is_ballistic(&self.spec);
+        if with_acceleration || with_momentum {
             let cached = self.ws.lock().unwrap_or_else(|e| e.into_inner()).acceleration_z.as_slice() == z;
             if !cached {
                 // ipocp asks for the Hessian right after the Jacobians at the same z; anything
@@ -796,6 +885,9 @@ impl Stage for FullBodyStage {
         if with_acceleration {
             out.gemm_tr(2.0 * s.w_acceleration * w, &ws.acceleration_jac, &ws.acceleration_jac, 1.0);
         }
+        if with_momentum {
+            out.gemm_tr(2.0 * s.w_flight_momentum * w, &ws.momentum_jac, &ws.momentum_jac, 1.0);
+        }
         drop(guard);
         if sh.curvature.load(Ordering::Relaxed) {
             if sh.curvature_by_jacobians.load(Ordering::Relaxed) {
@@ -808,6 +900,37 @@ impl Stage for FullBodyStage {
 }
 
 impl FullBodyStage {
+    /// The ballistic flight's momentum balance over this interval (after the dynamics of
+    /// `evaluate` or `jacobians` set `q, v, q', v'`, and for the Jacobian `Jd`, `d q'/dz`
+    /// in the tangent at `q'` and `d v'/dz`):
+    /// `r = h_G(q', v') - h_G(q, v) - dt [m g; 0]` into `ws.momentum_residual`, and with
+    /// `jacobian` `d r / dz = [dh/dq' A_G'] [d q'/dz; d v'/dz] - [dh/dq Jd, A_G, 0]` into
+    /// `ws.momentum_jac`.
+    fn flight_momentum(model: &Model, dt: f64, ws: &mut Workspace, jacobian: bool) {
+        let nv = model.nv;
+        let m = &mut ws.momentum;
+        let h = centroidal_momentum_derivatives(model, m, &ws.q, &ws.v, jacobian);
+        if jacobian {
+            ws.momentum_jac.fill(0.0);
+            ws.momentum_jac.columns_mut(0, nv).gemm(-1.0, &m.dh_dq, &ws.jd, 0.0);
+            for c in 0..nv {
+                for i in 0..6 {
+                    ws.momentum_jac[(i, nv + c)] = -m.a_g[(i, c)];
+                }
+            }
+        }
+        let h_next = centroidal_momentum_derivatives(model, m, &ws.q_next, &ws.v_next, jacobian);
+        if jacobian {
+            ws.momentum_jac.gemm(1.0, &m.dh_dq, &ws.dq_next_dz, 1.0);
+            ws.momentum_jac.gemm(1.0, &m.a_g, &ws.dv_dz, 1.0);
+        }
+        let impulse = model.gravity.v * (m.mass * dt);
+        for i in 0..3 {
+            ws.momentum_residual[i] = h_next[i] - h[i] - impulse[i];
+            ws.momentum_residual[3 + i] = h_next[3 + i] - h[3 + i];
+        }
+    }
+
     /// Adds `sum_i m_i Hess c_i(z)` of the dynamics, equality and inequality rows: column `j`
     /// is the central difference of `J_c(z)^T m` along `z_j` (step `1e-6 (1 + |z_j|)`). Only
     /// the state columns are differenced: every row is linear in the controls (the torques
