@@ -890,7 +890,10 @@ impl Stage for FullBodyStage {
         }
         drop(guard);
         if sh.curvature.load(Ordering::Relaxed) {
-            if sh.curvature_by_jacobians.load(Ordering::Relaxed) {
+            // The gradient form knows the dynamics, feet, trunk, legs-apart and box rows; the
+            // momentum balance's rows (`ballistic_flight`) have curvature it does not form, so
+            // their stages take the general differences of the full Jacobians.
+            if sh.curvature_by_jacobians.load(Ordering::Relaxed) || Self::has_momentum_rows(sh, &self.spec) {
                 self.add_constraint_curvature(z, &multipliers, out);
             } else {
                 self.add_constraint_curvature_by_gradients(z, &multipliers, out);
