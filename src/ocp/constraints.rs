@@ -105,6 +105,11 @@ pub struct FeasibilitySettings {
     /// The barriers start with the polish (their weight zero in the task's own solve and its
     /// continuation stages), so the task's solve is the augmented Lagrangian's alone.
     pub barrier_from_polish: bool,
+    /// The friction rows carry a barrier too (false: penetration and joint limits only).
+    /// A friction row appears at touch-down with no slack (`|T|` and `F_n` both start at
+    /// zero), so its barrier charges every light contact; on pallet_push it lifted the
+    /// tripod's lightly loaded foot (docs/experiments/feasible-slq-6.md).
+    pub barrier_friction: bool,
 }
 
 /// How the friction residual is normalized.
@@ -121,7 +126,7 @@ pub enum FrictionForm {
 
 impl Default for FeasibilitySettings {
     fn default() -> Self {
-        Self { friction_margin: 0.75, max_penetration: 0.01, friction_penalty: 1e4, penetration_penalty: 1e3, joint_limit_penalty: 1e4, joint_speed_penalty: 1e3, outer_rounds: 1, penalty_growth: 1.0, local_penalty_growth: false, friction_form: FrictionForm::Demand, joint_limit_margin: 0.0, polish_share: 0.5, polish_rounds: 2, polish_friction_margin: 0.70, polish_max_penetration: 0.009, polish_joint_limit_margin: 0.02, terminal_knot: false, barrier_weight: 0.0, barrier_delta: 0.1, barrier_decrease: 1.0, barrier_min_weight: 0.0, barrier_from_polish: false }
+        Self { friction_margin: 0.75, max_penetration: 0.01, friction_penalty: 1e4, penetration_penalty: 1e3, joint_limit_penalty: 1e4, joint_speed_penalty: 1e3, outer_rounds: 1, penalty_growth: 1.0, local_penalty_growth: false, friction_form: FrictionForm::Demand, joint_limit_margin: 0.0, polish_share: 0.5, polish_rounds: 2, polish_friction_margin: 0.70, polish_max_penetration: 0.009, polish_joint_limit_margin: 0.02, terminal_knot: false, barrier_weight: 0.0, barrier_delta: 0.1, barrier_decrease: 1.0, barrier_min_weight: 0.0, barrier_from_polish: false, barrier_friction: true }
     }
 }
 
@@ -382,7 +387,8 @@ impl FeasibilityConstraints {
         let s = &self.settings;
         let loaded = self.loaded_force();
         for (i, foot) in feet.iter().enumerate() {
-            if let Some((c, _)) = self.friction_residual(FrictionForm::Ratio, params, foot, anchors[i].as_ref()) {
+            let friction = if s.barrier_friction { self.friction_residual(FrictionForm::Ratio, params, foot, anchors[i].as_ref()) } else { None };
+            if let Some((c, _)) = friction {
                 f(BarrierRow::Friction(i, c), -c, (foot.contact.normal_force / loaded).min(1.0));
             }
             if foot.contact.penetration > 0.0 {
