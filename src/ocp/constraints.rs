@@ -734,6 +734,11 @@ mod tests {
         assert_eq!(FeasibilitySettings { polish_rounds: 0, ..Default::default() }.validate().unwrap_err().field, "polish_rounds");
         assert_eq!(FeasibilitySettings { polish_friction_margin: 0.0, ..Default::default() }.validate().unwrap_err().field, "polish_friction_margin");
         assert_eq!(FeasibilitySettings { polish_max_penetration: -1e-3, ..Default::default() }.validate().unwrap_err().field, "polish_max_penetration");
+        assert_eq!(FeasibilitySettings { barrier_weight: -1.0, ..Default::default() }.validate().unwrap_err().field, "barrier_weight");
+        assert_eq!(FeasibilitySettings { barrier_delta: 0.0, ..Default::default() }.validate().unwrap_err().field, "barrier_delta");
+        assert_eq!(FeasibilitySettings { barrier_decrease: 1.5, ..Default::default() }.validate().unwrap_err().field, "barrier_decrease");
+        // Off by default: the augmented Lagrangian alone.
+        assert_eq!(FeasibilityConstraints::new(&model, 10, FeasibilitySettings::default()).unwrap().barrier_weight(), 0.0);
         // The polish's bounds replace the targets' and nothing else.
         let s = FeasibilitySettings::default();
         let polish = s.with_polish_bounds();
