@@ -375,3 +375,92 @@ fn feasibility_gradient_case(friction_form: legwork::ocp::FrictionForm, joint_li
         assert!((fd - analytic).abs() < 1e-4 * (1.0 + analytic.abs()), "{friction_form:?}, terminal direction {trial}: finite differences {fd} against h_x . dx = {analytic}");
     }
 }
+
+/// The relaxed barriers' gradient (issue 16, docs/experiments/feasible-slq-6.md): with the
+/// augmented-Lagrangian penalties off and only the barrier on, at a state where the rows sit
+/// on both sides of the barrier's switch (`h` above and below `delta`, feet loaded above and
+/// below `F_load`, a knee past its limit), the knot's `l_x` matches central differences of
+/// its cost along random tangent directions, anchors included.
+#[test]
+fn relaxed_barrier_gradients_match_finite_differences() {
+    use legwork::ocp::{relaxed_barrier, settled_stance, FeasibilityConstraints, FeasibilitySettings, TaskSpec};
+    use legwork::slq::KnotDerivatives;
+    // The barrier function itself: C2 across the switch, derivatives by differences.
+    for delta in [0.1, 0.01] {
+        for h in [-0.5, 0.3 * delta, delta, 2.0 * delta, 0.7] {
+            let (_, d1, d2) = relaxed_barrier(h, delta);
+            let e = 1e-6 * delta;
+            let fd1 = (relaxed_barrier(h + e, delta).0 - relaxed_barrier(h - e, delta).0) / (2.0 * e);
+            let fd2 = (relaxed_barrier(h + e, delta).1 - relaxed_barrier(h - e, delta).1) / (2.0 * e);
+            assert!((fd1 - d1).abs() < 1e-5 * (1.0 + d1.abs()), "h {h}: {fd1} vs {d1}");
+            assert!((fd2 - d2).abs() < 1e-4 * (1.0 + d2.abs()), "h {h}: {fd2} vs {d2}");
+        }
+    }
+    let text = "name = \"fd\"\nsummary = \"fd\"\nrobot = \"hyq\"\nduration = 0.01\ndt = 0.002\n[running]\n[final]\n[input]\nweight = 1e-4\n";
+    let spec = TaskSpec::from_toml(text, "fd.toml").unwrap();
+    let model = embedded::load("hyq").unwrap();
+    let ground = Plane::flat(0.0);
+    let initial = settled_stance(&model, &ground, 0.3).unwrap();
+    let mut problem = spec.problem(&model, &ground, initial.clone(), "fd.toml").unwrap();
+    let settings = FeasibilitySettings { friction_penalty: 0.0, penetration_penalty: 0.0, joint_limit_penalty: 0.0, joint_speed_penalty: 0.0, barrier_weight: 50.0, barrier_delta: 0.2, ..Default::default() };
+    problem.feasibility = Some(FeasibilityConstraints::new(&model, problem.knots, settings).unwrap());
+    let nv = model.nv;
+    let knee = model.joints.iter().find(|j| j.name == "lf_kfe_joint").unwrap();
+    // The base height at which a foot carries under half of F_load (a tenth of a foot's
+    // share of the weight) but more than nothing: the load weight's own gradient.
+    let light_load = 0.5 * 0.1 * model.total_mass() * 9.81 / model.feet.len() as f64;
+    let mut contacts = legwork::sim::ContactModelWorkspace::new(&model, &ground);
+    let light = (0..300)
+        .map(|i| 1e-4 * i as f64)
+        .find(|&dz| {
+            let mut q = initial.q.clone();
+            q[2] += dz;
+            contacts.evaluate_contacts(&q, &DVector::zeros(nv), &initial.anchors);
+            contacts.feet().iter().any(|f| f.contact.normal_force > 0.0 && f.contact.normal_force < light_load)
+        })
+        .expect("a base height with a lightly loaded foot");
+    // Three states: pressed in and dragged (friction and penetration past their bounds),
+    // lifted to a light load (F_n under F_load), and the same slid sideways.
+    for (case, (dz, vx, vy)) in [(-0.006, 0.4, -0.2), (light, 0.0, 0.0), (light, 0.05, 0.03)].into_iter().enumerate() {
+        let mut x = initial.clone();
+        x.q[2] += dz;
+        x.v[0] = vx;
+        x.v[1] = vy;
+        x.q[knee.idx_q] = knee.limits.upper[0] + 0.05;
+        let (nx, nu) = (problem.nx(), problem.nu());
+        let u = DVector::zeros(nu);
+        let mut ws = problem.workspace();
+        let mut d = KnotDerivatives::zeros(nx, nu);
+        let mut next = x.clone();
+        let c = problem.step_with_derivatives(&mut ws, 0, &x, &u, &mut next, &mut d);
+        assert!(c.is_finite() && (c - problem.step(&mut problem.workspace(), 0, &x, &u, &mut next.clone())).abs() <= 1e-9 * c.abs().max(1.0), "case {case}: cost {c}");
+        let perturbed = |dx: &DVector<f64>, h: f64| {
+            let mut y = x.clone();
+            legwork::dynamics::integrate(&model, &x.q, &(dx.rows(0, nv) * h), &mut y.q);
+            y.v += dx.rows(nv, nv) * h;
+            for (f, a) in y.anchors.iter_mut().enumerate() {
+                if let Some(a) = a {
+                    *a += dx.fixed_rows::<3>(2 * nv + 3 * f) * h;
+                }
+            }
+            y
+        };
+        let cost = |y: &RobotState| {
+            let mut ws = problem.workspace();
+            let mut next = y.clone();
+            problem.step(&mut ws, 0, y, &u, &mut next)
+        };
+        let mut seed = 11u64 + case as u64;
+        let mut r = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        };
+        for trial in 0..6 {
+            let dx = DVector::from_fn(nx, |_, _| r());
+            let h = 1e-7;
+            let fd = (cost(&perturbed(&dx, h)) - cost(&perturbed(&dx, -h))) / (2.0 * h);
+            let analytic = d.l_x.dot(&dx);
+            assert!((fd - analytic).abs() < 1e-4 * (1.0 + analytic.abs()), "case {case}, direction {trial}: finite differences {fd} against l_x . dx = {analytic}");
+        }
+    }
+}

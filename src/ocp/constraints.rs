@@ -87,6 +87,29 @@ pub struct FeasibilitySettings {
     /// the task's solve it cost sidestep 0.297 -> 0.273 m and trot 0.96 -> 0.83 m, and the
     /// last knots stay at the cone's edge, docs/experiments/feasible-slq-4.md).
     pub terminal_knot: bool,
+    /// `mu` (per second) of the relaxed logarithmic barriers beside the augmented-Lagrangian
+    /// terms (0: none, the augmented Lagrangian alone): per knot `dt mu sum w B(h)`
+    /// ([`relaxed_barrier`]) on the slack `h = -c` of each friction row (in the ratio form,
+    /// weighted by the load `w = min(F_n / F_load, 1)` so a row that appears at touch-down
+    /// starts at zero), each penetration row and each joint-limit side, as OCS2's SLQ keeps
+    /// state-input inequalities (Farshidian et al.): the gradients and Gauss-Newton
+    /// Hessians go into the backward pass's LQ model, and the plan is pushed off each bound
+    /// before it reaches it. The joint-speed rows keep the augmented Lagrangian only.
+    pub barrier_weight: f64,
+    /// `delta` of the barrier's quadratic extension (slack below it).
+    pub barrier_delta: f64,
+    /// `mu` is multiplied by this at each outer update (after a continuation stage, before a
+    /// polish round), down to [`Self::barrier_min_weight`].
+    pub barrier_decrease: f64,
+    pub barrier_min_weight: f64,
+    /// The barriers start with the polish (their weight zero in the task's own solve and its
+    /// continuation stages), so the task's solve is the augmented Lagrangian's alone.
+    pub barrier_from_polish: bool,
+    /// The friction rows carry a barrier too (false: penetration and joint limits only).
+    /// A friction row appears at touch-down with no slack (`|T|` and `F_n` both start at
+    /// zero), so its barrier charges every light contact; on pallet_push it lifted the
+    /// tripod's lightly loaded foot (docs/experiments/feasible-slq-6.md).
+    pub barrier_friction: bool,
 }
 
 /// How the friction residual is normalized.
@@ -103,7 +126,7 @@ pub enum FrictionForm {
 
 impl Default for FeasibilitySettings {
     fn default() -> Self {
-        Self { friction_margin: 0.75, max_penetration: 0.01, friction_penalty: 1e4, penetration_penalty: 1e3, joint_limit_penalty: 1e4, joint_speed_penalty: 1e3, outer_rounds: 1, penalty_growth: 1.0, local_penalty_growth: false, friction_form: FrictionForm::Demand, joint_limit_margin: 0.0, polish_share: 0.5, polish_rounds: 2, polish_friction_margin: 0.70, polish_max_penetration: 0.009, polish_joint_limit_margin: 0.02, terminal_knot: false }
+        Self { friction_margin: 0.75, max_penetration: 0.01, friction_penalty: 1e4, penetration_penalty: 1e3, joint_limit_penalty: 1e4, joint_speed_penalty: 1e3, outer_rounds: 1, penalty_growth: 1.0, local_penalty_growth: false, friction_form: FrictionForm::Demand, joint_limit_margin: 0.0, polish_share: 0.5, polish_rounds: 2, polish_friction_margin: 0.70, polish_max_penetration: 0.009, polish_joint_limit_margin: 0.02, terminal_knot: false, barrier_weight: 0.0, barrier_delta: 0.1, barrier_decrease: 1.0, barrier_min_weight: 0.0, barrier_from_polish: false, barrier_friction: true }
     }
 }
 
@@ -135,6 +158,17 @@ impl FeasibilitySettings {
             if !(value.is_finite() && value >= 0.0) {
                 return bad(field, "a finite number >= 0", value);
             }
+        }
+        for (field, value) in [("barrier_weight", self.barrier_weight), ("barrier_min_weight", self.barrier_min_weight)] {
+            if !(value.is_finite() && value >= 0.0) {
+                return bad(field, "a finite weight >= 0 (per second)", value);
+            }
+        }
+        if !(self.barrier_delta.is_finite() && self.barrier_delta > 0.0 && self.barrier_delta < 1.0) {
+            return bad("barrier_delta", "a slack in (0, 1)", self.barrier_delta);
+        }
+        if !(self.barrier_decrease > 0.0 && self.barrier_decrease <= 1.0) {
+            return bad("barrier_decrease", "a factor in (0, 1]", self.barrier_decrease);
         }
         if self.outer_rounds == 0 {
             return bad("outer_rounds", "at least 1", 0.0);
@@ -184,6 +218,9 @@ pub struct FeasibilityConstraints {
     /// `rho` of each constraint (same order): the kind's penalty of `settings`, grown by
     /// the outer rounds (all of them, or with `local_penalty_growth` those still violated).
     penalties: Vec<f64>,
+    /// `mu` of the relaxed barriers now ([`FeasibilitySettings::barrier_weight`], lowered by
+    /// [`Self::decrease_barrier`]).
+    barrier_weight: f64,
 }
 
 /// The largest violation of each kind over a trajectory (in the constraints' units:
@@ -217,7 +254,7 @@ impl FeasibilityConstraints {
         penalty_of_knot.extend(std::iter::repeat_n(settings.joint_limit_penalty, 2 * coordinates.len()));
         penalty_of_knot.extend(std::iter::repeat_n(settings.joint_speed_penalty, speeds.len()));
         let penalties = penalty_of_knot.iter().copied().cycle().take(per_knot * (knots + 1)).collect();
-        Ok(Self { settings, weight: model.total_mass() * 9.81, feet, coordinates, speeds, multipliers: vec![0.0; per_knot * (knots + 1)], penalties })
+        Ok(Self { settings, weight: model.total_mass() * 9.81, feet, coordinates, speeds, multipliers: vec![0.0; per_knot * (knots + 1)], penalties, barrier_weight: if settings.barrier_from_polish { 0.0 } else { settings.barrier_weight } })
     }
 
     fn per_knot(&self) -> usize {
@@ -226,20 +263,20 @@ impl FeasibilityConstraints {
 
     /// A foot's friction residual `c` and the demanded tangential force `T` it is made of
     /// ([`tangential_demand`]), `None` for a foot without normal force.
-    fn friction_residual(&self, params: &ContactParams, foot: &FootState, anchor: Option<&Vector3<f64>>) -> Option<(f64, Vector3<f64>)> {
+    fn friction_residual(&self, form: FrictionForm, params: &ContactParams, foot: &FootState, anchor: Option<&Vector3<f64>>) -> Option<(f64, Vector3<f64>)> {
         let c = &foot.contact;
         if c.normal_force <= 0.0 {
             return None;
         }
         let demand = tangential_demand(params, foot, anchor);
         let norm = demand.norm();
-        let residual = (norm - self.settings.friction_margin * params.friction * c.normal_force) / self.friction_unit(params, c.normal_force);
+        let residual = (norm - self.settings.friction_margin * params.friction * c.normal_force) / self.friction_unit(form, params, c.normal_force);
         Some((residual, demand))
     }
 
     /// The friction residual's denominator `D` at normal force `F_n` ([`FrictionForm`]).
-    fn friction_unit(&self, params: &ContactParams, normal_force: f64) -> f64 {
-        match self.settings.friction_form {
+    fn friction_unit(&self, form: FrictionForm, params: &ContactParams, normal_force: f64) -> f64 {
+        match form {
             FrictionForm::Demand => self.weight,
             FrictionForm::Ratio => self.settings.friction_margin * params.friction * normal_force.max(self.loaded_force()),
         }
@@ -260,7 +297,7 @@ impl FeasibilityConstraints {
         let lambda = |i: usize| self.multipliers.get(base + i).copied().unwrap_or(0.0);
         let rho = |i: usize| self.penalties.get(base + i).copied().unwrap_or(0.0);
         for (i, foot) in feet.iter().enumerate() {
-            if let Some((c, _)) = self.friction_residual(params, foot, anchors[i].as_ref()) {
+            if let Some((c, _)) = self.friction_residual(s.friction_form, params, foot, anchors[i].as_ref()) {
                 f(Residual::Friction(i), c, lambda(2 * i), rho(2 * i));
             }
             if foot.contact.penetration > 0.0 {
@@ -283,7 +320,7 @@ impl FeasibilityConstraints {
     pub fn cost(&self, k: usize, scale: f64, at: KnotContacts<'_>) -> f64 {
         let mut cost = 0.0;
         self.for_each_residual(k, at, |_, c, lambda, rho| cost += psi(c, lambda, rho).0);
-        scale * cost
+        scale * cost + self.barrier_cost(scale, at)
     }
 
     /// Adds `scale psi` and its Gauss-Newton derivatives to `(l_x, l_xx)`; `step` holds the
@@ -301,7 +338,7 @@ impl FeasibilityConstraints {
         scratch: &mut DVector<f64>,
         (l_x, l_xx): (&mut DVector<f64>, &mut DMatrix<f64>),
     ) -> f64 {
-        let KnotContacts { v, anchors, params, feet, .. } = at;
+        let KnotContacts { v, .. } = at;
         let nv = v.len();
         let mut cost = 0.0;
         self.for_each_residual(k, at, |which, c, lambda, rho| {
@@ -320,49 +357,13 @@ impl FeasibilityConstraints {
                     Some((nv + sp.idx_v, v[sp.idx_v].signum() / sp.limit))
                 }
                 Residual::Friction(i) => {
-                    scratch.fill(0.0);
-                    // c = (|T| - eta mu F_n) / D: dc = (d|T| - eta mu dF_n) / D, and where D
-                    // is eta mu F_n (the ratio form above F_load) also - c dD / D =
-                    // - c eta mu dF_n / D: together - eta mu (1 + c) dF_n / D.
-                    let unit = self.friction_unit(params, feet[i].contact.normal_force);
-                    let normal_factor = match self.settings.friction_form {
-                        FrictionForm::Ratio if feet[i].contact.normal_force > self.loaded_force() => 1.0 + c,
-                        _ => 1.0,
-                    };
-                    let foot = &feet[i];
-                    let Some((_, demand)) = self.friction_residual(params, foot, anchors[i].as_ref()) else { return };
-                    let norm = demand.norm();
-                    if norm == 0.0 {
+                    if !self.friction_row(self.settings.friction_form, i, c, at, step, anchor_states, scratch) {
                         return;
-                    }
-                    let (jp, jd) = step.foot_jacobians(i);
-                    let d = tangential_demand_derivatives(params, foot, anchors[i].as_ref(), &demand);
-                    let dir = (demand / norm).transpose();
-                    let n_t = foot.normal.transpose();
-                    let eta_mu = self.settings.friction_margin * params.friction;
-                    // dc/dp, dc/dpdot (rows), then through the foot Jacobians.
-                    let a_p: RowVector3<f64> = (dir * d.position - n_t * foot.contact.d_position * (eta_mu * normal_factor)) / unit;
-                    let a_v: RowVector3<f64> = (dir * d.velocity - n_t * foot.contact.d_velocity * (eta_mu * normal_factor)) / unit;
-                    for j in 0..nv {
-                        scratch[j] = a_p.dot(&jp.column(j).transpose()) + a_v.dot(&jd.column(j).transpose());
-                        scratch[nv + j] = a_v.dot(&jp.column(j).transpose());
-                    }
-                    if anchor_states && anchors[i].is_some() {
-                        let a_a = dir * d.anchor / unit;
-                        for r in 0..ANCHOR_DIM {
-                            scratch[2 * nv + ANCHOR_DIM * i + r] = a_a[r];
-                        }
                     }
                     None
                 }
                 Residual::Penetration(i) => {
-                    // p_n = r - n . (p - s): dp_n/ddq = -n^T dp/ddq.
-                    scratch.fill(0.0);
-                    let (jp, _) = step.foot_jacobians(i);
-                    let n = feet[i].normal;
-                    for j in 0..nv {
-                        scratch[j] = -n.dot(&jp.column(j)) / self.settings.max_penetration;
-                    }
+                    self.penetration_row(i, at, step, scratch);
                     None
                 }
             };
@@ -376,7 +377,178 @@ impl FeasibilityConstraints {
                 l_xx.ger(scale * curvature, scratch, scratch, 1.0);
             }
         });
-        scale * cost
+        scale * cost + self.add_barrier_derivatives(scale, at, step, anchor_states, scratch, (l_x, l_xx))
+    }
+
+    /// The relaxed barriers' rows at a knot's state, each as `(row, h, w)`: the slack `h =
+    /// -c >= 0` and the row's weight `w` (see [`FeasibilitySettings::barrier_weight`]).
+    fn for_each_barrier_row(&self, at: KnotContacts<'_>, mut f: impl FnMut(BarrierRow, f64, f64)) {
+        let KnotContacts { q, anchors, params, feet, .. } = at;
+        let s = &self.settings;
+        let loaded = self.loaded_force();
+        for (i, foot) in feet.iter().enumerate() {
+            let friction = if s.barrier_friction { self.friction_residual(FrictionForm::Ratio, params, foot, anchors[i].as_ref()) } else { None };
+            if let Some((c, _)) = friction {
+                f(BarrierRow::Friction(i, c), -c, (foot.contact.normal_force / loaded).min(1.0));
+            }
+            if foot.contact.penetration > 0.0 {
+                f(BarrierRow::Penetration(i), (s.max_penetration - foot.contact.penetration) / s.max_penetration, 1.0);
+            }
+        }
+        for (j, b) in self.coordinates.iter().enumerate() {
+            let x = q[b.idx_q];
+            f(BarrierRow::Upper(j), (b.upper - s.joint_limit_margin) - x, 1.0);
+            f(BarrierRow::Lower(j), x - (b.lower + s.joint_limit_margin), 1.0);
+        }
+    }
+
+    /// `scale mu sum w B(h)` over the barrier rows of a knot's state.
+    fn barrier_cost(&self, scale: f64, at: KnotContacts<'_>) -> f64 {
+        let mu = self.barrier_weight;
+        if mu <= 0.0 {
+            return 0.0;
+        }
+        let delta = self.settings.barrier_delta;
+        let mut sum = 0.0;
+        self.for_each_barrier_row(at, |_, h, w| sum += w * relaxed_barrier(h, delta).0);
+        scale * mu * sum
+    }
+
+    /// Adds `scale mu sum w B(h)` and its derivatives to `(l_x, l_xx)`: `d(w B) = B dw - w
+    /// B'(h) dc` and the Gauss-Newton `w B''(h) dc dc^T` (`h = -c`; `dw = dF_n / F_load` on a
+    /// foot under `F_load`, zero above). Returns the term.
+    #[allow(clippy::too_many_arguments)]
+    fn add_barrier_derivatives(&self, scale: f64, at: KnotContacts<'_>, step: &StepDerivatives, anchor_states: bool, scratch: &mut DVector<f64>, (l_x, l_xx): (&mut DVector<f64>, &mut DMatrix<f64>)) -> f64 {
+        let mu = self.barrier_weight;
+        if mu <= 0.0 {
+            return 0.0;
+        }
+        let delta = self.settings.barrier_delta;
+        let loaded = self.loaded_force();
+        let s = scale * mu;
+        let mut sum = 0.0;
+        self.for_each_barrier_row(at, |row, h, w| {
+            let (b, db, d2b) = relaxed_barrier(h, delta);
+            sum += w * b;
+            // dc/dx of the row: one entry for a joint, a dense row for a foot.
+            let single = match row {
+                BarrierRow::Upper(j) => Some((self.coordinates[j].idx_v, 1.0)),
+                BarrierRow::Lower(j) => Some((self.coordinates[j].idx_v, -1.0)),
+                BarrierRow::Friction(i, c) => {
+                    if self.friction_row(FrictionForm::Ratio, i, c, at, step, anchor_states, scratch) {
+                        l_x.axpy(-s * w * db, scratch, 1.0);
+                        l_xx.ger(s * w * d2b, scratch, scratch, 1.0);
+                    }
+                    if at.feet[i].contact.normal_force < loaded {
+                        self.normal_force_row(i, at, step, scratch);
+                        l_x.axpy(s * b / loaded, scratch, 1.0);
+                    }
+                    return;
+                }
+                BarrierRow::Penetration(i) => {
+                    self.penetration_row(i, at, step, scratch);
+                    None
+                }
+            };
+            match single {
+                Some((i, jac)) => {
+                    l_x[i] -= s * w * db * jac;
+                    l_xx[(i, i)] += s * w * d2b * jac * jac;
+                }
+                None => {
+                    l_x.axpy(-s * w * db, scratch, 1.0);
+                    l_xx.ger(s * w * d2b, scratch, scratch, 1.0);
+                }
+            }
+        });
+        s * sum
+    }
+
+    /// The barrier's weight after an outer update: `mu <- max(mu_min, decrease mu)`
+    /// ([`FeasibilitySettings::barrier_decrease`]), the central path of an interior point
+    /// method followed one multiplier update at a time.
+    pub fn decrease_barrier(&mut self) {
+        self.barrier_weight = (self.barrier_weight * self.settings.barrier_decrease).max(self.settings.barrier_min_weight.min(self.barrier_weight));
+    }
+
+    /// Switches the barriers on at their initial weight (the polish's start with
+    /// [`FeasibilitySettings::barrier_from_polish`]).
+    pub fn start_barrier(&mut self) {
+        self.barrier_weight = self.settings.barrier_weight;
+    }
+
+    /// The barrier's current weight `mu` (per second).
+    pub fn barrier_weight(&self) -> f64 {
+        self.barrier_weight
+    }
+
+    /// `dc/dx` of foot `i`'s friction residual `c` in `form` into `row` (tangent of the
+    /// state, anchors included with `anchor_states`); false where `|T| = 0` (no direction).
+    #[allow(clippy::too_many_arguments)]
+    fn friction_row(&self, form: FrictionForm, i: usize, c: f64, at: KnotContacts<'_>, step: &StepDerivatives, anchor_states: bool, row: &mut DVector<f64>) -> bool {
+        let KnotContacts { v, anchors, params, feet, .. } = at;
+        let nv = v.len();
+        let foot = &feet[i];
+        let Some((_, demand)) = self.friction_residual(form, params, foot, anchors[i].as_ref()) else { return false };
+        let norm = demand.norm();
+        if norm == 0.0 {
+            return false;
+        }
+        row.fill(0.0);
+        // c = (|T| - eta mu F_n) / D: dc = (d|T| - eta mu dF_n) / D, and where D is eta mu
+        // F_n (the ratio form above F_load) also - c dD / D = - c eta mu dF_n / D: together
+        // - eta mu (1 + c) dF_n / D.
+        let unit = self.friction_unit(form, params, foot.contact.normal_force);
+        let normal_factor = match form {
+            FrictionForm::Ratio if foot.contact.normal_force > self.loaded_force() => 1.0 + c,
+            _ => 1.0,
+        };
+        let (jp, jd) = step.foot_jacobians(i);
+        let d = tangential_demand_derivatives(params, foot, anchors[i].as_ref(), &demand);
+        let dir = (demand / norm).transpose();
+        let n_t = foot.normal.transpose();
+        let eta_mu = self.settings.friction_margin * params.friction;
+        // dc/dp, dc/dpdot (rows), then through the foot Jacobians.
+        let a_p: RowVector3<f64> = (dir * d.position - n_t * foot.contact.d_position * (eta_mu * normal_factor)) / unit;
+        let a_v: RowVector3<f64> = (dir * d.velocity - n_t * foot.contact.d_velocity * (eta_mu * normal_factor)) / unit;
+        for j in 0..nv {
+            row[j] = a_p.dot(&jp.column(j).transpose()) + a_v.dot(&jd.column(j).transpose());
+            row[nv + j] = a_v.dot(&jp.column(j).transpose());
+        }
+        if anchor_states && anchors[i].is_some() {
+            let a_a = dir * d.anchor / unit;
+            for r in 0..ANCHOR_DIM {
+                row[2 * nv + ANCHOR_DIM * i + r] = a_a[r];
+            }
+        }
+        true
+    }
+
+    /// `dF_n/dx` of foot `i` into `row` (surface held: `F_n = n . F`).
+    fn normal_force_row(&self, i: usize, at: KnotContacts<'_>, step: &StepDerivatives, row: &mut DVector<f64>) {
+        let nv = at.v.len();
+        let foot = &at.feet[i];
+        row.fill(0.0);
+        let (jp, jd) = step.foot_jacobians(i);
+        let n_t = foot.normal.transpose();
+        let a_p: RowVector3<f64> = n_t * foot.contact.d_position;
+        let a_v: RowVector3<f64> = n_t * foot.contact.d_velocity;
+        for j in 0..nv {
+            row[j] = a_p.dot(&jp.column(j).transpose()) + a_v.dot(&jd.column(j).transpose());
+            row[nv + j] = a_v.dot(&jp.column(j).transpose());
+        }
+    }
+
+    /// `dc/dx` of foot `i`'s penetration residual `(p_n - p_max) / p_max` into `row`.
+    fn penetration_row(&self, i: usize, at: KnotContacts<'_>, step: &StepDerivatives, row: &mut DVector<f64>) {
+        // p_n = r - n . (p - s): dp_n/ddq = -n^T dp/ddq.
+        let nv = at.v.len();
+        row.fill(0.0);
+        let (jp, _) = step.foot_jacobians(i);
+        let n = at.feet[i].normal;
+        for j in 0..nv {
+            row[j] = -n.dot(&jp.column(j)) / self.settings.max_penetration;
+        }
     }
 
     /// The outer update of the augmented Lagrangian, `lambda <- max(0, lambda + rho c)`, at
@@ -442,6 +614,7 @@ impl FeasibilityConstraints {
         let n = self.multipliers.len().min(other.multipliers.len());
         self.multipliers[..n].copy_from_slice(&other.multipliers[..n]);
         self.penalties[..n].copy_from_slice(&other.penalties[..n]);
+        self.barrier_weight = other.barrier_weight;
     }
 }
 
@@ -464,6 +637,38 @@ enum Residual {
     Upper(usize),
     Lower(usize),
     Speed(usize),
+}
+
+/// A row of the relaxed barriers: a foot's friction (with its residual `c` in the ratio
+/// form), a foot's penetration, a limited coordinate's upper or lower side.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum BarrierRow {
+    Friction(usize, f64),
+    Penetration(usize),
+    Upper(usize),
+    Lower(usize),
+}
+
+/// `(B, dB/dh, d2B/dh2)` of the relaxed logarithmic barrier on a slack `h` (Feller and
+/// Ebenbauer 2017, "Relaxed logarithmic barrier function based model predictive control of
+/// linear systems"; OCS2's `RelaxedBarrierPenalty`):
+///
+/// ```text
+/// B(h) = -ln h                                       h > delta
+/// B(h) = 1/2 ((h - 2 delta) / delta)^2 - 1/2 - ln delta   h <= delta
+/// ```
+///
+/// C2 at `h = delta` (value `-ln delta`, slope `-1 / delta`, curvature `1 / delta^2`), and
+/// defined for every `h`, so an iterate outside the constraint still has a finite cost
+/// and a gradient pointing inside.
+#[inline]
+pub fn relaxed_barrier(h: f64, delta: f64) -> (f64, f64, f64) {
+    if h > delta {
+        (-h.ln(), -1.0 / h, 1.0 / (h * h))
+    } else {
+        let r = (h - 2.0 * delta) / delta;
+        (0.5 * r * r - 0.5 - delta.ln(), r / delta, 1.0 / (delta * delta))
+    }
 }
 
 /// `(psi, dpsi/dc, d2psi/dc2)` of the augmented Lagrangian term.
@@ -529,6 +734,11 @@ mod tests {
         assert_eq!(FeasibilitySettings { polish_rounds: 0, ..Default::default() }.validate().unwrap_err().field, "polish_rounds");
         assert_eq!(FeasibilitySettings { polish_friction_margin: 0.0, ..Default::default() }.validate().unwrap_err().field, "polish_friction_margin");
         assert_eq!(FeasibilitySettings { polish_max_penetration: -1e-3, ..Default::default() }.validate().unwrap_err().field, "polish_max_penetration");
+        assert_eq!(FeasibilitySettings { barrier_weight: -1.0, ..Default::default() }.validate().unwrap_err().field, "barrier_weight");
+        assert_eq!(FeasibilitySettings { barrier_delta: 0.0, ..Default::default() }.validate().unwrap_err().field, "barrier_delta");
+        assert_eq!(FeasibilitySettings { barrier_decrease: 1.5, ..Default::default() }.validate().unwrap_err().field, "barrier_decrease");
+        // Off by default: the augmented Lagrangian alone.
+        assert_eq!(FeasibilityConstraints::new(&model, 10, FeasibilitySettings::default()).unwrap().barrier_weight(), 0.0);
         // The polish's bounds replace the targets' and nothing else.
         let s = FeasibilitySettings::default();
         let polish = s.with_polish_bounds();

@@ -28,7 +28,7 @@ mod physical_gains;
 mod run;
 mod task;
 
-pub use constraints::{tangential_demand, FeasibilityConstraints, FeasibilitySettings, FrictionForm, FeasibilitySettingsError, KnotContacts, Violation};
+pub use constraints::{relaxed_barrier, tangential_demand, FeasibilityConstraints, FeasibilitySettings, FrictionForm, FeasibilitySettingsError, KnotContacts, Violation};
 pub use continuation::ContinuationSpec;
 pub use deviation::StateDeviation;
 pub use limit_cost::{JointLimitCost, JointLimitCostSpec};
@@ -325,6 +325,7 @@ impl WholeBodyProblem<'_> {
     pub fn update_multipliers(&mut self, states: &[RobotState]) {
         let Some(mut constraints) = self.feasibility.take() else { return };
         self.for_each_knot_contact(states, |k, x, params, feet| constraints.update_multipliers(k, KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params, feet }));
+        constraints.decrease_barrier();
         self.feasibility = Some(constraints);
     }
 

@@ -280,6 +280,9 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
         let polish_rounds = targets.map_or(1, |s| s.polish_rounds.max(1)).min(polish);
         if let Some(c) = problem.feasibility.as_mut() {
             c.settings = c.settings.with_polish_bounds();
+            if c.settings.barrier_from_polish {
+                c.start_barrier();
+            }
         }
         let mut left = polish;
         for round in 0..polish_rounds {
