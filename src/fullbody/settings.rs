@@ -242,6 +242,7 @@ impl FullBodySettings {
             ("w_base_orientation", self.w_base_orientation),
             ("w_joint", self.w_joint),
             ("w_acceleration", self.w_acceleration),
+            ("w_flight_momentum", self.w_flight_momentum),
         ] {
             check(field, v, v >= 0.0 && v.is_finite(), ">= 0")?;
         }
