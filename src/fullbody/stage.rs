@@ -162,6 +162,26 @@ struct Workspace {
     momentum_jac: DMatrix<f64>,
 }
 
+impl Workspace {
+    /// The semi-implicit step from `(q, v)` with `qdd = data.ddq` and its Jacobians:
+    /// `v' = v + dt qdd`, `q' = q (+) dt v'`, `dq' = q' (-) qbar'`; `Jq`, `Jv` of the
+    /// integration `q (+) dt v'`, and `Jl = d dq' / d q'`: `Jr(dq')^-1`, of which only the
+    /// base block differs from the identity.
+    fn semi_implicit_step(&mut self, model: &Model, dt: f64, qbar_next: &DVector<f64>) {
+        self.v_next.copy_from(&self.v);
+        self.v_next.axpy(dt, &self.data.ddq, 1.0);
+        self.step.copy_from(&self.v_next);
+        self.step *= dt;
+        integrate(model, &self.q, &self.step, &mut self.q_next);
+        difference(model, qbar_next, &self.q_next, &mut self.dq_next);
+        integrate_jacobians(model, &self.step, &mut self.jq_step, &mut self.jv_step);
+        integrate_jacobians(model, &self.dq_next, &mut self.scratch, &mut self.jl);
+        let base_block = self.jl.fixed_view::<6, 6>(0, 0).into_owned();
+        let inverse = base_block.try_inverse().unwrap_or_else(|| nalgebra::Matrix6::from_element(f64::NAN));
+        self.jl.fixed_view_mut::<6, 6>(0, 0).copy_from(&inverse);
+    }
+}
+
 pub(crate) struct FullBodyStage {
     pub shared: Arc<Shared>,
     pub spec: KnotSpec,
@@ -638,20 +658,7 @@ impl Stage for FullBodyStage {
                     }
                 }
             }
-            ws.v_next.copy_from(&ws.v);
-            ws.v_next.axpy(dt, &ws.data.ddq, 1.0);
-            ws.step.copy_from(&ws.v_next);
-            ws.step *= dt;
-            integrate(model, &ws.q, &ws.step, &mut ws.q_next);
-            let qbar_next = spec.qbar_next.as_ref().expect("a stage with dynamics has a next knot");
-            difference(model, qbar_next, &ws.q_next, &mut ws.dq_next);
-            integrate_jacobians(model, &ws.step, &mut ws.jq_step, &mut ws.jv_step);
-            // d dq'/d q' = Jr(dq')^-1 on the base.
-            integrate_jacobians(model, &ws.dq_next, &mut ws.scratch, &mut ws.jl);
-            // Only the base block of Jr(dq') differs from the identity.
-            let base_block = ws.jl.fixed_view::<6, 6>(0, 0).into_owned();
-            let inverse = base_block.try_inverse().unwrap_or_else(|| nalgebra::Matrix6::from_element(f64::NAN));
-            ws.jl.fixed_view_mut::<6, 6>(0, 0).copy_from(&inverse);
+            ws.semi_implicit_step(model, dt, spec.qbar_next.as_ref().expect("a stage with dynamics has a next knot"));
             // dq' = (q (+) dt v') (-) qbar': d/dz = Jl (Jq [Jd 0 0] + dt Jv dv'/dz).
             ws.dq_next_dz.gemm(dt, &ws.jv_step, &ws.dv_dz, 0.0);
             ws.dq_next_dz.columns_mut(0, nv).gemm(1.0, &ws.jq_step, &ws.jd, 1.0);

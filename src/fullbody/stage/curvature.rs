@@ -23,7 +23,7 @@
 //! the Jacobians took `2 nx` Jacobian passes.
 
 use super::{FullBodyStage, Workspace, TRUNK_CORNERS};
-use crate::dynamics::{aba, compute_joint_jacobians, compute_rnea_derivatives, difference, integrate, integrate_jacobians, mass_matrix_solve};
+use crate::dynamics::{aba, compute_joint_jacobians, compute_rnea_derivatives, integrate, integrate_jacobians, mass_matrix_solve};
 use crate::fullbody::kinematics::{add_point_force_derivative, foot_position, knee_position, point_jacobian};
 use crate::ipocp::StageMultipliers;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
@@ -240,19 +240,8 @@ impl FullBodyStage {
             let qdd = std::mem::replace(&mut ws.data.ddq, DVector::zeros(0));
             compute_rnea_derivatives(model, &mut ws.data, &ws.q, &ws.v, &qdd);
             // The step q' = q (+) dt v' and dq' = q' (-) qbar'.
-            ws.v_next.copy_from(&ws.v);
-            ws.v_next.axpy(dt, &qdd, 1.0);
             ws.data.ddq = qdd;
-            ws.step.copy_from(&ws.v_next);
-            ws.step *= dt;
-            integrate(model, &ws.q, &ws.step, &mut ws.q_next);
-            let qbar_next = spec.qbar_next.as_ref().expect("a stage with dynamics has a next knot");
-            difference(model, qbar_next, &ws.q_next, &mut ws.dq_next);
-            integrate_jacobians(model, &ws.step, &mut ws.jq_step, &mut ws.jv_step);
-            integrate_jacobians(model, &ws.dq_next, &mut ws.scratch, &mut ws.jl);
-            let base_block = ws.jl.fixed_view::<6, 6>(0, 0).into_owned();
-            let inverse = base_block.try_inverse().unwrap_or_else(|| nalgebra::Matrix6::from_element(f64::NAN));
-            ws.jl.fixed_view_mut::<6, 6>(0, 0).copy_from(&inverse);
+            ws.semi_implicit_step(model, dt, spec.qbar_next.as_ref().expect("a stage with dynamics has a next knot"));
             // a = Jl^T lambda_q: the dq' rows through q; mu = lambda_v + dt Jv^T a (+ the
             // acceleration rows' y / dt).
             let lambda_q = nalgebra::DVectorView::from_slice(&m.dynamics[..nv], nv);
