@@ -4,7 +4,8 @@
 //! ```text
 //! cargo run --release --example contact_timing -- [--exp taylor4|exact] [--repeats 5]
 //!     [--reference ../shared/anchors/nguyen2022/results_srb_costdt.json]
-//!     [--barrier monotone|probing|quality-function|loqo] [jump ...]
+//!     [--barrier monotone|probing|quality-function|loqo] [--bound-push 1e-2] [--bound-frac 1e-2]
+//!     [jump ...]
 //! ```
 
 use legwork::ipocp::Settings;
@@ -20,6 +21,8 @@ fn main() -> anyhow::Result<()> {
     let mut names = Vec::new();
     let mut verbose = false;
     let mut barrier_update = ContactTimingProblem::solver_settings().barrier_update;
+    let defaults = Settings::default();
+    let (mut bound_push, mut bound_frac) = (defaults.bound_push, defaults.bound_frac);
     while let Some(a) = args.next() {
         match a.as_str() {
             "--exp" => {
@@ -36,6 +39,8 @@ fn main() -> anyhow::Result<()> {
             }
             "--verbose" => verbose = true,
             "--barrier" => barrier_update = args.next().ok_or_else(|| anyhow::anyhow!("--barrier: a rule"))?.parse().map_err(anyhow::Error::msg)?,
+            "--bound-push" => bound_push = args.next().ok_or_else(|| anyhow::anyhow!("--bound-push: a number"))?.parse()?,
+            "--bound-frac" => bound_frac = args.next().ok_or_else(|| anyhow::anyhow!("--bound-frac: a number"))?.parse()?,
             _ => names.push(a),
         }
     }
@@ -50,7 +55,7 @@ fn main() -> anyhow::Result<()> {
         let max_stance_speed = if reference.is_some() { f64::INFINITY } else { file.contact_timing.max_stance_speed };
         let settings = ContactTimingSettings { exp_map, max_stance_speed, ..file.contact_timing.clone() };
         let ct = ContactTimingProblem::new(&jump, &params, &settings)?;
-        let mut solver = ct.solver(Settings { verbose, barrier_update, ..Settings::default() })?;
+        let mut solver = ct.solver(Settings { verbose, barrier_update, bound_push, bound_frac, ..Settings::default() })?;
         let mut times = Vec::new();
         let mut result = None;
         for _ in 0..repeats.max(1) {
