@@ -139,7 +139,7 @@ mod tests {
             integrate(&model, &q, &e, &mut qm);
             let fd = (centroidal_momentum(&model, &mut data, &qp, &v).to_vector() - centroidal_momentum(&model, &mut data, &qm, &v).to_vector()) / (2.0 * eps);
             let exact = ws.dh_dq.column(c);
-            assert!((exact - fd.clone()).norm() < 1e-6 * (1.0 + fd.norm()), "column {c}: exact {exact} vs differences {fd}");
+            assert!((exact - fd).norm() < 1e-6 * (1.0 + fd.norm()), "column {c}: exact {exact} vs differences {fd}");
         }
     }
 }
