@@ -9,7 +9,8 @@
 //!     [--max-acceleration A] [--w-velocity W] [--max-stance-speed V] [--out DIR]
 //!     [--barrier RULE] [--ct-barrier RULE] [--curvature-after N] [--curvature-violation V]
 //!     [--curvature-by-jacobians] [--id-torques] [--foot-margin M] [--lift-off-force F]
-//!     [--ballistic off|angular|full] [--w-flight-momentum W] [--stance-balance] [jump ...]
+//!     [--ballistic off|angular|full] [--w-flight-momentum W] [--stance-balance] [--start-defect]
+//!     [jump ...]
 //! ```
 //!
 //! The pipeline's settings (`legwork jump`, `legwork bench jumps`) are `--curvature-after 100
@@ -18,7 +19,9 @@
 //! the curvature phase at violation V (default 1); `--curvature-by-jacobians`: that
 //! curvature by central differences of the full Jacobians (the reference) instead of
 //! forward differences of the multiplier-weighted gradient; `--id-torques`: the start's
-//! torques by inverse dynamics of the guess.
+//! torques by inverse dynamics of the guess; `--start-defect`: no solve, the start's
+//! constraint violation per knot instead (dynamics defect in the base and joint rows of `dq`
+//! and `v`, equalities, inequalities against their bounds).
 //!
 //! `--w-acceleration`, `--max-acceleration`, `--w-velocity` override the settings' joint
 //! acceleration weight and bound and velocity weight; `--out DIR` writes each plan to
@@ -54,6 +57,7 @@ fn main() -> anyhow::Result<()> {
     let mut curvature_violation = None;
     let mut curvature_by_jacobians = false;
     let mut id_torques = false;
+    let mut start_defect = false;
     let mut foot_margin = 0.0;
     let mut lift_off_force = f64::INFINITY;
     let mut names = Vec::new();
@@ -96,6 +100,7 @@ fn main() -> anyhow::Result<()> {
             "--curvature-violation" => curvature_violation = Some(args.next().ok_or_else(|| anyhow::anyhow!("--curvature-violation: a bound"))?.parse::<f64>()?),
             "--curvature-by-jacobians" => curvature_by_jacobians = true,
             "--id-torques" => id_torques = true,
+            "--start-defect" => start_defect = true,
             "--curvature-after" => curvature = Some(args.next().ok_or_else(|| anyhow::anyhow!("--curvature-after: iterations"))?.parse()?),
             _ => names.push(a),
         }
@@ -157,6 +162,10 @@ fn main() -> anyhow::Result<()> {
         let guess = initial_guess_clear_of(&model, &srb, settings.pre_landing_knots, if plain_guess { None } else { obstacle.as_ref() })?;
         let fb = FullBodyProblem::new(&model, &srb, &guess, &settings, obstacle)?;
         fb.set_curvature_by_jacobians(curvature_by_jacobians);
+        if start_defect {
+            print_start_defect(&fb);
+            continue;
+        }
         let mut times = Vec::new();
         let mut plan = None;
         for _ in 0..repeats.max(1) {
@@ -200,6 +209,42 @@ fn main() -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// Per knot, the start's (the guess's) constraint violation: the dynamics defect
+/// `f_k(z_k) - x_{k+1}` split into the base and joint rows of `dq` and of `v`, the largest
+/// equality and inequality violation; and their largest values over all knots
+/// (`--start-defect`: where the guess is dynamically inconsistent).
+fn print_start_defect(fb: &FullBodyProblem) {
+    use legwork::ipocp::StageValues;
+    let n = fb.start.len();
+    let amax = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    println!("knot  dq base  dq joint   v base   v joint   eq       ineq");
+    let mut worst = [0.0f64; 6];
+    for k in 0..n {
+        let stage = fb.problem.stage(k);
+        let d = stage.dims();
+        let mut values = StageValues::zeros(d);
+        stage.evaluate(fb.start[k].as_slice(), &mut values);
+        let nv = d.nx / 2;
+        let mut row = [0.0f64; 6];
+        if d.nx_next > 0 {
+            let defect: Vec<f64> = (0..d.nx_next).map(|i| values.dynamics[i] - fb.start[k + 1][i]).collect();
+            row[0] = amax(&defect[..6]);
+            row[1] = amax(&defect[6..nv]);
+            row[2] = amax(&defect[nv..nv + 6]);
+            row[3] = amax(&defect[nv + 6..]);
+        }
+        row[4] = amax(values.equalities.as_slice());
+        let (mut lo, mut hi) = (vec![0.0; d.nh], vec![0.0; d.nh]);
+        stage.inequality_bounds(&mut lo, &mut hi);
+        row[5] = (0..d.nh).map(|i| (lo[i] - values.inequalities[i]).max(values.inequalities[i] - hi[i]).max(0.0)).fold(0.0, f64::max);
+        println!("{k:4} {}", row.iter().map(|x| format!("{x:8.3}")).collect::<Vec<_>>().join(" "));
+        for i in 0..6 {
+            worst[i] = worst[i].max(row[i]);
+        }
+    }
+    println!(" max {}", worst.iter().map(|x| format!("{x:8.3}")).collect::<Vec<_>>().join(" "));
 }
 
 /// Per knot from lift-off on: the SRB's CoM (y, z), the plan's base (y, z), and the box
