@@ -980,14 +980,22 @@ impl FullBodyStage {
                 fd.curvature[(i, j)] = (fd.plus[i] - fd.minus[i]) / (2.0 * h);
             }
         }
-        for j in 0..nx {
-            for i in 0..nx {
-                out[(i, j)] += 0.5 * (fd.curvature[(i, j)] + fd.curvature[(j, i)]);
-            }
-            for i in nx..nz {
-                out[(i, j)] += fd.curvature[(i, j)];
-                out[(j, i)] += fd.curvature[(i, j)];
-            }
+        add_state_columns(&fd.curvature, nx, out);
+    }
+}
+
+/// Adds the state columns `C[:, ..nx]` of a curvature by differences to the Hessian `out`:
+/// the state block symmetrized, the control-state block `C[nx.., ..nx]` and its transpose;
+/// the control-control block stays (every row is linear in the controls).
+fn add_state_columns(curvature: &DMatrix<f64>, nx: usize, out: &mut DMatrix<f64>) {
+    let nz = out.nrows();
+    for j in 0..nx {
+        for i in 0..nx {
+            out[(i, j)] += 0.5 * (curvature[(i, j)] + curvature[(j, i)]);
+        }
+        for i in nx..nz {
+            out[(i, j)] += curvature[(i, j)];
+            out[(j, i)] += curvature[(i, j)];
         }
     }
 }

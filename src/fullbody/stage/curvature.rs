@@ -22,7 +22,7 @@
 //! (the velocity's `nv` of them without the kinematics) where the central differences of
 //! the Jacobians took `2 nx` Jacobian passes.
 
-use super::{FullBodyStage, Workspace, TRUNK_CORNERS};
+use super::{add_state_columns, FullBodyStage, Workspace, TRUNK_CORNERS};
 use crate::dynamics::{aba, compute_joint_jacobians, compute_rnea_derivatives, integrate, integrate_jacobians, mass_matrix_solve};
 use crate::fullbody::kinematics::{add_point_force_derivative, foot_position, knee_position, point_jacobian};
 use crate::ipocp::StageMultipliers;
@@ -104,15 +104,7 @@ impl FullBodyStage {
             }
         }
         // (fd.gradient holds the unperturbed gradient: the swap above.)
-        for j in 0..nx {
-            for i in 0..nx {
-                out[(i, j)] += 0.5 * (fd.curvature[(i, j)] + fd.curvature[(j, i)]);
-            }
-            for i in nx..nz {
-                out[(i, j)] += fd.curvature[(i, j)];
-                out[(j, i)] += fd.curvature[(i, j)];
-            }
-        }
+        add_state_columns(&fd.curvature, nx, out);
     }
 
     /// `fd.perturbed = J_c(fd.z)^T m` up to a constant (the linear rows left out): the
