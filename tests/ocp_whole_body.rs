@@ -296,6 +296,46 @@ fn substepped_knot_is_the_simulators_steps_and_its_linearization_matches_finite_
 /// limit, a hip too fast), the knot's `l_x` matches central differences of its cost along
 /// random tangent directions, anchors included; the friction residual in both of its
 /// forms (a force in the robot's weight, and the ratio), the joints' bounds with a margin.
+/// `x` moved by `h dx` in the tangent space: the configuration by `integrate`, the
+/// velocity and the anchors (3 per foot after `q`, `v`) added.
+fn perturbed_state(model: &legwork::model::Model, x: &RobotState, dx: &DVector<f64>, h: f64) -> RobotState {
+    let nv = model.nv;
+    let mut y = x.clone();
+    legwork::dynamics::integrate(model, &x.q, &(dx.rows(0, nv) * h), &mut y.q);
+    y.v += dx.rows(nv, nv) * h;
+    for (f, a) in y.anchors.iter_mut().enumerate() {
+        if let Some(a) = a {
+            *a += dx.fixed_rows::<3>(2 * nv + 3 * f) * h;
+        }
+    }
+    y
+}
+
+/// The first knot's cost from state `y` under input `u`.
+fn knot_cost(problem: &WholeBodyProblem<'_>, y: &RobotState, u: &DVector<f64>) -> f64 {
+    let mut ws = problem.workspace();
+    let mut next = y.clone();
+    problem.step(&mut ws, 0, y, u, &mut next)
+}
+
+/// A uniform number in [-1, 1) from a 64-bit LCG state (Knuth's MMIX constants).
+fn uniform(seed: &mut u64) -> f64 {
+    *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    ((*seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+}
+
+/// The first knot's `l_x` against central differences (step 1e-7) of its cost along six
+/// random tangent directions drawn from `seed`, to 1e-4 relative.
+fn assert_knot_gradient(model: &legwork::model::Model, problem: &WholeBodyProblem<'_>, x: &RobotState, u: &DVector<f64>, l_x: &DVector<f64>, seed: &mut u64, what: &str) {
+    for trial in 0..6 {
+        let dx = DVector::from_fn(l_x.len(), |_, _| uniform(seed));
+        let h = 1e-7;
+        let fd = (knot_cost(problem, &perturbed_state(model, x, &dx, h), u) - knot_cost(problem, &perturbed_state(model, x, &dx, -h), u)) / (2.0 * h);
+        let analytic = l_x.dot(&dx);
+        assert!((fd - analytic).abs() < 1e-4 * (1.0 + analytic.abs()), "{what}, direction {trial}: finite differences {fd} against l_x . dx = {analytic}");
+    }
+}
+
 #[test]
 fn feasibility_constraint_gradients_match_finite_differences() {
     use legwork::ocp::FrictionForm;
@@ -331,35 +371,10 @@ fn feasibility_gradient_case(friction_form: legwork::ocp::FrictionForm, joint_li
     problem.step_with_derivatives(&mut ws, 0, &x, &u, &mut next, &mut d);
     let violation = problem.constraint_violation(std::slice::from_ref(&x)).unwrap();
     assert!(violation.friction > 0.0 && violation.penetration > 0.0 && violation.joint_limit > 0.0 && violation.joint_speed > 0.0, "{violation:?}");
-    let nv = model.nv;
-    let perturbed = |dx: &DVector<f64>, h: f64| {
-        let mut y = x.clone();
-        legwork::dynamics::integrate(&model, &x.q, &(dx.rows(0, nv) * h), &mut y.q);
-        y.v += dx.rows(nv, nv) * h;
-        for (f, a) in y.anchors.iter_mut().enumerate() {
-            if let Some(a) = a {
-                *a += dx.fixed_rows::<3>(2 * nv + 3 * f) * h;
-            }
-        }
-        y
-    };
-    let cost = |y: &RobotState| {
-        let mut ws = problem.workspace();
-        let mut next = y.clone();
-        problem.step(&mut ws, 0, y, &u, &mut next)
-    };
     let mut seed = 7u64;
-    let mut r = || {
-        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-    };
-    for trial in 0..6 {
-        let dx = DVector::from_fn(nx, |_, _| r());
-        let h = 1e-7;
-        let fd = (cost(&perturbed(&dx, h)) - cost(&perturbed(&dx, -h))) / (2.0 * h);
-        let analytic = d.l_x.dot(&dx);
-        assert!((fd - analytic).abs() < 1e-4 * (1.0 + analytic.abs()), "{friction_form:?}, direction {trial}: finite differences {fd} against l_x . dx = {analytic}");
-    }
+    assert_knot_gradient(&model, &problem, &x, &u, &d.l_x, &mut seed, &format!("{friction_form:?}"));
+    let perturbed = |dx: &DVector<f64>, h: f64| perturbed_state(&model, &x, dx, h);
+    let mut r = || uniform(&mut seed);
     // The same terms on the last state (`terminal_knot`; the task has no final cost, so
     // `h` is theirs alone): `h_x` against central differences of `h`.
     problem.feasibility.as_mut().unwrap().settings.terminal_knot = true;
@@ -434,33 +449,6 @@ fn relaxed_barrier_gradients_match_finite_differences() {
         let mut next = x.clone();
         let c = problem.step_with_derivatives(&mut ws, 0, &x, &u, &mut next, &mut d);
         assert!(c.is_finite() && (c - problem.step(&mut problem.workspace(), 0, &x, &u, &mut next.clone())).abs() <= 1e-9 * c.abs().max(1.0), "case {case}: cost {c}");
-        let perturbed = |dx: &DVector<f64>, h: f64| {
-            let mut y = x.clone();
-            legwork::dynamics::integrate(&model, &x.q, &(dx.rows(0, nv) * h), &mut y.q);
-            y.v += dx.rows(nv, nv) * h;
-            for (f, a) in y.anchors.iter_mut().enumerate() {
-                if let Some(a) = a {
-                    *a += dx.fixed_rows::<3>(2 * nv + 3 * f) * h;
-                }
-            }
-            y
-        };
-        let cost = |y: &RobotState| {
-            let mut ws = problem.workspace();
-            let mut next = y.clone();
-            problem.step(&mut ws, 0, y, &u, &mut next)
-        };
-        let mut seed = 11u64 + case as u64;
-        let mut r = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-        };
-        for trial in 0..6 {
-            let dx = DVector::from_fn(nx, |_, _| r());
-            let h = 1e-7;
-            let fd = (cost(&perturbed(&dx, h)) - cost(&perturbed(&dx, -h))) / (2.0 * h);
-            let analytic = d.l_x.dot(&dx);
-            assert!((fd - analytic).abs() < 1e-4 * (1.0 + analytic.abs()), "case {case}, direction {trial}: finite differences {fd} against l_x . dx = {analytic}");
-        }
+        assert_knot_gradient(&model, &problem, &x, &u, &d.l_x, &mut (11u64 + case as u64), &format!("case {case}"));
     }
 }
