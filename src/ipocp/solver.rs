@@ -88,6 +88,16 @@ pub struct Solver {
     /// The adaptive barrier update's complementarity pairs and their steps.
     pairs: ComplementarityPairs,
     filter: Filter,
+    /// The last step's fraction-to-the-boundary bound, the step the line search accepted, and
+    /// the (stage, row) whose slack set the bound: `verbose`'s `alpha_max`, `alpha_pr`, `block`.
+    last_step: LastStep,
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct LastStep {
+    alpha_max: f64,
+    alpha_primal: f64,
+    blocking: Option<(usize, usize)>,
 }
 
 /// The complementarity pairs `(gap, z)` of every finite bound (`gap = s - l` with `z_l`,
@@ -286,6 +296,7 @@ impl Solver {
             pairs: ComplementarityPairs::with_capacity(2 * problem.dims().iter().map(|d| d.nh).sum::<usize>()),
             settings,
             buffers,
+            last_step: LastStep::default(),
             filter: Filter::default(),
         })
     }
@@ -357,12 +368,15 @@ impl Solver {
             }
             if s.verbose {
                 eprintln!(
-                    "ipocp {iteration:4} obj {:+.8e} inf_pr {:.2e} inf_du {:.2e} lg(mu) {:5.2} reg {:.1e}",
+                    "ipocp {iteration:4} obj {:+.8e} inf_pr {:.2e} inf_du {:.2e} lg(mu) {:5.2} reg {:.1e} alpha_max {:.2e} alpha_pr {:.2e} block {:?}",
                     errors.objective,
                     errors.primal,
                     errors.dual,
                     mu.log10(),
-                    regularization_last
+                    regularization_last,
+                    self.last_step.alpha_max,
+                    self.last_step.alpha_primal,
+                    self.last_step.blocking
                 );
             }
             if errors.error_0 <= s.tolerance
@@ -915,20 +929,28 @@ impl Solver {
         }
     }
 
-    fn max_primal_step(&self, problem: &Problem, it: &Iterate, tau: f64) -> f64 {
+    fn max_primal_step(&mut self, problem: &Problem, it: &Iterate, tau: f64) -> f64 {
         let mut alpha: f64 = 1.0;
+        let mut blocking = None;
         for (k, b) in self.buffers.iter().enumerate() {
             let (lo, up) = problem.bounds(k);
             for i in 0..b.ds.len() {
                 let (s, ds) = (it.slack[k][i], b.ds[i]);
-                if lo[i].is_finite() && ds < 0.0 {
-                    alpha = alpha.min(-tau * (s - lo[i]) / ds);
-                }
-                if up[i].is_finite() && ds > 0.0 {
-                    alpha = alpha.min(tau * (up[i] - s) / ds);
+                let bound = if lo[i].is_finite() && ds < 0.0 {
+                    -tau * (s - lo[i]) / ds
+                } else if up[i].is_finite() && ds > 0.0 {
+                    tau * (up[i] - s) / ds
+                } else {
+                    f64::INFINITY
+                };
+                if bound < alpha {
+                    alpha = bound;
+                    blocking = Some((k, i));
                 }
             }
         }
+        self.last_step.alpha_max = alpha;
+        self.last_step.blocking = blocking;
         alpha
     }
 
@@ -1308,6 +1330,7 @@ impl Solver {
 
     /// Takes the trial point in the buffers and the multiplier steps.
     fn accept(&mut self, it: &mut Iterate, alpha: f64, alpha_z: f64) {
+        self.last_step.alpha_primal = alpha;
         for (k, b) in self.buffers.iter_mut().enumerate() {
             it.primal[k].copy_from(&b.trial_primal);
             it.slack[k].copy_from(&b.trial_slack);
