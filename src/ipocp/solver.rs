@@ -735,6 +735,21 @@ impl Solver {
         let (mut objective, mut primal, mut dual, mut compl_0, mut compl_mu) = (0.0, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
         let (mut sum_mult, mut n_mult, mut sum_bound, mut n_bound) = (0.0, 0usize, 0.0, 0usize);
         let (mut primal_squares, mut n_primal, mut dual_squares, mut n_dual) = (0.0, 0usize, 0.0, 0usize);
+        // The stages' Lagrangian gradients first (the products with the Jacobians, stage by
+        // stage, on rayon's threads when `parallel`), then the sums in stage order.
+        for_each_stage(self.settings.parallel, &mut self.buffers, |k, b| {
+            // grad l + F^T lambda + G^T nu + J_h^T y - [lambda_{k-1}; 0]
+            let g = &mut b.lagrangian_gradient;
+            g.copy_from(&b.jac.cost_gradient);
+            g.gemv_tr(1.0, &b.jac.dynamics, &it.dynamics_multiplier[k], 1.0);
+            g.gemv_tr(1.0, &b.jac.equalities, &it.equality_multiplier[k], 1.0);
+            b.jh_rows.add_transpose_times(it.inequality_multiplier[k].as_slice(), g.as_mut_slice());
+            if k > 0 {
+                for (gi, lambda) in g.iter_mut().zip(it.dynamics_multiplier[k - 1].iter()) {
+                    *gi -= lambda;
+                }
+            }
+        });
         for (k, b) in self.buffers.iter_mut().enumerate() {
             let d = dims[k];
             let (lo, up) = problem.bounds(k);
@@ -753,17 +768,8 @@ impl Solver {
                 primal_squares += r * r;
             }
             n_primal += d.nx_next + d.ng + d.nh;
-            // Dual: grad l + F^T lambda + G^T nu + J_h^T y - [lambda_{k-1}; 0], and -y - zl + zu.
-            let g = &mut b.lagrangian_gradient;
-            g.copy_from(&b.jac.cost_gradient);
-            g.gemv_tr(1.0, &b.jac.dynamics, &it.dynamics_multiplier[k], 1.0);
-            g.gemv_tr(1.0, &b.jac.equalities, &it.equality_multiplier[k], 1.0);
-            b.jh_rows.add_transpose_times(it.inequality_multiplier[k].as_slice(), g.as_mut_slice());
-            if k > 0 {
-                for i in 0..d.nx {
-                    g[i] -= it.dynamics_multiplier[k - 1][i];
-                }
-            }
+            // Dual: the Lagrangian gradient above, and -y - zl + zu.
+            let g = &b.lagrangian_gradient;
             dual = dual.max(g.amax());
             dual_squares += g.norm_squared();
             n_dual += d.nz() + d.nh;
@@ -1284,32 +1290,42 @@ impl Solver {
     /// `G dz + g`; returns `|r| / (|s| + |rhs|)` (max norms).
     fn kkt_residual(&mut self) -> f64 {
         let n = self.qps.len();
-        let (mut residual, mut solution, mut rhs) = (0.0f64, 0.0f64, 0.0f64);
-        for k in 0..n {
-            let (qp, step, r) = (&self.qps[k], &self.steps[k], &mut self.residuals[k]);
+        let (qps, steps) = (&self.qps, &self.steps);
+        // Stage k's residual rows and its largest residual, step and right-hand side entries.
+        let stage = |k: usize, r: &mut KktResidual| -> [f64; 3] {
+            let (qp, step) = (&qps[k], &steps[k]);
             let g = &mut r.stationarity;
             g.copy_from(&qp.gradient);
             g.gemv(1.0, &qp.hessian, &step.dz, 1.0);
             g.gemv_tr(1.0, &qp.dynamics, &step.dynamics_multiplier, 1.0);
             g.gemv_tr(1.0, &qp.equality_jacobian, &step.equality_multiplier, 1.0);
             if k > 0 {
-                for (gi, lam) in g.iter_mut().zip(self.steps[k - 1].dynamics_multiplier.iter()) {
+                for (gi, lam) in g.iter_mut().zip(steps[k - 1].dynamics_multiplier.iter()) {
                     *gi -= lam;
                 }
             }
             r.dynamics.copy_from(&qp.defect);
             if k + 1 < n {
                 r.dynamics.gemv(1.0, &qp.dynamics, &step.dz, 1.0);
-                for (ri, dx) in r.dynamics.iter_mut().zip(self.steps[k + 1].dz.iter()) {
+                for (ri, dx) in r.dynamics.iter_mut().zip(steps[k + 1].dz.iter()) {
                     *ri -= dx;
                 }
             }
             r.equalities.copy_from(&qp.equality_residual);
             r.equalities.gemv(1.0, &qp.equality_jacobian, &step.dz, 1.0);
-            residual = residual.max(g.amax()).max(r.dynamics.amax()).max(r.equalities.amax());
-            solution = solution.max(step.dz.amax()).max(step.dynamics_multiplier.amax()).max(step.equality_multiplier.amax());
-            rhs = rhs.max(qp.gradient.amax()).max(qp.defect.amax()).max(qp.equality_residual.amax());
-        }
+            [
+                g.amax().max(r.dynamics.amax()).max(r.equalities.amax()),
+                step.dz.amax().max(step.dynamics_multiplier.amax()).max(step.equality_multiplier.amax()),
+                qp.gradient.amax().max(qp.defect.amax()).max(qp.equality_residual.amax()),
+            ]
+        };
+        // Maxima: the same in any order.
+        let largest = |a: [f64; 3], b: [f64; 3]| [a[0].max(b[0]), a[1].max(b[1]), a[2].max(b[2])];
+        let [residual, solution, rhs] = if self.settings.parallel {
+            self.residuals.par_iter_mut().enumerate().map(|(k, r)| stage(k, r)).reduce(|| [0.0; 3], largest)
+        } else {
+            self.residuals.iter_mut().enumerate().map(|(k, r)| stage(k, r)).fold([0.0; 3], largest)
+        };
         if residual == 0.0 {
             0.0
         } else {
