@@ -5,7 +5,13 @@
 //! cargo run --release --example contact_timing -- [--exp taylor4|exact] [--repeats 5]
 //!     [--reference ../shared/anchors/nguyen2022/results_srb_costdt.json]
 //!     [--barrier monotone|probing|quality-function|loqo] [--bound-push 1e-2] [--bound-frac 1e-2]
-//!     [jump ...]
+//!     [--threads 1] [jump ...]
+//! ```
+//!
+//! `--threads N` (N > 1) turns on ipocp's parallel stage work on a rayon pool of N threads
+//! (capped at the machine's cores); 1 (the default) is sequential.
+//!
+//! ```text
 //! ```
 
 use legwork::ipocp::Settings;
@@ -23,6 +29,7 @@ fn main() -> anyhow::Result<()> {
     let mut barrier_update = ContactTimingProblem::solver_settings().barrier_update;
     let defaults = Settings::default();
     let (mut bound_push, mut bound_frac) = (defaults.bound_push, defaults.bound_frac);
+    let mut threads = 1usize;
     while let Some(a) = args.next() {
         match a.as_str() {
             "--exp" => {
@@ -40,10 +47,13 @@ fn main() -> anyhow::Result<()> {
             "--verbose" => verbose = true,
             "--barrier" => barrier_update = args.next().ok_or_else(|| anyhow::anyhow!("--barrier: a rule"))?.parse().map_err(anyhow::Error::msg)?,
             "--bound-push" => bound_push = args.next().ok_or_else(|| anyhow::anyhow!("--bound-push: a number"))?.parse()?,
+            "--threads" => threads = args.next().ok_or_else(|| anyhow::anyhow!("--threads: a number"))?.parse()?,
             "--bound-frac" => bound_frac = args.next().ok_or_else(|| anyhow::anyhow!("--bound-frac: a number"))?.parse()?,
             _ => names.push(a),
         }
     }
+    let threads = threads.clamp(1, std::thread::available_parallelism().map_or(1, |n| n.get()));
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build_global()?;
     let params = SrbParams::a1()?;
     let all = embedded_jumps()?;
     let selected: Vec<_> = if names.is_empty() { all.clone() } else { all.iter().filter(|j| names.contains(&j.name)).cloned().collect() };
@@ -55,7 +65,7 @@ fn main() -> anyhow::Result<()> {
         let max_stance_speed = if reference.is_some() { f64::INFINITY } else { file.contact_timing.max_stance_speed };
         let settings = ContactTimingSettings { exp_map, max_stance_speed, ..file.contact_timing.clone() };
         let ct = ContactTimingProblem::new(&jump, &params, &settings)?;
-        let mut solver = ct.solver(Settings { verbose, barrier_update, bound_push, bound_frac, ..Settings::default() })?;
+        let mut solver = ct.solver(Settings { verbose, barrier_update, bound_push, bound_frac, parallel: threads > 1, ..Settings::default() })?;
         let mut times = Vec::new();
         let mut result = None;
         for _ in 0..repeats.max(1) {

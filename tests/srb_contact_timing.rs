@@ -142,3 +142,26 @@ fn the_stance_speed_bound_holds_the_take_off_of_spin_90() {
     assert!(free > 2.5, "without the bound the take-off is {free} m/s (T {t_free:?})");
     assert!(t_bounded[1] < t_free[1] - 0.1, "flight {t_bounded:?} vs {t_free:?}");
 }
+
+/// ipocp's parallel stage work (`Settings::parallel`: evaluations, QP assembly, step gather,
+/// Lagrangian gradients, KKT residuals on rayon's threads) keeps every sum in stage order, so
+/// it takes the sequential solve's path exactly: barrel_roll (second-order corrections and a
+/// restoration phase on the way) in the same iterations to the same bits.
+#[test]
+fn parallel_stage_work_takes_the_sequential_path() {
+    let params = SrbParams::a1().unwrap();
+    let file = Jump::embedded("barrel_roll").unwrap();
+    let ct = ContactTimingProblem::new(&file.srb(), &params, &file.contact_timing).unwrap();
+    let solve = |parallel: bool| {
+        let mut solver = ct.solver(Settings { parallel, ..ContactTimingProblem::solver_settings() }).unwrap();
+        ct.solve(&mut solver).unwrap()
+    };
+    let (sequential, parallel) = (solve(false), solve(true));
+    assert_eq!(sequential.status, Status::Solved);
+    assert!(sequential.restorations > 0, "the check wants a restoration phase on the path");
+    assert_eq!((parallel.iterations, parallel.kkt_solves, parallel.restorations), (sequential.iterations, sequential.kkt_solves, sequential.restorations));
+    assert_eq!(parallel.objective.to_bits(), sequential.objective.to_bits(), "{} vs {}", parallel.objective, sequential.objective);
+    for (k, (a, b)) in parallel.last.primal.iter().zip(&sequential.last.primal).enumerate() {
+        assert!(a.iter().zip(b.iter()).all(|(x, y)| x.to_bits() == y.to_bits()), "knot {k}: {a} vs {b}");
+    }
+}

@@ -78,11 +78,15 @@ pub enum BenchCommand {
         /// The full body's barrier update in its curvature phase (default: as the rest).
         #[arg(long, value_name = "RULE")]
         barrier_curvature: Option<legwork::ipocp::BarrierUpdate>,
+        /// Threads of the contact timing's stage work (1: sequential, the default; more: on
+        /// rayon's pool, capped at the machine's cores), as `legwork jump --threads`.
+        #[arg(long, default_value_t = 1)]
+        threads: usize,
     },
 }
 
 /// `legwork bench jumps`.
-fn jumps(as_json: bool, repeats: usize, knots: Option<usize>, trials: usize, names: &[String], barriers: [Option<legwork::ipocp::BarrierUpdate>; 3]) -> Result<()> {
+fn jumps(as_json: bool, repeats: usize, knots: Option<usize>, trials: usize, names: &[String], barriers: [Option<legwork::ipocp::BarrierUpdate>; 3], threads: usize) -> Result<()> {
     if repeats == 0 {
         bail!("--repeats: expected at least one solve per jump, got 0");
     }
@@ -95,6 +99,7 @@ fn jumps(as_json: bool, repeats: usize, knots: Option<usize>, trials: usize, nam
         let model = embedded::load(&jump.robot)?;
         let settings = super::jump::settings_of(jump, knots)?;
         let mut options = legwork::jump::PipelineOptions { contact_timing: settings, trials, ..legwork::jump::PipelineOptions::of(jump) };
+        options.contact_timing_solver.parallel = super::jump::contact_timing_parallel(threads);
         if let Some(rule) = barriers[0] {
             options.contact_timing_solver.barrier_update = rule;
         }
@@ -150,7 +155,7 @@ fn cpu_name() -> String {
 
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
-        BenchCommand::Jumps { json, repeats, knots, trials, jumps: names, barrier_contact_timing, barrier_full_body, barrier_curvature } => jumps(json, repeats, knots, trials, &names, [barrier_contact_timing, barrier_full_body, barrier_curvature]),
+        BenchCommand::Jumps { json, repeats, knots, trials, jumps: names, barrier_contact_timing, barrier_full_body, barrier_curvature, threads } => jumps(json, repeats, knots, trials, &names, [barrier_contact_timing, barrier_full_body, barrier_curvature], threads),
         BenchCommand::Slq { json, threads, iterations, check } => slq(json, threads, iterations, check.is_some()),
         BenchCommand::Terrain { trials, json, threads, scenarios } => terrain(trials, json, threads, &scenarios),
     }

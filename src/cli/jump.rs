@@ -26,6 +26,17 @@ pub struct JumpArgs {
     /// offset; issue 17 asks for 20).
     #[arg(long, default_value_t = 0)]
     trials: usize,
+    /// Threads of the contact timing's stage work (evaluations, QP assembly, step gather):
+    /// 1 sequential (the default); more: on rayon's pool, one thread per core (capped at the
+    /// machine's cores, so any value above 1 on a 2-core machine means 2).
+    #[arg(long, default_value_t = 1)]
+    threads: usize,
+}
+
+/// Whether `--threads` asks for the contact timing's parallel stage work: more than one
+/// thread after capping at the machine's cores.
+pub(super) fn contact_timing_parallel(threads: usize) -> bool {
+    threads.min(std::thread::available_parallelism().map_or(1, |n| n.get())) > 1
 }
 
 /// The jump's settings with the command line's overrides.
@@ -74,7 +85,8 @@ pub fn run(args: JumpArgs) -> Result<ExitCode> {
     let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
     bar.set_style(ProgressStyle::with_template("{spinner} {msg} ({elapsed})").expect("static template"));
     bar.enable_steady_tick(Duration::from_millis(120));
-    let options = PipelineOptions { contact_timing: settings.clone(), trials: args.trials, ..PipelineOptions::of(&jump) };
+    let mut options = PipelineOptions { contact_timing: settings.clone(), trials: args.trials, ..PipelineOptions::of(&jump) };
+    options.contact_timing_solver.parallel = contact_timing_parallel(args.threads);
     let report = pipeline::run(&jump, &model, &options, |stage, done| {
         if done {
             bar.println(format!("  done: {}", stage_name(stage)));

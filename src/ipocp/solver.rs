@@ -71,6 +71,17 @@ fn for_each_stage(parallel: bool, buffers: &mut [StageBuffers], f: impl Fn(usize
     }
 }
 
+/// [`for_each_stage`] over every stage's buffers and its QP.
+fn for_each_stage_with(parallel: bool, buffers: &mut [StageBuffers], qps: &mut [StageQp], f: impl Fn(usize, &mut StageBuffers, &mut StageQp) + Sync + Send) {
+    if parallel {
+        buffers.par_iter_mut().zip(qps.par_iter_mut()).enumerate().for_each(|(k, (b, qp))| f(k, b, qp));
+    } else {
+        for (k, (b, qp)) in buffers.iter_mut().zip(qps.iter_mut()).enumerate() {
+            f(k, b, qp);
+        }
+    }
+}
+
 /// A solver for the problems of one stage layout; allocates its workspace once.
 pub struct Solver {
     settings: Settings,
@@ -140,17 +151,23 @@ impl ComplementarityPairs {
         const LANES: usize = 4;
         let (mut sum, mut squares) = ([0.0; LANES], [0.0; LANES]);
         let n = self.gap.len();
+        // Equal-length slices, walked in chunks of LANES: no bounds checks in the loop.
+        let (gap, gap_affine, gap_difference) = (&self.gap[..n], &self.gap_affine[..n], &self.gap_difference[..n]);
+        let (multiplier, multiplier_affine, multiplier_difference) = (&self.multiplier[..n], &self.multiplier_affine[..n], &self.multiplier_difference[..n]);
+        let product = |g: f64, ga: f64, gd: f64, z: f64, za: f64, zd: f64| (g + alpha_primal * (ga + sigma * gd)) * (z + alpha_dual * (za + sigma * zd));
+        fn chunks(v: &[f64]) -> std::slice::ChunksExact<'_, f64> {
+            v.chunks_exact(LANES)
+        }
         let whole = n - n % LANES;
-        let product = |j: usize| (self.gap[j] + alpha_primal * (self.gap_affine[j] + sigma * self.gap_difference[j])) * (self.multiplier[j] + alpha_dual * (self.multiplier_affine[j] + sigma * self.multiplier_difference[j]));
-        for start in (0..whole).step_by(LANES) {
+        for (((g, ga), gd), ((z, za), zd)) in chunks(gap).zip(chunks(gap_affine)).zip(chunks(gap_difference)).zip(chunks(multiplier).zip(chunks(multiplier_affine)).zip(chunks(multiplier_difference))) {
             for lane in 0..LANES {
-                let c = product(start + lane);
+                let c = product(g[lane], ga[lane], gd[lane], z[lane], za[lane], zd[lane]);
                 sum[lane] += c;
                 squares[lane] += c * c;
             }
         }
         for j in whole..n {
-            let c = product(j);
+            let c = product(gap[j], gap_affine[j], gap_difference[j], multiplier[j], multiplier_affine[j], multiplier_difference[j]);
             sum[0] += c;
             squares[0] += c * c;
         }
@@ -173,18 +190,18 @@ impl ComplementarityPairs {
 fn largest_decrease_ratio(inverse: &[f64], affine: &[f64], difference: &[f64], sigma: f64) -> f64 {
     const LANES: usize = 4;
     let mut largest = [0.0f64; LANES];
-    let (inverse, affine, difference) = (&inverse[..affine.len()], affine, &difference[..affine.len()]);
-    let whole = affine.len() - affine.len() % LANES;
-    for start in (0..whole).step_by(LANES) {
+    let n = affine.len();
+    let (inverse, difference) = (&inverse[..n], &difference[..n]);
+    let whole = n - n % LANES;
+    for ((inv, aff), dif) in inverse.chunks_exact(LANES).zip(affine.chunks_exact(LANES)).zip(difference.chunks_exact(LANES)) {
         for lane in 0..LANES {
-            let j = start + lane;
-            let r = -(affine[j] + sigma * difference[j]) * inverse[j];
+            let r = -(aff[lane] + sigma * dif[lane]) * inv[lane];
             if r > largest[lane] {
                 largest[lane] = r;
             }
         }
     }
-    for j in whole..affine.len() {
+    for j in whole..n {
         let r = -(affine[j] + sigma * difference[j]) * inverse[j];
         if r > largest[0] {
             largest[0] = r;
@@ -732,6 +749,21 @@ impl Solver {
         let (mut objective, mut primal, mut dual, mut compl_0, mut compl_mu) = (0.0, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
         let (mut sum_mult, mut n_mult, mut sum_bound, mut n_bound) = (0.0, 0usize, 0.0, 0usize);
         let (mut primal_squares, mut n_primal, mut dual_squares, mut n_dual) = (0.0, 0usize, 0.0, 0usize);
+        // The stages' Lagrangian gradients first (the products with the Jacobians, stage by
+        // stage, on rayon's threads when `parallel`), then the sums in stage order.
+        for_each_stage(self.settings.parallel, &mut self.buffers, |k, b| {
+            // grad l + F^T lambda + G^T nu + J_h^T y - [lambda_{k-1}; 0]
+            let g = &mut b.lagrangian_gradient;
+            g.copy_from(&b.jac.cost_gradient);
+            g.gemv_tr(1.0, &b.jac.dynamics, &it.dynamics_multiplier[k], 1.0);
+            g.gemv_tr(1.0, &b.jac.equalities, &it.equality_multiplier[k], 1.0);
+            b.jh_rows.add_transpose_times(it.inequality_multiplier[k].as_slice(), g.as_mut_slice());
+            if k > 0 {
+                for (gi, lambda) in g.iter_mut().zip(it.dynamics_multiplier[k - 1].iter()) {
+                    *gi -= lambda;
+                }
+            }
+        });
         for (k, b) in self.buffers.iter_mut().enumerate() {
             let d = dims[k];
             let (lo, up) = problem.bounds(k);
@@ -750,17 +782,8 @@ impl Solver {
                 primal_squares += r * r;
             }
             n_primal += d.nx_next + d.ng + d.nh;
-            // Dual: grad l + F^T lambda + G^T nu + J_h^T y - [lambda_{k-1}; 0], and -y - zl + zu.
-            let g = &mut b.lagrangian_gradient;
-            g.copy_from(&b.jac.cost_gradient);
-            g.gemv_tr(1.0, &b.jac.dynamics, &it.dynamics_multiplier[k], 1.0);
-            g.gemv_tr(1.0, &b.jac.equalities, &it.equality_multiplier[k], 1.0);
-            b.jh_rows.add_transpose_times(it.inequality_multiplier[k].as_slice(), g.as_mut_slice());
-            if k > 0 {
-                for i in 0..d.nx {
-                    g[i] -= it.dynamics_multiplier[k - 1][i];
-                }
-            }
+            // Dual: the Lagrangian gradient above, and -y - zl + zu.
+            let g = &b.lagrangian_gradient;
             dual = dual.max(g.amax());
             dual_squares += g.norm_squared();
             n_dual += d.nz() + d.nh;
@@ -817,48 +840,53 @@ impl Solver {
     }
 
     fn assemble_qp_parts(&mut self, problem: &Problem, it: &Iterate, mu: f64, delta: f64, soc: Option<f64>, matrices: bool) {
-        let n = self.buffers.len();
-        for k in 0..n {
+        if let Some(alpha) = soc {
+            // c_soc = alpha c(z) + c(z_trial) (eq. 27); c(z) is what the last QP used. The
+            // dynamics defect reads the next stage's trial state: done here, stage by stage.
+            let n = self.buffers.len();
+            for k in 0..n {
+                let next_x = self.buffers.get(k + 1).map(|nb| &nb.trial_primal);
+                let (b, qp) = (&self.buffers[k], &mut self.qps[k]);
+                for i in 0..qp.defect.len() {
+                    qp.defect[i] = alpha * qp.defect[i] + (b.trial.dynamics[i] - next_x.map_or(0.0, |x| x[i]));
+                }
+            }
+        }
+        // The rest of a stage's QP reads that stage's buffers only: stage by stage, on
+        // rayon's threads when `parallel`.
+        for_each_stage_with(self.settings.parallel, &mut self.buffers, &mut self.qps, |k, b, qp| {
             let (lo, up) = problem.bounds(k);
             let d = problem.dims()[k];
-            let (head, tail) = self.buffers.split_at_mut(k + 1);
-            let b = &mut head[k];
-            let next_x = tail.first().map(|nb| &nb.trial_primal);
             match soc {
                 None => {
                     for i in 0..d.nh {
                         b.ineq_residual[i] = b.values.inequalities[i] - it.slack[k][i];
                     }
                     for i in 0..d.nx_next {
-                        self.qps[k].defect[i] = b.values.dynamics[i] - it.primal[k + 1][i];
+                        qp.defect[i] = b.values.dynamics[i] - it.primal[k + 1][i];
                     }
-                    self.qps[k].equality_residual.copy_from(&b.values.equalities);
+                    qp.equality_residual.copy_from(&b.values.equalities);
                 }
                 Some(alpha) => {
-                    // c_soc = alpha c(z) + c(z_trial) (eq. 27); c(z) is what the last QP used.
                     for i in 0..d.nh {
                         b.ineq_residual[i] = alpha * b.ineq_residual[i] + (b.trial.inequalities[i] - b.trial_slack[i]);
                     }
-                    let xn = next_x;
-                    for i in 0..d.nx_next {
-                        self.qps[k].defect[i] = alpha * self.qps[k].defect[i] + (b.trial.dynamics[i] - xn.map_or(0.0, |x| x[i]));
-                    }
                     for i in 0..d.ng {
-                        self.qps[k].equality_residual[i] = alpha * self.qps[k].equality_residual[i] + b.trial.equalities[i];
+                        qp.equality_residual[i] = alpha * qp.equality_residual[i] + b.trial.equalities[i];
                     }
                 }
             }
             // A second-order correction changes the right-hand side only: the matrices (and
             // the Riccati factorization) stay those of the step it corrects.
             if matrices {
-                self.qps[k].hessian.as_mut_slice().copy_from_slice(b.hess.as_slice());
+                qp.hessian.as_mut_slice().copy_from_slice(b.hess.as_slice());
                 if delta > 0.0 {
                     for i in 0..d.nz() {
-                        self.qps[k].hessian[(i, i)] += delta;
+                        qp.hessian[(i, i)] += delta;
                     }
                 }
             }
-            self.qps[k].gradient.copy_from(&b.jac.cost_gradient);
+            qp.gradient.copy_from(&b.jac.cost_gradient);
             for i in 0..d.nh {
                 let s = it.slack[k][i];
                 let mut sigma = 0.0;
@@ -876,7 +904,6 @@ impl Solver {
             }
             // J_h^T Sigma J_h and J_h^T lin row by row over each row's nonzeros (most rows
             // are simple bounds with one; gathered by `evaluate_derivatives`).
-            let qp = &mut self.qps[k];
             let nz = d.nz();
             let (gradient, hessian) = (qp.gradient.as_mut_slice(), qp.hessian.as_mut_slice());
             for i in 0..d.nh {
@@ -893,19 +920,21 @@ impl Solver {
                 }
             }
             if matrices {
-                self.qps[k].dynamics.as_mut_slice().copy_from_slice(b.jac.dynamics.as_slice());
-                self.qps[k].equality_jacobian.as_mut_slice().copy_from_slice(b.jac.equalities.as_slice());
+                qp.dynamics.as_mut_slice().copy_from_slice(b.jac.dynamics.as_slice());
+                qp.equality_jacobian.as_mut_slice().copy_from_slice(b.jac.equalities.as_slice());
             }
-        }
+        });
     }
 
-    /// Slack and bound-multiplier steps from the Riccati solution (eq. 13 expanded).
+    /// Slack and bound-multiplier steps from the Riccati solution (eq. 13 expanded), stage
+    /// by stage (on rayon's threads when `parallel`).
     fn gather_step(&mut self, problem: &Problem, it: &Iterate, mu: f64) {
-        for (k, b) in self.buffers.iter_mut().enumerate() {
+        let steps = &self.steps;
+        for_each_stage(self.settings.parallel, &mut self.buffers, |k, b| {
             let (lo, up) = problem.bounds(k);
             let nh = b.ds.len();
             b.ds.copy_from(&b.ineq_residual);
-            b.jh_rows.add_times(self.steps[k].dz.as_slice(), b.ds.as_mut_slice());
+            b.jh_rows.add_times(steps[k].dz.as_slice(), b.ds.as_mut_slice());
             for i in 0..nh {
                 let s = it.slack[k][i];
                 let ds = b.ds[i];
@@ -926,7 +955,7 @@ impl Solver {
                 }
                 b.y_new[i] = y;
             }
-        }
+        });
     }
 
     fn max_primal_step(&mut self, problem: &Problem, it: &Iterate, tau: f64) -> f64 {
@@ -1056,12 +1085,11 @@ impl Solver {
         let mut j = 0;
         for (k, b) in self.buffers.iter().enumerate() {
             let (lo, up) = problem.bounds(k);
-            for i in 0..b.ds.len() {
-                let s = it.slack[k][i];
+            let (slack, zl, zu) = (it.slack[k].as_slice(), it.lower_bound_multiplier[k].as_slice(), it.upper_bound_multiplier[k].as_slice());
+            let (ds, dzl, dzu) = (b.ds.as_slice(), b.dzl.as_slice(), b.dzu.as_slice());
+            for i in 0..ds.len() {
                 // (gap, z, d gap, d z) of the lower and the upper bound.
-                let lower = lo[i].is_finite().then(|| (s - lo[i], it.lower_bound_multiplier[k][i], b.ds[i], b.dzl[i]));
-                let upper = up[i].is_finite().then(|| (up[i] - s, it.upper_bound_multiplier[k][i], -b.ds[i], b.dzu[i]));
-                for (gap, z, d_gap, d_z) in [lower, upper].into_iter().flatten() {
+                let mut pair = |gap: f64, z: f64, d_gap: f64, d_z: f64| {
                     if centering {
                         p.gap_difference[j] = d_gap - p.gap_affine[j];
                         p.multiplier_difference[j] = d_z - p.multiplier_affine[j];
@@ -1076,6 +1104,12 @@ impl Solver {
                         p.multiplier_difference.push(0.0);
                     }
                     j += 1;
+                };
+                if lo[i].is_finite() {
+                    pair(slack[i] - lo[i], zl[i], ds[i], dzl[i]);
+                }
+                if up[i].is_finite() {
+                    pair(up[i] - slack[i], zu[i], -ds[i], dzu[i]);
                 }
             }
         }
@@ -1278,32 +1312,42 @@ impl Solver {
     /// `G dz + g`; returns `|r| / (|s| + |rhs|)` (max norms).
     fn kkt_residual(&mut self) -> f64 {
         let n = self.qps.len();
-        let (mut residual, mut solution, mut rhs) = (0.0f64, 0.0f64, 0.0f64);
-        for k in 0..n {
-            let (qp, step, r) = (&self.qps[k], &self.steps[k], &mut self.residuals[k]);
+        let (qps, steps) = (&self.qps, &self.steps);
+        // Stage k's residual rows and its largest residual, step and right-hand side entries.
+        let stage = |k: usize, r: &mut KktResidual| -> [f64; 3] {
+            let (qp, step) = (&qps[k], &steps[k]);
             let g = &mut r.stationarity;
             g.copy_from(&qp.gradient);
             g.gemv(1.0, &qp.hessian, &step.dz, 1.0);
             g.gemv_tr(1.0, &qp.dynamics, &step.dynamics_multiplier, 1.0);
             g.gemv_tr(1.0, &qp.equality_jacobian, &step.equality_multiplier, 1.0);
             if k > 0 {
-                for (gi, lam) in g.iter_mut().zip(self.steps[k - 1].dynamics_multiplier.iter()) {
+                for (gi, lam) in g.iter_mut().zip(steps[k - 1].dynamics_multiplier.iter()) {
                     *gi -= lam;
                 }
             }
             r.dynamics.copy_from(&qp.defect);
             if k + 1 < n {
                 r.dynamics.gemv(1.0, &qp.dynamics, &step.dz, 1.0);
-                for (ri, dx) in r.dynamics.iter_mut().zip(self.steps[k + 1].dz.iter()) {
+                for (ri, dx) in r.dynamics.iter_mut().zip(steps[k + 1].dz.iter()) {
                     *ri -= dx;
                 }
             }
             r.equalities.copy_from(&qp.equality_residual);
             r.equalities.gemv(1.0, &qp.equality_jacobian, &step.dz, 1.0);
-            residual = residual.max(g.amax()).max(r.dynamics.amax()).max(r.equalities.amax());
-            solution = solution.max(step.dz.amax()).max(step.dynamics_multiplier.amax()).max(step.equality_multiplier.amax());
-            rhs = rhs.max(qp.gradient.amax()).max(qp.defect.amax()).max(qp.equality_residual.amax());
-        }
+            [
+                g.amax().max(r.dynamics.amax()).max(r.equalities.amax()),
+                step.dz.amax().max(step.dynamics_multiplier.amax()).max(step.equality_multiplier.amax()),
+                qp.gradient.amax().max(qp.defect.amax()).max(qp.equality_residual.amax()),
+            ]
+        };
+        // Maxima: the same in any order.
+        let largest = |a: [f64; 3], b: [f64; 3]| [a[0].max(b[0]), a[1].max(b[1]), a[2].max(b[2])];
+        let [residual, solution, rhs] = if self.settings.parallel {
+            self.residuals.par_iter_mut().enumerate().map(|(k, r)| stage(k, r)).reduce(|| [0.0; 3], largest)
+        } else {
+            self.residuals.iter_mut().enumerate().map(|(k, r)| stage(k, r)).fold([0.0; 3], largest)
+        };
         if residual == 0.0 {
             0.0
         } else {
