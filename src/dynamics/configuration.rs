@@ -50,8 +50,8 @@ pub fn integrate(model: &Model, q: &DVector<f64>, v: &DVector<f64>, q_out: &mut 
 /// eq. 170-171): `Jq = Ad(Exp(v))^-1`, `Jv = Jr(v)` ([`crate::spatial::jexp6`]).
 /// `jq` and `jv` are `nv x nv`, overwritten.
 pub fn integrate_jacobians(model: &Model, v: &DVector<f64>, jq: &mut DMatrix<f64>, jv: &mut DMatrix<f64>) {
-    jq.fill(0.0);
-    jv.fill(0.0);
+    jq.as_mut_slice().fill(0.0);
+    jv.as_mut_slice().fill(0.0);
     for j in model.joints.iter().skip(1) {
         let iv = j.idx_v;
         match j.kind {

@@ -23,7 +23,7 @@
 //! the Jacobians took `2 nx` Jacobian passes.
 
 use super::{add_state_columns, FullBodyStage, Workspace, TRUNK_CORNERS};
-use crate::dynamics::{aba, compute_joint_jacobians, compute_rnea_derivatives, integrate, integrate_jacobians, mass_matrix_solve};
+use crate::dynamics::{aba, compute_joint_jacobians, compute_rnea_derivatives, integrate, integrate_jacobians, mass_matrix_factor, mass_matrix_factored_solve};
 use crate::fullbody::kinematics::{add_point_force_derivative, foot_position, knee_position, point_jacobian};
 use crate::ipocp::StageMultipliers;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
@@ -150,8 +150,8 @@ impl FullBodyStage {
                 point_jacobian(model, &ws.data, sh.legs[f].knee_joint, &feet[f], &mut ws.feet_jac[f]);
                 point_jacobian(model, &ws.data, sh.legs[f].knee_joint, &knees[f], &mut ws.knee_jac[f]);
             }
-            g.fill(0.0);
-            t.fill(0.0);
+            g.as_mut_slice().fill(0.0);
+            t.as_mut_slice().fill(0.0);
             // Equalities: the held feet (the others are linear).
             if !spec.initial {
                 let mut r = 0;
@@ -207,7 +207,7 @@ impl FullBodyStage {
             }
             fd.t_kinematics.copy_from(t);
             fd.gradient_kinematics.copy_from(g);
-            fd.dgen_dq.fill(0.0);
+            fd.dgen_dq.as_mut_slice().fill(0.0);
             for f in 0..4 {
                 if let Some(l) = self.force(z, f) {
                     add_point_force_derivative(&ws.data, &sh.legs[f], &feet[f], &l, &mut fd.dgen_dq);
@@ -220,7 +220,7 @@ impl FullBodyStage {
         if !spec.last {
             let dt = s.dt;
             // qdd = ABA(q, v, S^T tau + sum_f J_f^T lambda_f) and d tau_gen / dq.
-            ws.tau.fill(0.0);
+            ws.tau.as_mut_slice().fill(0.0);
             ws.tau.as_mut_slice()[6..].copy_from_slice(&z[2 * nv..2 * nv + nj]);
             ws.dgen_dq.copy_from(&fd.dgen_dq);
             for f in 0..4 {
@@ -247,7 +247,11 @@ impl FullBodyStage {
                 }
             }
             fd.w.copy_from(&fd.mu);
-            mass_matrix_solve(model, &mut ws.data, fd.w.as_mut_slice());
+            // M depends on q only: a velocity perturbation reuses the configuration's factor.
+            if kinematics {
+                mass_matrix_factor(model, &mut ws.data);
+            }
+            mass_matrix_factored_solve(model, &ws.data, fd.w.as_mut_slice());
             // mu^T dv'/dz, column blocks dq (through t), v, tau, lambda.
             ws.dgen_dq -= &ws.data.dtau_dq;
             t.gemv_tr(dt, &ws.dgen_dq, &fd.w, 1.0);
