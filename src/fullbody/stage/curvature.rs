@@ -23,7 +23,10 @@
 //! the Jacobians took `2 nx` Jacobian passes.
 
 use super::{add_state_columns, FullBodyStage, Workspace, TRUNK_CORNERS};
-use crate::dynamics::{aba, compute_joint_jacobians, compute_rnea_derivatives, integrate, integrate_jacobians, mass_matrix_factor, mass_matrix_factored_solve};
+use crate::dynamics::{
+    aba, compute_joint_jacobians, compute_rnea_derivatives, integrate, integrate_jacobians, mass_matrix_factor, mass_matrix_factored_solve,
+    tangent_jacobian_tr_mul,
+};
 use crate::fullbody::kinematics::{add_point_force_derivative, foot_position, knee_position, point_jacobian};
 use crate::ipocp::StageMultipliers;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
@@ -236,11 +239,11 @@ impl FullBodyStage {
             ws.semi_implicit_step(model, dt, spec.qbar_next.as_ref().expect("a stage with dynamics has a next knot"));
             // a = Jl^T lambda_q: the dq' rows through q; mu = lambda_v + dt Jv^T a (+ the
             // acceleration rows' y / dt).
-            let lambda_q = nalgebra::DVectorView::from_slice(&m.dynamics[..nv], nv);
-            fd.a.gemv_tr(1.0, &ws.jl, &lambda_q, 0.0);
-            t.gemv_tr(1.0, &ws.jq_step, &fd.a, 1.0);
+            // (Jl, Jq, Jv, Jd: a 6 x 6 block on the base, the identity on the joints.)
+            tangent_jacobian_tr_mul(model, 1.0, &ws.jl, &m.dynamics[..nv], 0.0, fd.a.as_mut_slice());
+            tangent_jacobian_tr_mul(model, 1.0, &ws.jq_step, fd.a.as_slice(), 1.0, t.as_mut_slice());
             fd.mu.copy_from_slice(&m.dynamics[nv..2 * nv]);
-            fd.mu.gemv_tr(dt, &ws.jv_step, &fd.a, 1.0);
+            tangent_jacobian_tr_mul(model, dt, &ws.jv_step, fd.a.as_slice(), 1.0, fd.mu.as_mut_slice());
             if let Some(r0) = acceleration_rows {
                 for j in 0..nj {
                     fd.mu[6 + j] += y[r0 + j] / dt;
@@ -271,6 +274,6 @@ impl FullBodyStage {
             }
         }
         // The tangent gradient through d q / d dq.
-        g.rows_mut(0, nv).gemv_tr(1.0, &ws.jd, t, 1.0);
+        tangent_jacobian_tr_mul(model, 1.0, &ws.jd, t.as_slice(), 1.0, &mut g.as_mut_slice()[..nv]);
     }
 }
