@@ -35,7 +35,7 @@ use super::momentum::{centroidal_momentum_derivatives, MomentumWorkspace};
 use super::settings::{BallisticFlight, BoxObstacle, FullBodySettings};
 use crate::dynamics::{
     aba, center_of_mass, com_jacobian, compute_aba_derivatives, compute_joint_jacobians, difference, integrate,
-    integrate_jacobians, mul_tangent_jacobian, tangent_jacobian_mul, Data,
+    integrate_jacobians, Data,
 };
 use crate::ipocp::{Stage, StageDims, StageJacobians, StageMultipliers, StageValues};
 use crate::model::Model;
@@ -641,8 +641,7 @@ impl Stage for FullBodyStage {
             // v' = v + dt qdd: d v'/dz.
             let dt = s.dt;
             ws.dv_dz.as_mut_slice().fill(0.0);
-            // (Jd, Jq, Jv, Jl: a 6 x 6 block on the base, the identity on the joints.)
-            mul_tangent_jacobian(model, dt, ws.dqdd_dq.as_view(), &ws.jd, 0.0, ws.dv_dz.columns_mut(0, nv));
+            ws.dv_dz.columns_mut(0, nv).gemm(dt, &ws.dqdd_dq, &ws.jd, 0.0);
             for c in 0..nv {
                 for r in 0..nv {
                     ws.dv_dz[(r, nv + c)] = dt * ws.data.ddq_dv[(r, c)] + if r == c { 1.0 } else { 0.0 };
@@ -666,9 +665,9 @@ impl Stage for FullBodyStage {
             }
             ws.semi_implicit_step(model, dt, spec.qbar_next.as_ref().expect("a stage with dynamics has a next knot"));
             // dq' = (q (+) dt v') (-) qbar': d/dz = Jl (Jq [Jd 0 0] + dt Jv dv'/dz).
-            tangent_jacobian_mul(model, dt, &ws.jv_step, ws.dv_dz.as_view(), 0.0, ws.dq_next_dz.as_view_mut());
-            tangent_jacobian_mul(model, 1.0, &ws.jq_step, ws.jd.as_view(), 1.0, ws.dq_next_dz.columns_mut(0, nv));
-            tangent_jacobian_mul(model, 1.0, &ws.jl, ws.dq_next_dz.as_view(), 0.0, out.dynamics.rows_mut(0, nv));
+            ws.dq_next_dz.gemm(dt, &ws.jv_step, &ws.dv_dz, 0.0);
+            ws.dq_next_dz.columns_mut(0, nv).gemm(1.0, &ws.jq_step, &ws.jd, 1.0);
+            out.dynamics.rows_mut(0, nv).gemm(1.0, &ws.jl, &ws.dq_next_dz, 0.0);
             out.dynamics.rows_mut(nv, nv).copy_from(&ws.dv_dz);
             // Joint accelerations qdd_j = (v'_j - v_j) / dt: their Jacobian, the cost's gradient
             // 2 w J^T qdd_j (ws.data.ddq: the ABA of compute_aba_derivatives).
