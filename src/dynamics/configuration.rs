@@ -71,6 +71,27 @@ pub fn integrate_jacobians(model: &Model, v: &DVector<f64>, jq: &mut DMatrix<f64
     }
 }
 
+/// The velocity Jacobian `Jv = d integrate(q, v) / dv` of [`integrate_jacobians`] alone
+/// (the same values; `Jq` not formed): the identity on the joints, `Jr(v)` on a free flyer.
+pub fn integrate_velocity_jacobian(model: &Model, v: &DVector<f64>, jv: &mut DMatrix<f64>) {
+    jv.as_mut_slice().fill(0.0);
+    for j in model.joints.iter().skip(1) {
+        let iv = j.idx_v;
+        match j.kind {
+            JointKind::FreeFlyer => {
+                let step = Motion::from_slice(&v.as_slice()[iv..iv + 6]);
+                jv.fixed_view_mut::<6, 6>(iv, iv).copy_from(&jexp6(&step));
+            }
+            JointKind::Universe => {}
+            _ => {
+                for k in iv..iv + j.nv {
+                    jv[(k, k)] = 1.0;
+                }
+            }
+        }
+    }
+}
+
 /// `y <- alpha J^T x + beta y` for a tangent-space Jacobian `J` of the configuration
 /// manifold ([`integrate_jacobians`], or a product or inverse of such blocks): a `6 x 6`
 /// block on each free flyer, the identity on the other joints. Only the blocks are

@@ -36,7 +36,8 @@ pub use aba_derivatives::{compute_aba_derivatives, compute_minverse, mass_matrix
 pub use centroidal::{centroidal_map, centroidal_momentum};
 pub use com::{center_of_mass, com_jacobian};
 pub use configuration::{
-    base_orientation, difference, difference_into, integrate, integrate_jacobians, random_configuration, tangent_jacobian_tr_mul,
+    base_orientation, difference, difference_into, integrate, integrate_jacobians, integrate_velocity_jacobian, random_configuration,
+    tangent_jacobian_tr_mul,
 };
 pub use crba::crba;
 pub use data::Data;

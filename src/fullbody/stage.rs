@@ -35,7 +35,7 @@ use super::momentum::{centroidal_momentum_derivatives, MomentumWorkspace};
 use super::settings::{BallisticFlight, BoxObstacle, FullBodySettings};
 use crate::dynamics::{
     aba, center_of_mass, com_jacobian, compute_aba_derivatives, compute_joint_jacobians, difference, integrate,
-    integrate_jacobians, Data,
+    integrate_jacobians, integrate_velocity_jacobian, Data,
 };
 use crate::ipocp::{Stage, StageDims, StageJacobians, StageMultipliers, StageValues};
 use crate::model::Model;
@@ -138,7 +138,6 @@ struct Workspace {
     jq_step: DMatrix<f64>,
     jv_step: DMatrix<f64>,
     jl: DMatrix<f64>,
-    scratch: DMatrix<f64>,
     /// `d qdd / dq` (tangent), `d v' / dz`, `d dq' / dz`.
     dqdd_dq: DMatrix<f64>,
     dgen_dq: DMatrix<f64>,
@@ -178,7 +177,7 @@ impl Workspace {
         integrate(model, &self.q, &self.step, &mut self.q_next);
         difference(model, qbar_next, &self.q_next, &mut self.dq_next);
         integrate_jacobians(model, &self.step, &mut self.jq_step, &mut self.jv_step);
-        integrate_jacobians(model, &self.dq_next, &mut self.scratch, &mut self.jl);
+        integrate_velocity_jacobian(model, &self.dq_next, &mut self.jl);
         let base_block = self.jl.fixed_view::<6, 6>(0, 0).into_owned();
         let inverse = base_block.try_inverse().unwrap_or_else(|| nalgebra::Matrix6::from_element(f64::NAN));
         self.jl.fixed_view_mut::<6, 6>(0, 0).copy_from(&inverse);
@@ -242,7 +241,6 @@ impl FullBodyStage {
             jq_step: DMatrix::zeros(nv, nv),
             jv_step: DMatrix::zeros(nv, nv),
             jl: DMatrix::zeros(nv, nv),
-            scratch: DMatrix::zeros(nv, nv),
             dqdd_dq: DMatrix::zeros(nv, nv),
             dgen_dq: DMatrix::zeros(nv, nv),
             dv_dz: DMatrix::zeros(nv, 2 * nv + nu),
@@ -570,7 +568,7 @@ impl Stage for FullBodyStage {
         ws.dq.copy_from_slice(&z[..nv]);
         integrate(model, &spec.qbar, &ws.dq, &mut ws.q);
         // d q / d dq: Jr(dq) on the base, identity on the joints.
-        integrate_jacobians(model, &ws.dq, &mut ws.scratch, &mut ws.jd);
+        integrate_velocity_jacobian(model, &ws.dq, &mut ws.jd);
         ws.v.copy_from_slice(&z[nv..2 * nv]);
         out.dynamics.as_mut_slice().fill(0.0);
         out.equalities.as_mut_slice().fill(0.0);
@@ -875,7 +873,7 @@ impl Stage for FullBodyStage {
         if ws.com_jac_z.as_slice() != z {
             ws.dq.copy_from_slice(&z[..nv]);
             integrate(model, &self.spec.qbar, &ws.dq, &mut ws.q);
-            integrate_jacobians(model, &ws.dq, &mut ws.scratch, &mut ws.jd);
+            integrate_velocity_jacobian(model, &ws.dq, &mut ws.jd);
             let jc = com_jacobian(model, &mut ws.data, &ws.q);
             ws.com_jac.gemm(1.0, jc, &ws.jd, 0.0);
             ws.com_jac_z.copy_from_slice(z);

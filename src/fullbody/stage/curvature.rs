@@ -24,7 +24,7 @@
 
 use super::{add_state_columns, FullBodyStage, Workspace, TRUNK_CORNERS};
 use crate::dynamics::{
-    aba, compute_joint_jacobians, compute_rnea_derivatives, integrate, integrate_jacobians, mass_matrix_factor, mass_matrix_factored_solve,
+    aba, compute_joint_jacobians, compute_rnea_derivatives, integrate, integrate_velocity_jacobian, mass_matrix_factor, mass_matrix_factored_solve,
     tangent_jacobian_tr_mul,
 };
 use crate::fullbody::kinematics::{add_point_force_derivative, foot_position, knee_position, point_jacobian};
@@ -144,7 +144,7 @@ impl FullBodyStage {
             ws.dq.copy_from_slice(&z[..nv]);
             integrate(model, &spec.qbar, &ws.dq, &mut ws.q);
             // d q / d dq: Jr(dq) on the base, identity on the joints.
-            integrate_jacobians(model, &ws.dq, &mut ws.scratch, &mut ws.jd);
+            integrate_velocity_jacobian(model, &ws.dq, &mut ws.jd);
             compute_joint_jacobians(model, &mut ws.data, &ws.q);
             let feet: [Vector3<f64>; 4] = std::array::from_fn(|f| foot_position(model, &ws.data, &sh.legs[f]));
             let knees: [Vector3<f64>; 4] = std::array::from_fn(|f| knee_position(&ws.data, &sh.legs[f]));
