@@ -152,6 +152,31 @@ proptest! {
             prop_assert!(d.norm() < 1e-12);
         }
     }
+
+    /// `J^T x` by blocks for the tangent-space Jacobians of `integrate` (a 6 x 6 block on
+    /// the base, the identity on the joints) against the dense product, to the bit (its
+    /// sums are in the dense product's order).
+    #[test]
+    fn tangent_jacobian_transpose_product_matches_the_dense_product(seed in any::<u64>()) {
+        for model in robots() {
+            let mut rng = Rng::new(seed);
+            let n = model.nv;
+            let v = rng.vector(n, 1.5);
+            let (mut jq, mut jv) = (nalgebra::DMatrix::zeros(n, n), nalgebra::DMatrix::zeros(n, n));
+            integrate_jacobians(model, &v, &mut jq, &mut jv);
+            let alpha = 0.01;
+            for j in [&jq, &jv] {
+                let xv = rng.vector(n, 3.0);
+                for beta in [0.0, 1.0] {
+                    let mut want = rng.vector(n, 1.0);
+                    let mut got = want.clone();
+                    want.gemv_tr(alpha, j, &xv, beta);
+                    tangent_jacobian_tr_mul(model, alpha, j, xv.as_slice(), beta, got.as_mut_slice());
+                    prop_assert!(got == want, "J^T x differs: {got} vs {want}");
+                }
+            }
+        }
+    }
 }
 
 /// `dexp^-1` of the free-flyer part: the rate of the exponential coordinates `theta` of

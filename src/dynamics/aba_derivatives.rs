@@ -111,11 +111,25 @@ fn invert_mass_matrix(model: &Model, data: &mut Data) {
 /// Table 6.4): `L^T y = x` from the leaves up, `y <- D^-1 y`, `L x = y` from the root down.
 /// `O(n d)` for depth `d`, no inverse formed; the factor is left in `data.ltdl`.
 pub fn mass_matrix_solve(model: &Model, data: &mut Data, x: &mut [f64]) {
+    mass_matrix_factor(model, data);
+    mass_matrix_factored_solve(model, data, x);
+}
+
+/// The sparse `M = L^T D L` factor (Featherstone 2008, Table 6.3) of `data.mass_matrix` into
+/// `data.ltdl`, for [`mass_matrix_factored_solve`]: `M` depends on `q` only, so solves at one
+/// configuration with other velocities or right-hand sides share it.
+pub fn mass_matrix_factor(model: &Model, data: &mut Data) {
+    data.ltdl.copy_from(&data.mass_matrix);
+    ltdl_in_place(data.ltdl.as_mut_slice(), model.nv, &model.dof_parent);
+}
+
+/// `x <- M^-1 x` with the factor [`mass_matrix_factor`] left in `data.ltdl` (Featherstone
+/// 2008, Table 6.4): `L^T y = x` from the leaves up, `y <- D^-1 y`, `L x = y` from the root
+/// down.
+pub fn mass_matrix_factored_solve(model: &Model, data: &Data, x: &mut [f64]) {
     let n = model.nv;
     let lambda = &model.dof_parent;
-    data.ltdl.copy_from(&data.mass_matrix);
-    let h = data.ltdl.as_mut_slice();
-    ltdl_in_place(h, n, lambda);
+    let h = data.ltdl.as_slice();
     for i in (0..n).rev() {
         let mut j = lambda[i];
         while j != ROOT {

@@ -43,7 +43,7 @@ pub fn compute_joint_jacobians(model: &Model, data: &mut Data, q: &DVector<f64>)
 ///
 /// With `LocalWorldAligned`, `[d p_frame/dt; w_world] = J v`.
 pub fn frame_jacobian(model: &Model, data: &Data, frame: usize, reference: ReferenceFrame, out: &mut Matrix6xX<f64>) {
-    out.fill(0.0);
+    out.as_mut_slice().fill(0.0);
     let fr = &model.frames[frame];
     let o_m_f = data.o_m_i[fr.parent_joint] * fr.placement;
     let p = o_m_f.translation;

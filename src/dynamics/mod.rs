@@ -32,10 +32,13 @@ mod rnea;
 mod rnea_derivatives;
 
 pub use aba::{aba, aba_with_external_forces};
-pub use aba_derivatives::{compute_aba_derivatives, compute_minverse, mass_matrix_solve};
+pub use aba_derivatives::{compute_aba_derivatives, compute_minverse, mass_matrix_factor, mass_matrix_factored_solve, mass_matrix_solve};
 pub use centroidal::{centroidal_map, centroidal_momentum};
 pub use com::{center_of_mass, com_jacobian};
-pub use configuration::{base_orientation, difference, difference_into, integrate, integrate_jacobians, random_configuration};
+pub use configuration::{
+    base_orientation, difference, difference_into, integrate, integrate_jacobians, integrate_velocity_jacobian, random_configuration,
+    tangent_jacobian_tr_mul,
+};
 pub use crba::crba;
 pub use data::Data;
 pub use frames::{frame_placement, frame_position, update_frame_placements};

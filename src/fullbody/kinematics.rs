@@ -82,7 +82,7 @@ pub fn knee_position(data: &Data, leg: &Leg) -> Vector3<f64> {
 /// column `c` on the chain is `v0_c + w_c x p` (the world Jacobian column at the origin moved
 /// to the point). Needs [`compute_joint_jacobians`] first; `out` is overwritten.
 pub fn point_jacobian(model: &Model, data: &Data, joint: usize, p: &Vector3<f64>, out: &mut Matrix3xX<f64>) {
-    out.fill(0.0);
+    out.as_mut_slice().fill(0.0);
     let mut i = joint;
     while i > 0 {
         let j = &model.joints[i];

@@ -35,7 +35,7 @@ use super::momentum::{centroidal_momentum_derivatives, MomentumWorkspace};
 use super::settings::{BallisticFlight, BoxObstacle, FullBodySettings};
 use crate::dynamics::{
     aba, center_of_mass, com_jacobian, compute_aba_derivatives, compute_joint_jacobians, difference, integrate,
-    integrate_jacobians, Data,
+    integrate_jacobians, integrate_velocity_jacobian, Data,
 };
 use crate::ipocp::{Stage, StageDims, StageJacobians, StageMultipliers, StageValues};
 use crate::model::Model;
@@ -138,7 +138,6 @@ struct Workspace {
     jq_step: DMatrix<f64>,
     jv_step: DMatrix<f64>,
     jl: DMatrix<f64>,
-    scratch: DMatrix<f64>,
     /// `d qdd / dq` (tangent), `d v' / dz`, `d dq' / dz`.
     dqdd_dq: DMatrix<f64>,
     dgen_dq: DMatrix<f64>,
@@ -150,6 +149,9 @@ struct Workspace {
     knee_jac: [Matrix3xX<f64>; 4],
     corner_jac: [Matrix3xX<f64>; 8],
     com_jac: Matrix3xX<f64>,
+    /// The `z` the Jacobian pass took `com_jac` (`J_c Jd`) at: the Gauss-Newton Hessian at
+    /// the same `z` reuses it.
+    com_jac_z: DVector<f64>,
     row: DVector<f64>,
     /// `d qdd_j / dz` (the joints' rows of `d v' / dz` over `dt`) and the `z` it was taken
     /// at: the Gauss-Newton term of the acceleration cost reuses the Jacobian pass's.
@@ -175,7 +177,7 @@ impl Workspace {
         integrate(model, &self.q, &self.step, &mut self.q_next);
         difference(model, qbar_next, &self.q_next, &mut self.dq_next);
         integrate_jacobians(model, &self.step, &mut self.jq_step, &mut self.jv_step);
-        integrate_jacobians(model, &self.dq_next, &mut self.scratch, &mut self.jl);
+        integrate_velocity_jacobian(model, &self.dq_next, &mut self.jl);
         let base_block = self.jl.fixed_view::<6, 6>(0, 0).into_owned();
         let inverse = base_block.try_inverse().unwrap_or_else(|| nalgebra::Matrix6::from_element(f64::NAN));
         self.jl.fixed_view_mut::<6, 6>(0, 0).copy_from(&inverse);
@@ -239,7 +241,6 @@ impl FullBodyStage {
             jq_step: DMatrix::zeros(nv, nv),
             jv_step: DMatrix::zeros(nv, nv),
             jl: DMatrix::zeros(nv, nv),
-            scratch: DMatrix::zeros(nv, nv),
             dqdd_dq: DMatrix::zeros(nv, nv),
             dgen_dq: DMatrix::zeros(nv, nv),
             dv_dz: DMatrix::zeros(nv, 2 * nv + nu),
@@ -250,6 +251,7 @@ impl FullBodyStage {
             knee_jac: std::array::from_fn(|_| Matrix3xX::zeros(nv)),
             corner_jac: std::array::from_fn(|_| Matrix3xX::zeros(nv)),
             com_jac: Matrix3xX::zeros(nv),
+            com_jac_z: DVector::from_element(2 * nv + nu, f64::NAN),
             row: DVector::zeros(nv),
             acceleration_jac: DMatrix::zeros(nv - 6, 2 * nv + nu),
             acceleration_z: DVector::from_element(2 * nv + nu, f64::NAN),
@@ -416,7 +418,7 @@ impl Stage for FullBodyStage {
         let base = ws.data.o_m_i[1];
         if !spec.last {
             // Dynamics (3): generalized forces of the torques and the stance feet's forces.
-            ws.tau.fill(0.0);
+            ws.tau.as_mut_slice().fill(0.0);
             ws.tau.as_mut_slice()[6..].copy_from_slice(&z[2 * nv..2 * nv + nj]);
             compute_joint_jacobians(model, &mut ws.data, &ws.q);
             for f in 0..4 {
@@ -566,15 +568,16 @@ impl Stage for FullBodyStage {
         ws.dq.copy_from_slice(&z[..nv]);
         integrate(model, &spec.qbar, &ws.dq, &mut ws.q);
         // d q / d dq: Jr(dq) on the base, identity on the joints.
-        integrate_jacobians(model, &ws.dq, &mut ws.scratch, &mut ws.jd);
+        integrate_velocity_jacobian(model, &ws.dq, &mut ws.jd);
         ws.v.copy_from_slice(&z[nv..2 * nv]);
         out.dynamics.as_mut_slice().fill(0.0);
         out.equalities.as_mut_slice().fill(0.0);
         out.inequalities.as_mut_slice().fill(0.0);
-        out.cost_gradient.fill(0.0);
+        out.cost_gradient.as_mut_slice().fill(0.0);
         // Kinematics at q_k: world Jacobians, CoM and its Jacobian, the feet's Jacobians.
         let jc = com_jacobian(model, &mut ws.data, &ws.q);
         ws.com_jac.gemm(1.0, jc, &ws.jd, 0.0);
+        ws.com_jac_z.copy_from_slice(z);
         let com = ws.data.com;
         let feet: [Vector3<f64>; 4] = std::array::from_fn(|f| foot_position(model, &ws.data, &sh.legs[f]));
         let knees: [Vector3<f64>; 4] = std::array::from_fn(|f| knee_position(&ws.data, &sh.legs[f]));
@@ -621,9 +624,9 @@ impl Stage for FullBodyStage {
         }
         if !spec.last {
             // Dynamics: qdd = ABA(q, v, tau_gen(q)),  d qdd/dq = -M^-1 dRNEA/dq + M^-1 d tau_gen/dq.
-            ws.tau.fill(0.0);
+            ws.tau.as_mut_slice().fill(0.0);
             ws.tau.as_mut_slice()[6..].copy_from_slice(&z[2 * nv..2 * nv + nj]);
-            ws.dgen_dq.fill(0.0);
+            ws.dgen_dq.as_mut_slice().fill(0.0);
             for f in 0..4 {
                 if let Some(l) = self.force(z, f) {
                     ws.tau.gemv_tr(1.0, &ws.feet_jac[f], &l, 1.0);
@@ -635,7 +638,7 @@ impl Stage for FullBodyStage {
             ws.dqdd_dq.gemm(1.0, &ws.data.minv, &ws.dgen_dq, 1.0);
             // v' = v + dt qdd: d v'/dz.
             let dt = s.dt;
-            ws.dv_dz.fill(0.0);
+            ws.dv_dz.as_mut_slice().fill(0.0);
             ws.dv_dz.columns_mut(0, nv).gemm(dt, &ws.dqdd_dq, &ws.jd, 0.0);
             for c in 0..nv {
                 for r in 0..nv {
@@ -813,11 +816,17 @@ impl Stage for FullBodyStage {
         if let Some(b) = &sh.obstacle {
             let (jd, row) = (&ws.jd, &mut ws.row);
             let mut row_of = |h: &mut DMatrix<f64>, r: usize, p: &Vector3<f64>, jac: &Matrix3xX<f64>| {
-                // d sd / d dq = grad^T (d p / dq) Jd.
+                // d sd / d dq = grad^T (d p / dq) Jd, Jd = Jr(dq) on the base block and the
+                // identity on the joints (`integrate_jacobians`): the joints' columns are
+                // `grad^T d p / dq` itself, only the base's take the product (the same sums as
+                // the full product, whose other terms are zeros).
                 let grad = b.signed_distance(p).1;
                 row.gemv_tr(1.0, jac, &grad, 0.0);
-                for c in 0..nv {
-                    h[(r, c)] = (0..nv).map(|i| row[i] * jd[(i, c)]).sum();
+                for c in 0..6 {
+                    h[(r, c)] = (0..6).map(|i| row[i] * jd[(i, c)]).sum();
+                }
+                for c in 6..nv {
+                    h[(r, c)] = row[c];
                 }
             };
             for f in 0..4 {
@@ -859,12 +868,17 @@ impl Stage for FullBodyStage {
         }
         let mut guard = self.ws.lock().unwrap_or_else(|e| e.into_inner());
         let ws = &mut *guard;
-        ws.dq.copy_from_slice(&z[..nv]);
-        integrate(model, &self.spec.qbar, &ws.dq, &mut ws.q);
-        integrate_jacobians(model, &ws.dq, &mut ws.scratch, &mut ws.jd);
-        let jc = com_jacobian(model, &mut ws.data, &ws.q);
-        ws.com_jac.gemm(1.0, jc, &ws.jd, 0.0);
-        out.fill(0.0);
+        // ipocp asks for the Hessian right after the Jacobians at the same z, whose pass left
+        // `J_c Jd` (the same operations) in `ws.com_jac`.
+        if ws.com_jac_z.as_slice() != z {
+            ws.dq.copy_from_slice(&z[..nv]);
+            integrate(model, &self.spec.qbar, &ws.dq, &mut ws.q);
+            integrate_velocity_jacobian(model, &ws.dq, &mut ws.jd);
+            let jc = com_jacobian(model, &mut ws.data, &ws.q);
+            ws.com_jac.gemm(1.0, jc, &ws.jd, 0.0);
+            ws.com_jac_z.copy_from_slice(z);
+        }
+        out.as_mut_slice().fill(0.0);
         out.view_mut((0, 0), (nv, nv)).gemm_tr(2.0 * s.w_com * w, &ws.com_jac, &ws.com_jac, 0.0);
         for i in 0..nv {
             let wd = if i < 3 {
@@ -921,7 +935,7 @@ impl FullBodyStage {
         let m = &mut ws.momentum;
         let h = centroidal_momentum_derivatives(model, m, &ws.q, &ws.v, jacobian);
         if jacobian {
-            ws.momentum_jac.fill(0.0);
+            ws.momentum_jac.as_mut_slice().fill(0.0);
             ws.momentum_jac.columns_mut(0, nv).gemm(-1.0, &m.dh_dq, &ws.jd, 0.0);
             for c in 0..nv {
                 for i in 0..6 {

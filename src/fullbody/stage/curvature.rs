@@ -23,7 +23,10 @@
 //! the Jacobians took `2 nx` Jacobian passes.
 
 use super::{add_state_columns, FullBodyStage, Workspace, TRUNK_CORNERS};
-use crate::dynamics::{aba, compute_joint_jacobians, compute_rnea_derivatives, integrate, integrate_jacobians, mass_matrix_solve};
+use crate::dynamics::{
+    aba, compute_joint_jacobians, compute_rnea_derivatives, integrate, integrate_velocity_jacobian, mass_matrix_factor, mass_matrix_factored_solve,
+    tangent_jacobian_tr_mul,
+};
 use crate::fullbody::kinematics::{add_point_force_derivative, foot_position, knee_position, point_jacobian};
 use crate::ipocp::StageMultipliers;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
@@ -141,7 +144,7 @@ impl FullBodyStage {
             ws.dq.copy_from_slice(&z[..nv]);
             integrate(model, &spec.qbar, &ws.dq, &mut ws.q);
             // d q / d dq: Jr(dq) on the base, identity on the joints.
-            integrate_jacobians(model, &ws.dq, &mut ws.scratch, &mut ws.jd);
+            integrate_velocity_jacobian(model, &ws.dq, &mut ws.jd);
             compute_joint_jacobians(model, &mut ws.data, &ws.q);
             let feet: [Vector3<f64>; 4] = std::array::from_fn(|f| foot_position(model, &ws.data, &sh.legs[f]));
             let knees: [Vector3<f64>; 4] = std::array::from_fn(|f| knee_position(&ws.data, &sh.legs[f]));
@@ -150,8 +153,8 @@ impl FullBodyStage {
                 point_jacobian(model, &ws.data, sh.legs[f].knee_joint, &feet[f], &mut ws.feet_jac[f]);
                 point_jacobian(model, &ws.data, sh.legs[f].knee_joint, &knees[f], &mut ws.knee_jac[f]);
             }
-            g.fill(0.0);
-            t.fill(0.0);
+            g.as_mut_slice().fill(0.0);
+            t.as_mut_slice().fill(0.0);
             // Equalities: the held feet (the others are linear).
             if !spec.initial {
                 let mut r = 0;
@@ -207,7 +210,7 @@ impl FullBodyStage {
             }
             fd.t_kinematics.copy_from(t);
             fd.gradient_kinematics.copy_from(g);
-            fd.dgen_dq.fill(0.0);
+            fd.dgen_dq.as_mut_slice().fill(0.0);
             for f in 0..4 {
                 if let Some(l) = self.force(z, f) {
                     add_point_force_derivative(&ws.data, &sh.legs[f], &feet[f], &l, &mut fd.dgen_dq);
@@ -220,7 +223,7 @@ impl FullBodyStage {
         if !spec.last {
             let dt = s.dt;
             // qdd = ABA(q, v, S^T tau + sum_f J_f^T lambda_f) and d tau_gen / dq.
-            ws.tau.fill(0.0);
+            ws.tau.as_mut_slice().fill(0.0);
             ws.tau.as_mut_slice()[6..].copy_from_slice(&z[2 * nv..2 * nv + nj]);
             ws.dgen_dq.copy_from(&fd.dgen_dq);
             for f in 0..4 {
@@ -236,18 +239,22 @@ impl FullBodyStage {
             ws.semi_implicit_step(model, dt, spec.qbar_next.as_ref().expect("a stage with dynamics has a next knot"));
             // a = Jl^T lambda_q: the dq' rows through q; mu = lambda_v + dt Jv^T a (+ the
             // acceleration rows' y / dt).
-            let lambda_q = nalgebra::DVectorView::from_slice(&m.dynamics[..nv], nv);
-            fd.a.gemv_tr(1.0, &ws.jl, &lambda_q, 0.0);
-            t.gemv_tr(1.0, &ws.jq_step, &fd.a, 1.0);
+            // (Jl, Jq, Jv, Jd: a 6 x 6 block on the base, the identity on the joints.)
+            tangent_jacobian_tr_mul(model, 1.0, &ws.jl, &m.dynamics[..nv], 0.0, fd.a.as_mut_slice());
+            tangent_jacobian_tr_mul(model, 1.0, &ws.jq_step, fd.a.as_slice(), 1.0, t.as_mut_slice());
             fd.mu.copy_from_slice(&m.dynamics[nv..2 * nv]);
-            fd.mu.gemv_tr(dt, &ws.jv_step, &fd.a, 1.0);
+            tangent_jacobian_tr_mul(model, dt, &ws.jv_step, fd.a.as_slice(), 1.0, fd.mu.as_mut_slice());
             if let Some(r0) = acceleration_rows {
                 for j in 0..nj {
                     fd.mu[6 + j] += y[r0 + j] / dt;
                 }
             }
             fd.w.copy_from(&fd.mu);
-            mass_matrix_solve(model, &mut ws.data, fd.w.as_mut_slice());
+            // M depends on q only: a velocity perturbation reuses the configuration's factor.
+            if kinematics {
+                mass_matrix_factor(model, &mut ws.data);
+            }
+            mass_matrix_factored_solve(model, &ws.data, fd.w.as_mut_slice());
             // mu^T dv'/dz, column blocks dq (through t), v, tau, lambda.
             ws.dgen_dq -= &ws.data.dtau_dq;
             t.gemv_tr(dt, &ws.dgen_dq, &fd.w, 1.0);
@@ -267,6 +274,6 @@ impl FullBodyStage {
             }
         }
         // The tangent gradient through d q / d dq.
-        g.rows_mut(0, nv).gemv_tr(1.0, &ws.jd, t, 1.0);
+        tangent_jacobian_tr_mul(model, 1.0, &ws.jd, t.as_slice(), 1.0, &mut g.as_mut_slice()[..nv]);
     }
 }
