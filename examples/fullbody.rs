@@ -10,7 +10,7 @@
 //!     [--barrier RULE] [--ct-barrier RULE] [--curvature-after N] [--curvature-violation V]
 //!     [--curvature-by-jacobians] [--id-torques] [--foot-margin M] [--lift-off-force F]
 //!     [--ballistic off|angular|full] [--w-flight-momentum W] [--stance-balance] [--start-defect]
-//!     [jump ...]
+//!     [jump ... | file.toml ...]
 //! ```
 //!
 //! The pipeline's settings (`legwork jump`, `legwork bench jumps`) are `--curvature-after 100
@@ -35,7 +35,7 @@
 
 use legwork::fullbody::{initial_guess_clear_of, BoxObstacle, FullBodyProblem, FullBodySettings};
 use legwork::ipocp::Settings;
-use legwork::jump::{box_obstacle, embedded_jumps};
+use legwork::jump::{box_obstacle, embedded_jumps, Jump};
 use legwork::model::embedded;
 use legwork::srb::{ContactTimingProblem, ContactTimingSettings, JumpSpec, SrbParams, SrbTrajectory};
 
@@ -131,15 +131,18 @@ fn main() -> anyhow::Result<()> {
         momentum_balance_in_stance: stance_balance || defaults.momentum_balance_in_stance,
         ..defaults
     };
-    // The files' jumps under the reference script's names.
-    let all: Vec<(JumpSpec, Option<BoxObstacle>)> = embedded_jumps()?
-        .iter()
-        .map(|file| {
-            let spec = if reference_targets { file.reference_srb() } else { file.srb() };
-            (JumpSpec { name: file.anchor.unwrap_or(spec.name), ..spec }, box_obstacle(file, model.feet[0].radius))
-        })
-        .collect();
-    let selected: Vec<_> = if names.is_empty() { all.clone() } else { all.iter().filter(|(j, _)| names.iter().any(|n| n == j.name)).cloned().collect() };
+    // The files' jumps under the reference script's names; a `.toml` argument is a jump file.
+    let files: Vec<Jump> = names.iter().filter(|n| n.ends_with(".toml")).map(Jump::load_file).collect::<Result<_, _>>()?;
+    let as_problem = |file: &Jump| {
+        let spec = if reference_targets { file.reference_srb() } else { file.srb() };
+        (JumpSpec { name: file.anchor.unwrap_or(spec.name), ..spec }, box_obstacle(file, model.feet[0].radius))
+    };
+    let all: Vec<(JumpSpec, Option<BoxObstacle>)> = embedded_jumps()?.iter().map(as_problem).collect();
+    let selected: Vec<_> = if names.is_empty() {
+        all.clone()
+    } else {
+        all.iter().filter(|(j, _)| names.iter().any(|n| n == j.name)).cloned().chain(files.iter().map(as_problem)).collect()
+    };
     println!("jump                 T (10 ms)     box     status             iters (resto)  median s   (min s)  eval s  kkt s   viol      limits  binding");
     for (jump, file_box) in &selected {
         let ct_defaults = ContactTimingSettings::default();

@@ -165,3 +165,31 @@ fn parallel_stage_work_takes_the_sequential_path() {
         assert!(a.iter().zip(b.iter()).all(|(x, y)| x.to_bits() == y.to_bits()), "knot {k}: {a} vs {b}");
     }
 }
+
+/// A jump's own per-phase duration bounds (`JumpSpec::phase_time`) hold each `T_i` where
+/// the settings' common `[t_lo, t_hi]` lets the optimum leave them; bounds that are not one
+/// per phase, or cannot sum into `total_time`, are refused.
+#[test]
+fn phase_time_bounds_hold_each_phase() {
+    let params = SrbParams::a1().unwrap();
+    let free = Jump::embedded("lateral").unwrap().srb();
+    let bounds = vec![(0.45, 0.6), (0.25, 0.35)];
+    let bounded = legwork::srb::JumpSpec { phase_time: Some(bounds.clone()), ..free.clone() };
+    let settings = ContactTimingSettings { knots_per_phase: 15, ..Default::default() };
+    let durations = |jump: &legwork::srb::JumpSpec| {
+        let ct = ContactTimingProblem::new(jump, &params, &settings).unwrap();
+        let mut solver = ct.solver(ContactTimingProblem::solver_settings()).unwrap();
+        let r = ct.solve(&mut solver).unwrap();
+        assert_eq!(r.status, Status::Solved, "{:?}: after {} iterations", jump.phase_time, r.iterations);
+        ct.durations(&r.last.primal)
+    };
+    let (t_free, t_bounded) = (durations(&free), durations(&bounded));
+    let inside = |t: &[f64]| t.iter().zip(&bounds).all(|(t, (lo, hi))| *t >= lo - 1e-8 && *t <= hi + 1e-8);
+    assert!(!inside(&t_free), "the free optimum {t_free:?} is already inside {bounds:?}: the test shows nothing");
+    assert!(inside(&t_bounded), "T {t_bounded:?} outside {bounds:?}");
+    for (phase_time, refusal) in [(vec![(0.45, 0.6)], "one [lo, hi] per phase"), (vec![(0.1, 0.2), (0.1, 0.2)], "cannot sum into total_time"), (vec![(0.5, 0.4), (0.2, 0.3)], "0 < lo <= hi")] {
+        let jump = legwork::srb::JumpSpec { phase_time: Some(phase_time), ..free.clone() };
+        let e = ContactTimingProblem::new(&jump, &params, &settings).err().expect("refused").to_string();
+        assert!(e.contains(refusal), "{e}");
+    }
+}

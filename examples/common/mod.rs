@@ -17,11 +17,11 @@ pub fn take(args: &mut Vec<String>, flag: &str) -> anyhow::Result<Option<String>
     }
 }
 
-/// `--jump NAME` (removed from `args`): the embedded jump's terrain, its box included; flat
+/// `--jump NAME` (removed from `args`): the jump's terrain (an embedded jump or a jump file), its box included; flat
 /// ground at z = 0 without the flag.
 pub fn jump_terrain(args: &mut Vec<String>) -> anyhow::Result<Box<dyn Terrain>> {
     Ok(match take(args, "--jump")? {
-        Some(name) => Box::new(Jump::embedded(&name)?.terrain()),
+        Some(name) => Box::new(Jump::load(&name)?.terrain()),
         None => Box::new(Plane::flat(0.0)),
     })
 }

@@ -6,6 +6,8 @@
 //! robot = "a1"
 //! phases = [["LF", "RF", "LH", "RH"], []]   # feet in contact per phase; [] = flight
 //! total_time = [0.5, 1.5]            # [T_min, T_max] of (2j), s
+//! phase_time = [[0.1, 1.0], [0.1, 1.0]]  # optional: [lo, hi] of each phase's T_i, s
+//!                                    # (absent: [contact_timing] t_lo, t_hi for every phase)
 //!
 //! [target]
 //! displacement = [0.0, 0.3, -0.3]    # CoM displacement, world, m
@@ -82,6 +84,8 @@ struct JumpFile {
     robot: String,
     phases: Vec<Vec<String>>,
     total_time: [f64; 2],
+    #[serde(default)]
+    phase_time: Option<Vec<[f64; 2]>>,
     target: TargetFile,
     #[serde(default, rename = "box")]
     platform: Option<PlatformFile>,
@@ -211,6 +215,9 @@ pub struct Jump {
     pub phases: Vec<Contacts>,
     /// `[T_min, T_max]` of (2j), s.
     pub total_time: (f64, f64),
+    /// `[lo, hi]` of each phase's duration (s); `None`: the contact-timing settings' `t_lo`,
+    /// `t_hi` for every phase.
+    pub phase_time: Option<Vec<(f64, f64)>>,
     /// CoM displacement (world, m).
     pub displacement: Vector3<f64>,
     /// Unit axis and angle (rad) of the base's rotation over the jump.
@@ -314,6 +321,24 @@ impl Jump {
         if !(finite(&file.total_time) && t_min > 0.0 && t_min <= t_max) {
             return bad("total_time", "[T_min, T_max] with 0 < T_min <= T_max (s)", format!("{:?}", file.total_time));
         }
+        let phase_time = match &file.phase_time {
+            None => None,
+            Some(bounds) => {
+                if bounds.len() != phases.len() {
+                    return bad("phase_time", &format!("{} [lo, hi] pairs (one per phase, s)", phases.len()), format!("{bounds:?}"));
+                }
+                for (i, b) in bounds.iter().enumerate() {
+                    if !(finite(b) && b[0] > 0.0 && b[0] <= b[1]) {
+                        return bad(&format!("phase_time[{i}]"), "[lo, hi] with 0 < lo <= hi (s)", format!("{b:?}"));
+                    }
+                }
+                let (lo, hi) = (bounds.iter().map(|b| b[0]).sum::<f64>(), bounds.iter().map(|b| b[1]).sum::<f64>());
+                if lo > t_max || hi < t_min {
+                    return bad("phase_time", &format!("bounds whose sums meet total_time [{t_min}, {t_max}]"), format!("{bounds:?} (sums {lo}, {hi})"));
+                }
+                Some(bounds.iter().map(|b| (b[0], b[1])).collect())
+            }
+        };
         let t = &file.target;
         if !finite(&t.displacement) {
             return bad("target.displacement", "three finite numbers (m)", format!("{:?}", t.displacement));
@@ -378,6 +403,7 @@ impl Jump {
             srb_name,
             phases,
             total_time: (t_min, t_max),
+            phase_time,
             displacement: Vector3::from(t.displacement),
             axis,
             angle,
@@ -406,14 +432,17 @@ impl Jump {
             clear_of: self.platform.as_ref().map(|p| BoxExtent { x: p.x, y: p.y }),
             phases: self.phases.clone(),
             total_time: self.total_time,
+            phase_time: self.phase_time.clone(),
         }
     }
 
     /// The reference script's problem (`../shared/anchors/nguyen2022/contact_timing.py`):
-    /// [`Self::srb`] with the script's own displacement where the file's differs, and without
-    /// the box-clearance rows (the script has none: its optimum is checked like with like).
+    /// [`Self::srb`] with the script's own displacement where the file's differs, without
+    /// the box-clearance rows and with the script's bounds on every phase (the settings'
+    /// `t_lo`, `t_hi`, not the file's `phase_time`): the script has neither, its optimum is
+    /// checked like with like.
     pub fn reference_srb(&self) -> JumpSpec {
-        JumpSpec { clear_of: None, ..self.reference().srb() }
+        JumpSpec { clear_of: None, phase_time: None, ..self.reference().srb() }
     }
 
     /// This jump with the reference script's target (see [`Self::reference_srb`]).
@@ -505,6 +534,12 @@ mod tests {
         assert!(e.contains("knots"), "{e}");
         let e = error_of(&LATERAL.replace("timings_10ms = [50, 28]", "timings_10ms = [50]"));
         assert!(e.contains("field `paper.timings_10ms`: expected 2 finite durations"), "{e}");
+        let e = error_of(&LATERAL.replace("total_time = [0.5, 1.5]", "total_time = [0.5, 1.5]\nphase_time = [[0.3, 0.6]]"));
+        assert!(e.contains("field `phase_time`: expected 2 [lo, hi] pairs (one per phase, s), got [[0.3, 0.6]]"), "{e}");
+        let e = error_of(&LATERAL.replace("total_time = [0.5, 1.5]", "total_time = [0.5, 1.5]\nphase_time = [[0.3, 0.6], [0.4, 0.2]]"));
+        assert!(e.contains("field `phase_time[1]`: expected [lo, hi] with 0 < lo <= hi (s), got [0.4, 0.2]"), "{e}");
+        let e = error_of(&LATERAL.replace("total_time = [0.5, 1.5]", "total_time = [0.5, 1.5]\nphase_time = [[0.1, 0.2], [0.1, 0.2]]"));
+        assert!(e.contains("field `phase_time`: expected bounds whose sums meet total_time [0.5, 1.5]"), "{e}");
         let e = Jump::embedded("moonwalk").unwrap_err().to_string();
         assert!(e.contains("'moonwalk'") && e.contains("double_backflip"), "{e}");
     }
@@ -514,5 +549,13 @@ mod tests {
         let j = Jump::from_toml(&LATERAL.replace("[paper]", "[contact_timing]\nknots_per_phase = 4\nexp_map = \"taylor4\"\n\n[paper]"), "t").unwrap();
         let expected = ContactTimingSettings { knots_per_phase: 4, exp_map: ExpMap::Taylor4, ..Default::default() };
         assert_eq!(j.contact_timing, expected);
+    }
+
+    #[test]
+    fn phase_time_bounds_reach_the_jumps_problem_but_not_the_reference_scripts() {
+        let j = Jump::from_toml(&LATERAL.replace("total_time = [0.5, 1.5]", "total_time = [0.5, 1.5]\nphase_time = [[0.4, 0.6], [0.25, 0.35]]"), "t").unwrap();
+        assert_eq!(j.srb().phase_time, Some(vec![(0.4, 0.6), (0.25, 0.35)]));
+        assert_eq!(j.reference_srb().phase_time, None);
+        assert_eq!(Jump::from_toml(LATERAL, "t").unwrap().srb().phase_time, None);
     }
 }

@@ -42,6 +42,9 @@ pub struct JumpSpec {
     pub phases: Vec<Contacts>,
     /// `[T_min, T_max]` of (2j).
     pub total_time: (f64, f64),
+    /// Bounds `[lo, hi]` of each phase's duration `T_i` (s), one per phase; `None`: every
+    /// phase within the settings' `[t_lo, t_hi]` (the reference script's 0.1-1.0 s).
+    pub phase_time: Option<Vec<(f64, f64)>>,
 }
 
 /// The seven jumps of the paper's Table I under the reference script's names (`lateral30`,
@@ -95,7 +98,8 @@ pub struct ContactTimingSettings {
     /// 1.9 m/s at the knee's take-off angle of 0.92 rad). 1.5 m/s is the take-off of the
     /// paper's own timings (Table I flights of 0.28-0.33 s on flat ground).
     pub max_stance_speed: f64,
-    /// Bounds of each `T_i` (0.1, 1.0 s).
+    /// Bounds of each `T_i` (0.1, 1.0 s), where the jump gives none of its own
+    /// (`JumpSpec::phase_time`).
     pub t_lo: f64,
     pub t_hi: f64,
     /// Cost weights `eps_Omega`, `eps_R`, `eps_f` (1, 10, 1e-4).
@@ -204,6 +208,16 @@ impl ContactTimingProblem {
         if t_min.is_nan() || t_max.is_nan() || t_min > t_max || jump.axis.norm().is_nan() || jump.axis.norm() == 0.0 {
             return Err(bad("total_time must be an interval (min <= max) and the axis nonzero"));
         }
+        let phase_time: Vec<(f64, f64)> = match &jump.phase_time {
+            None => vec![(s.t_lo, s.t_hi); jump.phases.len()],
+            Some(b) if b.len() != jump.phases.len() => return Err(bad("phase_time needs one [lo, hi] per phase")),
+            Some(b) if b.iter().any(|&(lo, hi)| !(lo > 0.0 && lo <= hi && hi.is_finite())) => return Err(bad("phase_time bounds must be 0 < lo <= hi, finite")),
+            Some(b) => b.clone(),
+        };
+        let sum = |f: fn(&(f64, f64)) -> f64| phase_time.iter().map(f).sum::<f64>();
+        if sum(|b| b.0) > t_max || sum(|b| b.1) < t_min {
+            return Err(bad("the phase_time bounds cannot sum into total_time (2j)"));
+        }
         let inertia_inv = params.inertia.try_inverse().ok_or(ContactTimingError::SingularInertia(params.inertia))?;
         let np = jump.phases.len();
         let n = s.knots_per_phase;
@@ -245,10 +259,13 @@ impl ContactTimingProblem {
         let phase_of = |k: usize| k.min(nc - 1) / n;
         let k_flight = n * (np - 1);
         let nx = T + np;
-        // Initial guess of the script: an even split of the mid total time, a straight CoM
-        // line, no rotation in stance and a constant rate in flight, feet interpolated.
-        let t_guess = 0.5 * (jump.total_time.0 + jump.total_time.1) / np as f64;
-        let t_total = t_guess * np as f64;
+        // Initial guess of the script: an even split of the mid total time (each phase's
+        // share clamped into its bounds), a straight CoM line, no rotation in stance and a
+        // constant rate in flight, feet interpolated.
+        let t_even = 0.5 * (jump.total_time.0 + jump.total_time.1) / np as f64;
+        let t_phase: Vec<f64> = phase_time.iter().map(|&(lo, hi)| t_even.clamp(lo, hi)).collect();
+        let t_total: f64 = t_phase.iter().sum();
+        let t_flight = t_phase[np - 1];
         let flight_arc = Self::flight_arc(&shared, jump, k_flight, nc);
         let mut stages: Vec<Box<dyn Stage>> = Vec::with_capacity(nc + 1);
         let mut guess = Vec::with_capacity(nc + 1);
@@ -269,8 +286,8 @@ impl ContactTimingProblem {
                 bounds.push((R + j, -1.5, 1.5));
             }
             if k == 0 {
-                for i in 0..np {
-                    bounds.push((T + i, s.t_lo, s.t_hi));
+                for (i, &(lo, hi)) in phase_time.iter().enumerate() {
+                    bounds.push((T + i, lo, hi));
                 }
             }
             if !last {
@@ -301,7 +318,7 @@ impl ContactTimingProblem {
                 p.z += flight_arc * (std::f64::consts::PI * (k - k_flight) as f64 / (nc - k_flight) as f64).sin();
             }
             let v = (pg - p0) / t_total;
-            let w = if k >= k_flight && k < nc { jump.axis * (jump.angle / t_guess) } else { Vector3::zeros() };
+            let w = if k >= k_flight && k < nc { jump.axis * (jump.angle / t_flight) } else { Vector3::zeros() };
             let ang = jump.angle * (k.saturating_sub(k_flight)) as f64 / (nc - k_flight) as f64;
             let rguess = rotation(&jump.axis, ang);
             for j in 0..3 {
@@ -315,7 +332,7 @@ impl ContactTimingProblem {
                 }
             }
             for i in 0..np {
-                z[T + i] = t_guess;
+                z[T + i] = t_phase[i];
             }
             if !last {
                 for f in 0..4 {
