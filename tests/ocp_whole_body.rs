@@ -459,7 +459,8 @@ fn relaxed_barrier_gradients_match_finite_differences() {
 /// ground inside the landing window (clearance about half of `h_0`, where the window's slope
 /// is largest) coming down fast and sideways (landing and impact rows, the feet off the
 /// ground: their Jacobians must be there without contact); the feet pressed in and dragged
-/// (the slide row's normal-force gradient, the landing row at a window of one).
+/// (the slide row's normal-force gradient, the landing row at a window of one); the feet
+/// pressed in less than `landing_depth`, where the window fades out again.
 #[test]
 fn foot_speed_row_gradients_match_finite_differences() {
     use legwork::ocp::{settled_stance, FeasibilityConstraints, FeasibilitySettings, TaskSpec};
@@ -476,7 +477,10 @@ fn foot_speed_row_gradients_match_finite_differences() {
     let hip = model.joints.iter().find(|j| j.name == "lf_hfe_joint").unwrap();
     let mut contacts = legwork::sim::ContactModelWorkspace::new(&model, &ground);
     // (base lift, base velocity x, z): in the window, coming down; pressed in and dragged.
-    for (case, (dz, vx, vz)) in [(0.004 + 0.5 * settings.landing_clearance, 0.4, -1.5), (-0.006, 0.3, 0.0)].into_iter().enumerate() {
+    // A third case: the rows fading out again below the ground (`landing_depth` 8 mm, the
+    // feet at about 5.5 mm).
+    for (case, (dz, vx, vz, depth)) in [(0.004 + 0.5 * settings.landing_clearance, 0.4, -1.5, f64::INFINITY), (-0.006, 0.3, 0.0, f64::INFINITY), (-0.001, 0.5, -0.3, 0.008)].into_iter().enumerate() {
+        problem.feasibility = Some(FeasibilityConstraints::new(&model, problem.knots, FeasibilitySettings { landing_depth: depth, ..settings }).unwrap());
         let mut x = initial.clone();
         x.q[2] += dz;
         x.v[0] = vx;
@@ -487,6 +491,8 @@ fn foot_speed_row_gradients_match_finite_differences() {
         let clearances: Vec<f64> = contacts.feet().iter().map(|f| -f.contact.penetration).collect();
         if case == 0 {
             assert!(clearances.iter().all(|&h| h > 0.0 && h < settings.landing_clearance), "every foot in the window, off the ground: {clearances:?}");
+        } else if case == 2 {
+            assert!(clearances.iter().all(|&h| h < 0.0 && -h < depth), "every foot in the fade below the ground: {clearances:?}");
         } else {
             assert!(contacts.feet().iter().all(|f| f.contact.normal_force > 0.0), "every foot loaded");
         }

@@ -129,6 +129,9 @@ pub struct FeasibilitySettings {
     /// term as the others, with its own penalty (0: off).
     /// `h_0`: the clearance below which the landing and impact rows act (0.03 m).
     pub landing_clearance: f64,
+    /// `d`: the penetration over which the landing and impact rows fade out again, leaving a
+    /// settled stance to the slide and friction rows (infinite: they stay on while touching).
+    pub landing_depth: f64,
     /// `v_land`: a foot's tangential speed at the ground (0.1 m/s, the metrics' slide speed).
     pub landing_speed: f64,
     /// `v_impact`: a foot's speed into the ground at the ground (0.5 m/s).
@@ -159,7 +162,7 @@ pub enum FrictionForm {
 
 impl Default for FeasibilitySettings {
     fn default() -> Self {
-        Self { friction_margin: 0.75, max_penetration: 0.01, friction_penalty: 1e4, penetration_penalty: 1e3, joint_limit_penalty: 1e4, joint_speed_penalty: 1e3, outer_rounds: 1, penalty_growth: 1.0, local_penalty_growth: false, friction_form: FrictionForm::Demand, joint_limit_margin: 0.0, polish_share: 0.5, polish_rounds: 2, polish_friction_margin: 0.70, polish_max_penetration: 0.009, polish_joint_limit_margin: 0.02, terminal_knot: false, barrier_weight: 0.0, barrier_delta: 0.1, barrier_decrease: 1.0, barrier_min_weight: 0.0, barrier_from_polish: false, barrier_friction: true, landing_clearance: 0.03, landing_speed: 0.1, impact_speed: 0.5, slide_speed: 0.05, landing_penalty: 0.0, impact_penalty: 0.0, slide_penalty: 0.0, foot_speed_from_polish: true }
+        Self { friction_margin: 0.75, max_penetration: 0.01, friction_penalty: 1e4, penetration_penalty: 1e3, joint_limit_penalty: 1e4, joint_speed_penalty: 1e3, outer_rounds: 1, penalty_growth: 1.0, local_penalty_growth: false, friction_form: FrictionForm::Demand, joint_limit_margin: 0.0, polish_share: 0.5, polish_rounds: 2, polish_friction_margin: 0.70, polish_max_penetration: 0.009, polish_joint_limit_margin: 0.02, terminal_knot: false, barrier_weight: 0.0, barrier_delta: 0.1, barrier_decrease: 1.0, barrier_min_weight: 0.0, barrier_from_polish: false, barrier_friction: true, landing_clearance: 0.03, landing_depth: f64::INFINITY, landing_speed: 0.1, impact_speed: 0.5, slide_speed: 0.05, landing_penalty: 0.0, impact_penalty: 0.0, slide_penalty: 0.0, foot_speed_from_polish: true }
     }
 }
 
@@ -196,6 +199,9 @@ impl FeasibilitySettings {
             if !(value.is_finite() && value >= 0.0) {
                 return bad(field, "a finite number >= 0", value);
             }
+        }
+        if !(self.landing_depth > 0.0) {
+            return bad("landing_depth", "a depth > 0 (m; infinite: no fade)", self.landing_depth);
         }
         for (field, value) in [("landing_clearance", self.landing_clearance), ("landing_speed", self.landing_speed), ("impact_speed", self.impact_speed), ("slide_speed", self.slide_speed)] {
             if !(value.is_finite() && value > 0.0) {
@@ -261,17 +267,25 @@ impl FootSpeeds {
 }
 
 /// `(w, dw/dh)` of the landing rows' window at clearance `h` ([`FeasibilitySettings::landing_clearance`]
-/// `h_0`): 1 at and below the ground, `1 - 3 t^2 + 2 t^3` (`t = h / h_0`) above it, 0 from
-/// `h_0` up; C1 at both ends, so a foot's row fades in smoothly as it comes down.
+/// `h_0`, [`FeasibilitySettings::landing_depth`] `d`): `1 - S(h / h_0)` above the ground
+/// (`S(t) = 3 t^2 - 2 t^3`), 0 from `h_0` up; below the ground 1 (`d` infinite) or
+/// `1 - S(-h / d)`, 0 from a penetration `d` on. C1 everywhere, so a foot's row fades in as it
+/// comes down (and, with a finite `d`, out as it settles into a stance).
 #[inline]
-fn landing_window(h: f64, h_0: f64) -> (f64, f64) {
-    if h <= 0.0 {
-        (1.0, 0.0)
-    } else if h < h_0 {
-        let t = h / h_0;
-        (1.0 - t * t * (3.0 - 2.0 * t), -6.0 * t * (1.0 - t) / h_0)
-    } else {
+fn landing_window(h: f64, h_0: f64, d: f64) -> (f64, f64) {
+    let fade = |t: f64| (1.0 - t * t * (3.0 - 2.0 * t), -6.0 * t * (1.0 - t));
+    if h >= h_0 {
         (0.0, 0.0)
+    } else if h > 0.0 {
+        let (w, dw) = fade(h / h_0);
+        (w, dw / h_0)
+    } else if -h >= d {
+        (0.0, 0.0)
+    } else if d.is_finite() {
+        let (w, dw) = fade(-h / d);
+        (w, -dw / d)
+    } else {
+        (1.0, 0.0)
     }
 }
 
@@ -404,7 +418,7 @@ impl FeasibilityConstraints {
                 call(Residual::Penetration(i), (foot.contact.penetration - s.max_penetration) / s.max_penetration);
             }
             let speeds = FootSpeeds::of(foot);
-            let (w, _) = landing_window(-foot.contact.penetration, s.landing_clearance);
+            let (w, _) = landing_window(-foot.contact.penetration, s.landing_clearance, s.landing_depth);
             if w > 0.0 {
                 call(Residual::Landing(i), (w * speeds.tangential - s.landing_speed) / s.landing_speed);
                 call(Residual::Impact(i), (w * speeds.down - s.impact_speed) / s.impact_speed);
@@ -668,7 +682,7 @@ impl FeasibilityConstraints {
         let speeds = FootSpeeds::of(foot);
         let e = if speeds.tangential > 0.0 { speeds.tangent_velocity / speeds.tangential } else { Vector3::zeros() };
         let n = foot.normal;
-        let (w, dw) = landing_window(-foot.contact.penetration, s.landing_clearance);
+        let (w, dw) = landing_window(-foot.contact.penetration, s.landing_clearance, s.landing_depth);
         // dc = a_p . dp + a_v . dpdot (rows); the slide's dF_n part first, into `row`.
         let (a_p, a_v): (Vector3<f64>, Vector3<f64>) = match which {
             Residual::Landing(_) => {
