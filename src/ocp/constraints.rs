@@ -909,8 +909,24 @@ mod tests {
         assert_eq!(FeasibilitySettings { barrier_weight: -1.0, ..Default::default() }.validate().unwrap_err().field, "barrier_weight");
         assert_eq!(FeasibilitySettings { barrier_delta: 0.0, ..Default::default() }.validate().unwrap_err().field, "barrier_delta");
         assert_eq!(FeasibilitySettings { barrier_decrease: 1.5, ..Default::default() }.validate().unwrap_err().field, "barrier_decrease");
+        assert_eq!(FeasibilitySettings { landing_penalty: -1.0, ..Default::default() }.validate().unwrap_err().field, "landing_penalty");
+        assert_eq!(FeasibilitySettings { landing_clearance: 0.0, ..Default::default() }.validate().unwrap_err().field, "landing_clearance");
+        assert_eq!(FeasibilitySettings { landing_depth: 0.0, ..Default::default() }.validate().unwrap_err().field, "landing_depth");
+        assert_eq!(FeasibilitySettings { slide_speed: f64::NAN, ..Default::default() }.validate().unwrap_err().field, "slide_speed");
         // Off by default: the augmented Lagrangian alone.
         assert_eq!(FeasibilityConstraints::new(&model, 10, FeasibilitySettings::default()).unwrap().barrier_weight(), 0.0);
+        let s = FeasibilitySettings::default();
+        assert_eq!((s.landing_penalty, s.impact_penalty, s.slide_penalty), (0.0, 0.0, 0.0));
+        // Switched on, the foot-speed rows wait for the polish, then carry their penalties
+        // at every knot and foot.
+        let on = FeasibilitySettings { landing_penalty: 3.0, impact_penalty: 5.0, slide_penalty: 7.0, ..Default::default() };
+        let mut c = FeasibilityConstraints::new(&model, 10, on).unwrap();
+        let rows = |c: &FeasibilityConstraints| c.penalties.chunks(c.per_knot()).flat_map(|k| k[..FOOT_ROWS * c.feet].chunks(FOOT_ROWS).map(|f| [f[2], f[3], f[4]]).collect::<Vec<_>>()).collect::<Vec<_>>();
+        assert!(rows(&c).iter().all(|r| *r == [0.0; 3]));
+        c.start_foot_speed_rows();
+        assert_eq!(rows(&c).len(), 11 * model.feet.len());
+        assert!(rows(&c).iter().all(|r| *r == [3.0, 5.0, 7.0]));
+        assert!(c.penalties.chunks(c.per_knot()).all(|k| k[0] == on.friction_penalty && k[1] == on.penetration_penalty));
         // The polish's bounds replace the targets' and nothing else.
         let s = FeasibilitySettings::default();
         let polish = s.with_polish_bounds();
