@@ -200,7 +200,7 @@ impl FeasibilitySettings {
                 return bad(field, "a finite number >= 0", value);
             }
         }
-        if !(self.landing_depth > 0.0) {
+        if self.landing_depth.is_nan() || self.landing_depth <= 0.0 {
             return bad("landing_depth", "a depth > 0 (m; infinite: no fade)", self.landing_depth);
         }
         for (field, value) in [("landing_clearance", self.landing_clearance), ("landing_speed", self.landing_speed), ("impact_speed", self.impact_speed), ("slide_speed", self.slide_speed)] {
