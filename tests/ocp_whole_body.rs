@@ -452,3 +452,60 @@ fn relaxed_barrier_gradients_match_finite_differences() {
         assert_knot_gradient(&model, &problem, &x, &u, &d.l_x, &mut (11u64 + case as u64), &format!("case {case}"));
     }
 }
+
+/// The feet's landing, impact and slide rows (docs/experiments/feasible-slq-7.md): with only
+/// those on, at states where they act, the knot's `l_x` matches central differences of its
+/// cost along random tangent directions, anchors included. The cases: every foot above the
+/// ground inside the landing window (clearance about half of `h_0`, where the window's slope
+/// is largest) coming down fast and sideways (landing and impact rows, the feet off the
+/// ground: their Jacobians must be there without contact); the feet pressed in and dragged
+/// (the slide row's normal-force gradient, the landing row at a window of one); the feet
+/// pressed in less than `landing_depth`, where the window fades out again.
+#[test]
+fn foot_speed_row_gradients_match_finite_differences() {
+    use legwork::ocp::{settled_stance, FeasibilityConstraints, FeasibilitySettings, TaskSpec};
+    use legwork::slq::KnotDerivatives;
+    let text = "name = \"fd\"\nsummary = \"fd\"\nrobot = \"hyq\"\nduration = 0.01\ndt = 0.002\n[running]\n[final]\n[input]\nweight = 1e-4\n";
+    let spec = TaskSpec::from_toml(text, "fd.toml").unwrap();
+    let model = embedded::load("hyq").unwrap();
+    let ground = Plane::flat(0.0);
+    let initial = settled_stance(&model, &ground, 0.3).unwrap();
+    let mut problem = spec.problem(&model, &ground, initial.clone(), "fd.toml").unwrap();
+    let settings = FeasibilitySettings { friction_penalty: 0.0, penetration_penalty: 0.0, joint_limit_penalty: 0.0, joint_speed_penalty: 0.0, landing_penalty: 100.0, impact_penalty: 100.0, slide_penalty: 100.0, foot_speed_from_polish: false, ..Default::default() };
+    problem.feasibility = Some(FeasibilityConstraints::new(&model, problem.knots, settings).unwrap());
+    let nv = model.nv;
+    let hip = model.joints.iter().find(|j| j.name == "lf_hfe_joint").unwrap();
+    let mut contacts = legwork::sim::ContactModelWorkspace::new(&model, &ground);
+    // (base lift, base velocity x, z): in the window, coming down; pressed in and dragged.
+    // A third case: the rows fading out again below the ground (`landing_depth` 8 mm, the
+    // feet at about 5.5 mm).
+    for (case, (dz, vx, vz, depth)) in [(0.004 + 0.5 * settings.landing_clearance, 0.4, -1.5, f64::INFINITY), (-0.006, 0.3, 0.0, f64::INFINITY), (-0.001, 0.5, -0.3, 0.008)].into_iter().enumerate() {
+        problem.feasibility = Some(FeasibilityConstraints::new(&model, problem.knots, FeasibilitySettings { landing_depth: depth, ..settings }).unwrap());
+        let mut x = initial.clone();
+        x.q[2] += dz;
+        x.v[0] = vx;
+        x.v[2] = vz;
+        x.v[1] = 0.1;
+        x.v[hip.idx_v] = 2.0; // the feet's speeds differ
+        contacts.evaluate_contacts(&x.q, &x.v, &x.anchors);
+        let clearances: Vec<f64> = contacts.feet().iter().map(|f| -f.contact.penetration).collect();
+        if case == 0 {
+            assert!(clearances.iter().all(|&h| h > 0.0 && h < settings.landing_clearance), "every foot in the window, off the ground: {clearances:?}");
+        } else if case == 2 {
+            assert!(clearances.iter().all(|&h| h < 0.0 && -h < depth), "every foot in the fade below the ground: {clearances:?}");
+        } else {
+            assert!(contacts.feet().iter().all(|f| f.contact.normal_force > 0.0), "every foot loaded");
+        }
+        let (nx, nu) = (problem.nx(), problem.nu());
+        let u = DVector::zeros(nu);
+        let mut ws = problem.workspace();
+        let mut d = KnotDerivatives::zeros(nx, nu);
+        let mut next = x.clone();
+        let c = problem.step_with_derivatives(&mut ws, 0, &x, &u, &mut next, &mut d);
+        let violation = problem.constraint_violation(std::slice::from_ref(&x)).unwrap();
+        assert!(violation.foot_speed > 0.0 && c > 0.0, "case {case}: the rows act ({violation:?}, cost {c})");
+        assert!((c - problem.step(&mut problem.workspace(), 0, &x, &u, &mut next.clone())).abs() <= 1e-9 * c.abs().max(1.0), "case {case}: cost {c}");
+        assert_knot_gradient(&model, &problem, &x, &u, &d.l_x, &mut (23u64 + case as u64), &format!("foot speeds, case {case}"));
+    }
+    let _ = nv;
+}

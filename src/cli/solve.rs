@@ -158,7 +158,7 @@ pub fn run(args: SolveArgs) -> Result<()> {
         say!("augmented-Lagrangian round {} on the full horizon: {:?} after {} iterations in {:.2} s (cost {:.4e} -> {:.4e})", i + 1, round.termination, round.iterations, round.time, round.initial_cost, round.final_cost);
     }
     if let Some(v) = &run.violation {
-        say!("largest constraint violations: friction {:.3} m g, penetration {:.3} p_max, joint limit {:.4} rad, joint speed {:.3} v_max", v.friction, v.penetration, v.joint_limit, v.joint_speed);
+        say!("largest constraint violations: friction {:.3} m g, penetration {:.3} p_max, joint limit {:.4} rad, joint speed {:.3} v_max, foot speed {:.3}", v.friction, v.penetration, v.joint_limit, v.joint_speed, v.foot_speed);
     }
     let stages_note = if run.stages.is_empty() && run.rounds.is_empty() { String::new() } else { format!(" ({} in the last round on the full horizon)", sol.iterations.len()) };
     say!("{:?} after {} iterations{stages_note} in {:.2} s (cost {:.4e} -> {:.4e})", sol.termination, run.iterations(), solve_time, sol.cost_history[0], sol.cost_history.last().unwrap_or(&f64::NAN));

@@ -110,6 +110,42 @@ pub struct FeasibilitySettings {
     /// zero), so its barrier charges every light contact; on pallet_push it lifted the
     /// tripod's lightly loaded foot (docs/experiments/feasible-slq-6.md).
     pub barrier_friction: bool,
+    /// The feet's speeds near and on the ground, rows that act *before* a contact
+    /// (docs/experiments/feasible-slq-7.md): most friction-margin misses are touch-downs,
+    /// where a swing foot arrives with tangential speed and the damper of eq. (10) asks for
+    /// `d_t v_t s(p_n)` while `F_n` is still building up; no row at the touch-down knot can
+    /// remove that, the swing must arrive slower. Per foot, with `h` its clearance (`-p_n`)
+    /// and `w(h)` a smoothstep from 1 at the ground (and below) to 0 at
+    /// [`Self::landing_clearance`] (C1 at both ends):
+    ///
+    /// ```text
+    /// landing   (w(h) |v_t| - v_land) / v_land          tangential speed near the ground
+    /// impact    (w(h) v_down - v_impact) / v_impact     speed into the ground, v_down = -n . v
+    /// slide     ((F_n / F_ref) |v_t| - v_slide) / v_slide   a loaded foot, F_ref its standing load
+    /// ```
+    ///
+    /// (`v_t = P v` the foot's velocity in the tangent plane.) Functions of the state only,
+    /// as every row of this layer: no contact schedule. Each row is an augmented-Lagrangian
+    /// term as the others, with its own penalty (0: off).
+    /// `h_0`: the clearance below which the landing and impact rows act (0.03 m).
+    pub landing_clearance: f64,
+    /// `d`: the penetration over which the landing and impact rows fade out again, leaving a
+    /// settled stance to the slide and friction rows (infinite: they stay on while touching).
+    pub landing_depth: f64,
+    /// `v_land`: a foot's tangential speed at the ground (0.1 m/s, the metrics' slide speed).
+    pub landing_speed: f64,
+    /// `v_impact`: a foot's speed into the ground at the ground (0.5 m/s).
+    pub impact_speed: f64,
+    /// `v_slide`: a foot's tangential speed under its standing load (0.05 m/s).
+    pub slide_speed: f64,
+    /// `rho` of the landing, impact and slide rows (per second; 0, 0, 0: off).
+    pub landing_penalty: f64,
+    pub impact_penalty: f64,
+    pub slide_penalty: f64,
+    /// The landing, impact and slide rows start with the polish (their penalties zero in the
+    /// task's own solve and its continuation stages; true): in the task's solve they cost
+    /// sidestep, pallet_push and rearing their targets (docs/experiments/feasible-slq-7.md).
+    pub foot_speed_from_polish: bool,
 }
 
 /// How the friction residual is normalized.
@@ -126,7 +162,7 @@ pub enum FrictionForm {
 
 impl Default for FeasibilitySettings {
     fn default() -> Self {
-        Self { friction_margin: 0.75, max_penetration: 0.01, friction_penalty: 1e4, penetration_penalty: 1e3, joint_limit_penalty: 1e4, joint_speed_penalty: 1e3, outer_rounds: 1, penalty_growth: 1.0, local_penalty_growth: false, friction_form: FrictionForm::Demand, joint_limit_margin: 0.0, polish_share: 0.5, polish_rounds: 2, polish_friction_margin: 0.70, polish_max_penetration: 0.009, polish_joint_limit_margin: 0.02, terminal_knot: false, barrier_weight: 0.0, barrier_delta: 0.1, barrier_decrease: 1.0, barrier_min_weight: 0.0, barrier_from_polish: false, barrier_friction: true }
+        Self { friction_margin: 0.75, max_penetration: 0.01, friction_penalty: 1e4, penetration_penalty: 1e3, joint_limit_penalty: 1e4, joint_speed_penalty: 1e3, outer_rounds: 1, penalty_growth: 1.0, local_penalty_growth: false, friction_form: FrictionForm::Demand, joint_limit_margin: 0.0, polish_share: 0.5, polish_rounds: 2, polish_friction_margin: 0.70, polish_max_penetration: 0.009, polish_joint_limit_margin: 0.02, terminal_knot: false, barrier_weight: 0.0, barrier_delta: 0.1, barrier_decrease: 1.0, barrier_min_weight: 0.0, barrier_from_polish: false, barrier_friction: true, landing_clearance: 0.03, landing_depth: f64::INFINITY, landing_speed: 0.1, impact_speed: 0.5, slide_speed: 0.05, landing_penalty: 0.0, impact_penalty: 0.0, slide_penalty: 0.0, foot_speed_from_polish: true }
     }
 }
 
@@ -157,6 +193,19 @@ impl FeasibilitySettings {
         for (field, value) in [("friction_penalty", self.friction_penalty), ("penetration_penalty", self.penetration_penalty), ("joint_limit_penalty", self.joint_limit_penalty), ("joint_speed_penalty", self.joint_speed_penalty)] {
             if !(value.is_finite() && value >= 0.0) {
                 return bad(field, "a finite number >= 0", value);
+            }
+        }
+        for (field, value) in [("landing_penalty", self.landing_penalty), ("impact_penalty", self.impact_penalty), ("slide_penalty", self.slide_penalty)] {
+            if !(value.is_finite() && value >= 0.0) {
+                return bad(field, "a finite number >= 0", value);
+            }
+        }
+        if self.landing_depth.is_nan() || self.landing_depth <= 0.0 {
+            return bad("landing_depth", "a depth > 0 (m; infinite: no fade)", self.landing_depth);
+        }
+        for (field, value) in [("landing_clearance", self.landing_clearance), ("landing_speed", self.landing_speed), ("impact_speed", self.impact_speed), ("slide_speed", self.slide_speed)] {
+            if !(value.is_finite() && value > 0.0) {
+                return bad(field, "a finite number > 0 (m, m/s)", value);
             }
         }
         for (field, value) in [("barrier_weight", self.barrier_weight), ("barrier_min_weight", self.barrier_min_weight)] {
@@ -196,6 +245,50 @@ impl FeasibilitySettings {
     }
 }
 
+/// Multipliers per foot and knot: friction, penetration, landing, impact, slide.
+const FOOT_ROWS: usize = 5;
+
+/// A foot's speed along the ground and into it.
+struct FootSpeeds {
+    /// `v_t = P v`, the velocity in the tangent plane (`P = I - n n^T`).
+    tangent_velocity: Vector3<f64>,
+    /// `|v_t|`.
+    tangential: f64,
+    /// `v_down = -n . v`, positive towards the ground.
+    down: f64,
+}
+
+impl FootSpeeds {
+    fn of(foot: &FootState) -> Self {
+        let n = foot.normal;
+        let tangent_velocity = foot.velocity - n * n.dot(&foot.velocity);
+        Self { tangential: tangent_velocity.norm(), down: -n.dot(&foot.velocity), tangent_velocity }
+    }
+}
+
+/// `(w, dw/dh)` of the landing rows' window at clearance `h` ([`FeasibilitySettings::landing_clearance`]
+/// `h_0`, [`FeasibilitySettings::landing_depth`] `d`): `1 - S(h / h_0)` above the ground
+/// (`S(t) = 3 t^2 - 2 t^3`), 0 from `h_0` up; below the ground 1 (`d` infinite) or
+/// `1 - S(-h / d)`, 0 from a penetration `d` on. C1 everywhere, so a foot's row fades in as it
+/// comes down (and, with a finite `d`, out as it settles into a stance).
+#[inline]
+fn landing_window(h: f64, h_0: f64, d: f64) -> (f64, f64) {
+    let fade = |t: f64| (1.0 - t * t * (3.0 - 2.0 * t), -6.0 * t * (1.0 - t));
+    if h >= h_0 {
+        (0.0, 0.0)
+    } else if h > 0.0 {
+        let (w, dw) = fade(h / h_0);
+        (w, dw / h_0)
+    } else if -h >= d {
+        (0.0, 0.0)
+    } else if d.is_finite() {
+        let (w, dw) = fade(-h / d);
+        (w, -dw / d)
+    } else {
+        (1.0, 0.0)
+    }
+}
+
 /// A speed limit of one velocity coordinate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct SpeedLimit {
@@ -231,9 +324,12 @@ pub struct Violation {
     pub penetration: f64,
     pub joint_limit: f64,
     pub joint_speed: f64,
+    /// The feet's landing, impact and slide rows (in their speeds' units).
+    pub foot_speed: f64,
 }
 
 impl Violation {
+    /// The largest of the targets' kinds (the foot speeds are means to them, not targets).
     pub fn max(&self) -> f64 {
         self.friction.max(self.penetration).max(self.joint_limit).max(self.joint_speed)
     }
@@ -246,10 +342,11 @@ impl FeasibilityConstraints {
         let coordinates: Vec<LimitedCoordinate> = limited_coordinates(model).collect();
         let speeds: Vec<SpeedLimit> = model.actuated_joints().filter(|j| j.limits.velocity[0].is_finite() && j.limits.velocity[0] > 0.0).map(|j| SpeedLimit { idx_v: j.idx_v, limit: j.limits.velocity[0] }).collect();
         let feet = model.feet.len();
-        let per_knot = 2 * feet + 2 * coordinates.len() + speeds.len();
+        let per_knot = FOOT_ROWS * feet + 2 * coordinates.len() + speeds.len();
         let mut penalty_of_knot = Vec::with_capacity(per_knot);
+        let foot_speed = if settings.foot_speed_from_polish { 0.0 } else { 1.0 };
         for _ in 0..feet {
-            penalty_of_knot.extend([settings.friction_penalty, settings.penetration_penalty]);
+            penalty_of_knot.extend([settings.friction_penalty, settings.penetration_penalty, foot_speed * settings.landing_penalty, foot_speed * settings.impact_penalty, foot_speed * settings.slide_penalty]);
         }
         penalty_of_knot.extend(std::iter::repeat_n(settings.joint_limit_penalty, 2 * coordinates.len()));
         penalty_of_knot.extend(std::iter::repeat_n(settings.joint_speed_penalty, speeds.len()));
@@ -258,7 +355,22 @@ impl FeasibilityConstraints {
     }
 
     fn per_knot(&self) -> usize {
-        2 * self.feet + 2 * self.coordinates.len() + self.speeds.len()
+        FOOT_ROWS * self.feet + 2 * self.coordinates.len() + self.speeds.len()
+    }
+
+    /// Where residual `which` sits among its knot's multipliers.
+    fn index(&self, which: Residual) -> usize {
+        let (feet, coordinates) = (FOOT_ROWS * self.feet, self.coordinates.len());
+        match which {
+            Residual::Friction(i) => FOOT_ROWS * i,
+            Residual::Penetration(i) => FOOT_ROWS * i + 1,
+            Residual::Landing(i) => FOOT_ROWS * i + 2,
+            Residual::Impact(i) => FOOT_ROWS * i + 3,
+            Residual::Slide(i) => FOOT_ROWS * i + 4,
+            Residual::Upper(j) => feet + 2 * j,
+            Residual::Lower(j) => feet + 2 * j + 1,
+            Residual::Speed(j) => feet + 2 * coordinates + j,
+        }
     }
 
     /// A foot's friction residual `c` and the demanded tangential force `T` it is made of
@@ -294,26 +406,40 @@ impl FeasibilityConstraints {
         let KnotContacts { q, v, anchors, params, feet } = at;
         let s = &self.settings;
         let base = k * self.per_knot();
-        let lambda = |i: usize| self.multipliers.get(base + i).copied().unwrap_or(0.0);
-        let rho = |i: usize| self.penalties.get(base + i).copied().unwrap_or(0.0);
+        let mut call = |which: Residual, c: f64| {
+            let i = base + self.index(which);
+            f(which, c, self.multipliers.get(i).copied().unwrap_or(0.0), self.penalties.get(i).copied().unwrap_or(0.0));
+        };
         for (i, foot) in feet.iter().enumerate() {
             if let Some((c, _)) = self.friction_residual(s.friction_form, params, foot, anchors[i].as_ref()) {
-                f(Residual::Friction(i), c, lambda(2 * i), rho(2 * i));
+                call(Residual::Friction(i), c);
             }
             if foot.contact.penetration > 0.0 {
-                f(Residual::Penetration(i), (foot.contact.penetration - s.max_penetration) / s.max_penetration, lambda(2 * i + 1), rho(2 * i + 1));
+                call(Residual::Penetration(i), (foot.contact.penetration - s.max_penetration) / s.max_penetration);
+            }
+            let speeds = FootSpeeds::of(foot);
+            let (w, _) = landing_window(-foot.contact.penetration, s.landing_clearance, s.landing_depth);
+            if w > 0.0 {
+                call(Residual::Landing(i), (w * speeds.tangential - s.landing_speed) / s.landing_speed);
+                call(Residual::Impact(i), (w * speeds.down - s.impact_speed) / s.impact_speed);
+            }
+            if foot.contact.normal_force > 0.0 {
+                call(Residual::Slide(i), (foot.contact.normal_force / self.standing_force() * speeds.tangential - s.slide_speed) / s.slide_speed);
             }
         }
-        let offset = 2 * self.feet;
         for (j, b) in self.coordinates.iter().enumerate() {
             let x = q[b.idx_q];
-            f(Residual::Upper(j), x - (b.upper - s.joint_limit_margin), lambda(offset + 2 * j), rho(offset + 2 * j));
-            f(Residual::Lower(j), (b.lower + s.joint_limit_margin) - x, lambda(offset + 2 * j + 1), rho(offset + 2 * j + 1));
+            call(Residual::Upper(j), x - (b.upper - s.joint_limit_margin));
+            call(Residual::Lower(j), (b.lower + s.joint_limit_margin) - x);
         }
-        let offset = offset + 2 * self.coordinates.len();
         for (j, sp) in self.speeds.iter().enumerate() {
-            f(Residual::Speed(j), (v[sp.idx_v].abs() - sp.limit) / sp.limit, lambda(offset + j), rho(offset + j));
+            call(Residual::Speed(j), (v[sp.idx_v].abs() - sp.limit) / sp.limit);
         }
+    }
+
+    /// A foot's share of the weight standing, `F_ref = m g / feet` (N).
+    fn standing_force(&self) -> f64 {
+        self.weight / self.feet.max(1) as f64
     }
 
     /// `scale sum psi(c)` at knot `k`.
@@ -364,6 +490,10 @@ impl FeasibilityConstraints {
                 }
                 Residual::Penetration(i) => {
                     self.penetration_row(i, at, step, scratch);
+                    None
+                }
+                Residual::Landing(i) | Residual::Impact(i) | Residual::Slide(i) => {
+                    self.foot_speed_row(which, i, at, step, scratch);
                     None
                 }
             };
@@ -471,6 +601,17 @@ impl FeasibilityConstraints {
         self.barrier_weight = (self.barrier_weight * self.settings.barrier_decrease).max(self.settings.barrier_min_weight.min(self.barrier_weight));
     }
 
+    /// Switches the landing, impact and slide rows on at their penalties, at every knot (the
+    /// polish's start with [`FeasibilitySettings::foot_speed_from_polish`]).
+    pub fn start_foot_speed_rows(&mut self) {
+        let (per_knot, s) = (self.per_knot(), self.settings);
+        for knot in self.penalties.chunks_mut(per_knot) {
+            for foot in knot[..FOOT_ROWS * self.feet].chunks_mut(FOOT_ROWS) {
+                foot[2..5].copy_from_slice(&[s.landing_penalty, s.impact_penalty, s.slide_penalty]);
+            }
+        }
+    }
+
     /// Switches the barriers on at their initial weight (the polish's start with
     /// [`FeasibilitySettings::barrier_from_polish`]).
     pub fn start_barrier(&mut self) {
@@ -524,6 +665,48 @@ impl FeasibilityConstraints {
         true
     }
 
+    /// `dc/dx` of foot `i`'s landing, impact or slide residual into `row` (surface held; `p`,
+    /// `pdot` the foot's position and velocity, `h = n . (p - s) - r` its clearance):
+    ///
+    /// ```text
+    /// landing  dc = (|v_t| w'(h) n^T dp + w e^T dpdot) / v_land,        e = v_t / |v_t|
+    /// impact   dc = (v_down w'(h) n^T dp - w n^T dpdot) / v_impact
+    /// slide    dc = (|v_t| dF_n / F_ref + F_n / F_ref e^T dpdot) / v_slide
+    /// ```
+    ///
+    /// with `dp = J_p dq`, `dpdot = J_d dq + J_p dv` through the foot Jacobians.
+    fn foot_speed_row(&self, which: Residual, i: usize, at: KnotContacts<'_>, step: &StepDerivatives, row: &mut DVector<f64>) {
+        let nv = at.v.len();
+        let foot = &at.feet[i];
+        let s = &self.settings;
+        let speeds = FootSpeeds::of(foot);
+        let e = if speeds.tangential > 0.0 { speeds.tangent_velocity / speeds.tangential } else { Vector3::zeros() };
+        let n = foot.normal;
+        let (w, dw) = landing_window(-foot.contact.penetration, s.landing_clearance, s.landing_depth);
+        // dc = a_p . dp + a_v . dpdot (rows); the slide's dF_n part first, into `row`.
+        let (a_p, a_v): (Vector3<f64>, Vector3<f64>) = match which {
+            Residual::Landing(_) => {
+                row.fill(0.0);
+                (n * (speeds.tangential * dw / s.landing_speed), e * (w / s.landing_speed))
+            }
+            Residual::Impact(_) => {
+                row.fill(0.0);
+                (n * (speeds.down * dw / s.impact_speed), -n * (w / s.impact_speed))
+            }
+            _ => {
+                let reference = self.standing_force();
+                self.normal_force_row(i, at, step, row);
+                *row *= speeds.tangential / (reference * s.slide_speed);
+                (Vector3::zeros(), e * (foot.contact.normal_force / (reference * s.slide_speed)))
+            }
+        };
+        let (jp, jd) = step.foot_jacobians(i);
+        for j in 0..nv {
+            row[j] += a_p.dot(&jp.column(j)) + a_v.dot(&jd.column(j));
+            row[nv + j] += a_v.dot(&jp.column(j));
+        }
+    }
+
     /// `dF_n/dx` of foot `i` into `row` (surface held: `F_n = n . F`).
     fn normal_force_row(&self, i: usize, at: KnotContacts<'_>, step: &StepDerivatives, row: &mut DVector<f64>) {
         let nv = at.v.len();
@@ -554,33 +737,18 @@ impl FeasibilityConstraints {
     /// The outer update of the augmented Lagrangian, `lambda <- max(0, lambda + rho c)`, at
     /// knot `k`.
     pub fn update_multipliers(&mut self, k: usize, at: KnotContacts<'_>) {
-        let feet = at.feet;
         let base = k * self.per_knot();
         let mut updates = Vec::new();
-        let index = |which: Residual, feet: usize, coordinates: usize| match which {
-            Residual::Friction(i) => 2 * i,
-            Residual::Penetration(i) => 2 * i + 1,
-            Residual::Upper(j) => 2 * feet + 2 * j,
-            Residual::Lower(j) => 2 * feet + 2 * j + 1,
-            Residual::Speed(j) => 2 * feet + 2 * coordinates + j,
-        };
-        let (nf, nc) = (self.feet, self.coordinates.len());
-        self.for_each_residual(k, at, |which, c, lambda, rho| updates.push((index(which, nf, nc), (lambda + rho * c).max(0.0), c > 0.0)));
-        // A constraint not evaluated at this state (a foot off the ground) releases its
-        // multiplier.
-        for (i, foot) in feet.iter().enumerate() {
-            if foot.contact.normal_force <= 0.0 {
-                self.multipliers[base + 2 * i] = 0.0;
-            }
-            if foot.contact.penetration <= 0.0 {
-                self.multipliers[base + 2 * i + 1] = 0.0;
-            }
-        }
+        self.for_each_residual(k, at, |which, c, lambda, rho| updates.push((which, (lambda + rho * c).max(0.0), c > 0.0)));
+        // A constraint not evaluated at this state (a foot off the ground, or above the
+        // landing rows' clearance) releases its multiplier.
+        self.multipliers[base..base + FOOT_ROWS * self.feet].fill(0.0);
         let grow_here = self.settings.local_penalty_growth;
-        for (i, lambda, violated) in updates {
-            self.multipliers[base + i] = lambda;
+        for (which, lambda, violated) in updates {
+            let i = base + self.index(which);
+            self.multipliers[i] = lambda;
             if grow_here && violated {
-                self.penalties[base + i] *= self.settings.penalty_growth;
+                self.penalties[i] *= self.settings.penalty_growth;
             }
         }
     }
@@ -593,6 +761,7 @@ impl FeasibilityConstraints {
                 Residual::Penetration(_) => &mut worst.penetration,
                 Residual::Upper(_) | Residual::Lower(_) => &mut worst.joint_limit,
                 Residual::Speed(_) => &mut worst.joint_speed,
+                Residual::Landing(_) | Residual::Impact(_) | Residual::Slide(_) => &mut worst.foot_speed,
             };
             *slot = slot.max(c);
         });
@@ -634,6 +803,9 @@ pub struct KnotContacts<'s> {
 enum Residual {
     Friction(usize),
     Penetration(usize),
+    Landing(usize),
+    Impact(usize),
+    Slide(usize),
     Upper(usize),
     Lower(usize),
     Speed(usize),
@@ -737,8 +909,24 @@ mod tests {
         assert_eq!(FeasibilitySettings { barrier_weight: -1.0, ..Default::default() }.validate().unwrap_err().field, "barrier_weight");
         assert_eq!(FeasibilitySettings { barrier_delta: 0.0, ..Default::default() }.validate().unwrap_err().field, "barrier_delta");
         assert_eq!(FeasibilitySettings { barrier_decrease: 1.5, ..Default::default() }.validate().unwrap_err().field, "barrier_decrease");
+        assert_eq!(FeasibilitySettings { landing_penalty: -1.0, ..Default::default() }.validate().unwrap_err().field, "landing_penalty");
+        assert_eq!(FeasibilitySettings { landing_clearance: 0.0, ..Default::default() }.validate().unwrap_err().field, "landing_clearance");
+        assert_eq!(FeasibilitySettings { landing_depth: 0.0, ..Default::default() }.validate().unwrap_err().field, "landing_depth");
+        assert_eq!(FeasibilitySettings { slide_speed: f64::NAN, ..Default::default() }.validate().unwrap_err().field, "slide_speed");
         // Off by default: the augmented Lagrangian alone.
         assert_eq!(FeasibilityConstraints::new(&model, 10, FeasibilitySettings::default()).unwrap().barrier_weight(), 0.0);
+        let s = FeasibilitySettings::default();
+        assert_eq!((s.landing_penalty, s.impact_penalty, s.slide_penalty), (0.0, 0.0, 0.0));
+        // Switched on, the foot-speed rows wait for the polish, then carry their penalties
+        // at every knot and foot.
+        let on = FeasibilitySettings { landing_penalty: 3.0, impact_penalty: 5.0, slide_penalty: 7.0, ..Default::default() };
+        let mut c = FeasibilityConstraints::new(&model, 10, on).unwrap();
+        let rows = |c: &FeasibilityConstraints| c.penalties.chunks(c.per_knot()).flat_map(|k| k[..FOOT_ROWS * c.feet].chunks(FOOT_ROWS).map(|f| [f[2], f[3], f[4]]).collect::<Vec<_>>()).collect::<Vec<_>>();
+        assert!(rows(&c).iter().all(|r| *r == [0.0; 3]));
+        c.start_foot_speed_rows();
+        assert_eq!(rows(&c).len(), 11 * model.feet.len());
+        assert!(rows(&c).iter().all(|r| *r == [3.0, 5.0, 7.0]));
+        assert!(c.penalties.chunks(c.per_knot()).all(|k| k[0] == on.friction_penalty && k[1] == on.penetration_penalty));
         // The polish's bounds replace the targets' and nothing else.
         let s = FeasibilitySettings::default();
         let polish = s.with_polish_bounds();

@@ -283,6 +283,9 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
             if c.settings.barrier_from_polish {
                 c.start_barrier();
             }
+            if c.settings.foot_speed_from_polish {
+                c.start_foot_speed_rows();
+            }
         }
         let mut left = polish;
         for round in 0..polish_rounds {

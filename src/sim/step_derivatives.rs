@@ -68,8 +68,8 @@ pub struct StepDerivatives {
     chain: Vec<usize>,
     /// Partial sums `sum_{k: j supports k} S_k v_k` along a foot's chain.
     partial_velocity: Vec<Motion>,
-    /// Per foot in contact at the last step: `d p / d dq` and `d pdot / d dq` (3 x nv,
-    /// world frame; `d pdot / d dv = d p / d dq`), for the anchor linearization.
+    /// Per foot at the last step: `d p / d dq` and `d pdot / d dq` (3 x nv, world frame;
+    /// `d pdot / d dv = d p / d dq`), for the anchor linearization and the feasibility rows.
     pub(super) foot_dp_dq: Vec<Matrix3xX<f64>>,
     pub(super) foot_dpdot_dq: Vec<Matrix3xX<f64>>,
     nu: usize,
@@ -101,8 +101,8 @@ impl StepDerivatives {
     }
 
     /// Of foot `f` at the start of the last [`Self::step`]: `d p / d dq` and `d pdot / d dq`
-    /// (3 x nv, world frame; `d pdot / d dv = d p / d dq`), zero for a foot not touching
-    /// the ground.
+    /// (3 x nv, world frame; `d pdot / d dv = d p / d dq`), of every foot, touching the
+    /// ground or not.
     pub fn foot_jacobians(&self, f: usize) -> (&Matrix3xX<f64>, &Matrix3xX<f64>) {
         (&self.foot_dp_dq[f], &self.foot_dpdot_dq[f])
     }
@@ -185,11 +185,10 @@ impl StepDerivatives {
             let state = &ws.feet[i];
             self.foot_dp_dq[i].fill(0.0);
             self.foot_dpdot_dq[i].fill(0.0);
-            // A foot touching the ground with no force (leaving fast) adds nothing to tau_c
-            // but its anchor still follows it.
-            if state.contact.penetration <= 0.0 {
-                continue;
-            }
+            // Every foot's Jacobians (the feasibility layer's landing rows act on a foot
+            // above the ground); only a touching foot adds to tau_c (one touching with no
+            // force, leaving fast, adds nothing but its anchor still follows it).
+            let touching = state.contact.penetration > 0.0;
             let lambda = state.contact.force;
             let p = state.position;
             let (dl_dp, dl_dv) = (state.contact.d_position, state.contact.d_velocity);
@@ -223,6 +222,9 @@ impl StepDerivatives {
                 let dpdot = dv_body.v + dv_body.w.cross(&p) + body_velocity.w.cross(&dp);
                 self.foot_dp_dq[i].set_column(j, &dp);
                 self.foot_dpdot_dq[i].set_column(j, &dpdot);
+                if !touching {
+                    continue;
+                }
                 let dlambda = dl_dp * dp + dl_dv * dpdot;
                 let df = crate::spatial::Force::new(dlambda, dp.cross(&lambda) + p.cross(&dlambda));
                 let dlambda_v = dl_dv * dp;
