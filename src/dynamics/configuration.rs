@@ -1,7 +1,7 @@
 //! Operations on the configuration manifold `R^3 x SO(3) x R^n` (SE(3) base).
 
 use crate::model::{JointKind, Model};
-use crate::spatial::{exp6, jexp6, log6, Motion, SE3};
+use crate::spatial::{exp6, jexp6, log6, Matrix6, Motion, SE3};
 use nalgebra::{DMatrix, DVector, Quaternion, UnitQuaternion, Vector3};
 
 /// Orientation of the free-flyer base in a configuration `q` whose first joint is the free
@@ -50,42 +50,31 @@ pub fn integrate(model: &Model, q: &DVector<f64>, v: &DVector<f64>, q_out: &mut 
 /// eq. 170-171): `Jq = Ad(Exp(v))^-1`, `Jv = Jr(v)` ([`crate::spatial::jexp6`]).
 /// `jq` and `jv` are `nv x nv`, overwritten.
 pub fn integrate_jacobians(model: &Model, v: &DVector<f64>, jq: &mut DMatrix<f64>, jv: &mut DMatrix<f64>) {
-    jq.as_mut_slice().fill(0.0);
-    jv.as_mut_slice().fill(0.0);
-    for j in model.joints.iter().skip(1) {
-        let iv = j.idx_v;
-        match j.kind {
-            JointKind::FreeFlyer => {
-                let step = Motion::from_slice(&v.as_slice()[iv..iv + 6]);
-                jq.fixed_view_mut::<6, 6>(iv, iv).copy_from(&exp6(&step).inverse().action_matrix());
-                jv.fixed_view_mut::<6, 6>(iv, iv).copy_from(&jexp6(&step));
-            }
-            JointKind::Universe => {}
-            _ => {
-                for k in iv..iv + j.nv {
-                    jq[(k, k)] = 1.0;
-                    jv[(k, k)] = 1.0;
-                }
-            }
-        }
-    }
+    fill_joint_blocks(model, v, jq, |step| exp6(step).inverse().action_matrix());
+    fill_joint_blocks(model, v, jv, jexp6);
 }
 
 /// The velocity Jacobian `Jv = d integrate(q, v) / dv` of [`integrate_jacobians`] alone
 /// (the same values; `Jq` not formed): the identity on the joints, `Jr(v)` on a free flyer.
 pub fn integrate_velocity_jacobian(model: &Model, v: &DVector<f64>, jv: &mut DMatrix<f64>) {
-    jv.as_mut_slice().fill(0.0);
+    fill_joint_blocks(model, v, jv, jexp6);
+}
+
+/// Overwrites `out` (`nv x nv`) with a block-diagonal tangent Jacobian: the identity on the
+/// joints, `free_flyer(v_base)` on a free flyer's `6 x 6` block.
+fn fill_joint_blocks(model: &Model, v: &DVector<f64>, out: &mut DMatrix<f64>, free_flyer: impl Fn(&Motion) -> Matrix6) {
+    out.as_mut_slice().fill(0.0);
     for j in model.joints.iter().skip(1) {
         let iv = j.idx_v;
         match j.kind {
             JointKind::FreeFlyer => {
                 let step = Motion::from_slice(&v.as_slice()[iv..iv + 6]);
-                jv.fixed_view_mut::<6, 6>(iv, iv).copy_from(&jexp6(&step));
+                out.fixed_view_mut::<6, 6>(iv, iv).copy_from(&free_flyer(&step));
             }
             JointKind::Universe => {}
             _ => {
                 for k in iv..iv + j.nv {
-                    jv[(k, k)] = 1.0;
+                    out[(k, k)] = 1.0;
                 }
             }
         }
