@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! cargo run --release --example fullbody -- [--repeats 3] [--no-box] [--overhang 0.01]
-//!     [--pre-landing 10] [--parallel] [--max-iterations 300] [--verbose] [--limits]
+//!     [--pre-landing 10] [--sequential] [--max-iterations 300] [--verbose] [--limits]
 //!     [--no-restoration] [--plain-guess] [--reference-targets] [--w-acceleration W]
 //!     [--max-acceleration A] [--w-velocity W] [--max-stance-speed V] [--out DIR]
 //!     [--barrier RULE] [--ct-barrier RULE] [--curvature-after N] [--curvature-violation V]
@@ -50,7 +50,7 @@ fn main() -> anyhow::Result<()> {
     let mut plain_guess = false;
     let mut reference_targets = false;
     let mut pre_landing = None;
-    let mut parallel = false;
+    let mut parallel = true;
     let mut max_iterations = None;
     let mut box_rows = false;
     let mut curvature = None;
@@ -81,7 +81,7 @@ fn main() -> anyhow::Result<()> {
             "--no-box" => with_box = false,
             "--pre-landing" => pre_landing = Some(args.next().ok_or_else(|| anyhow::anyhow!("--pre-landing: knots"))?.parse()?),
             "--verbose" => verbose = true,
-            "--parallel" => parallel = true,
+            "--sequential" => parallel = false,
             "--max-iterations" => max_iterations = Some(args.next().ok_or_else(|| anyhow::anyhow!("--max-iterations: a number"))?.parse()?),
             "--limits" => show_limits = true,
             "--w-acceleration" => w_acceleration = Some(args.next().ok_or_else(|| anyhow::anyhow!("--w-acceleration: a weight"))?.parse::<f64>()?),

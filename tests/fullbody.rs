@@ -126,9 +126,12 @@ impl Lcg {
 /// The lateral jump's full-body problem, with a box under the right half of the start
 /// (only for the derivative test: the lateral jump starts on flat ground).
 fn lateral_problem(obstacle: Option<BoxObstacle>) -> (FullBodyProblem, legwork::io::Trajectory) {
+    lateral_problem_with(FullBodySettings::default(), obstacle)
+}
+
+fn lateral_problem_with(settings: FullBodySettings, obstacle: Option<BoxObstacle>) -> (FullBodyProblem, legwork::io::Trajectory) {
     let model = embedded::load("a1").unwrap();
     let srb = srb_solution("lateral30").resample(0.01).unwrap();
-    let settings = FullBodySettings::default();
     let guess = initial_guess(&model, &srb, settings.pre_landing_knots).unwrap();
     (FullBodyProblem::new(&model, &srb, &guess, &settings, obstacle).unwrap(), guess)
 }
@@ -324,6 +327,24 @@ fn lateral_jump_solves_end_to_end_within_every_limit() {
     eprintln!("{}", plan.limits);
     assert_eq!(r.status, Status::Solved);
     assert!(plan.limits.all_met(1e-6), "{}", plan.limits);
+}
+
+/// The stages' evaluations on rayon's threads (`solver.parallel`, the default) take the
+/// sequential solve's path to the bit: the same iterations, objective and plan.
+#[test]
+fn parallel_stage_evaluations_take_the_sequential_path() {
+    let solve = |parallel: bool| {
+        let mut settings = FullBodySettings::default();
+        settings.solver.parallel = parallel;
+        lateral_problem_with(settings, None).0.solve().unwrap()
+    };
+    let (sequential, parallel) = (solve(false), solve(true));
+    assert_eq!(sequential.report.status, Status::Solved);
+    assert_eq!(parallel.report.iterations, sequential.report.iterations);
+    assert_eq!(parallel.report.objective.to_bits(), sequential.report.objective.to_bits(), "{} vs {}", parallel.report.objective, sequential.report.objective);
+    for (a, b) in parallel.trajectory.knots.iter().zip(&sequential.trajectory.knots) {
+        assert!(a.q.iter().chain(&a.tau).zip(b.q.iter().chain(&b.tau)).all(|(x, y)| x.to_bits() == y.to_bits()), "t {}: {:?} vs {:?}", a.t, a.q, b.q);
+    }
 }
 
 #[test]

@@ -78,9 +78,9 @@ pub enum BenchCommand {
         /// The full body's barrier update in its curvature phase (default: as the rest).
         #[arg(long, value_name = "RULE")]
         barrier_curvature: Option<legwork::ipocp::BarrierUpdate>,
-        /// Threads of the contact timing's stage work (1: sequential, the default; more: on
-        /// rayon's pool, capped at the machine's cores), as `legwork jump --threads`.
-        #[arg(long, default_value_t = 1)]
+        /// Threads of the full body's stage evaluations and of the trials (0: one per core,
+        /// the default; 1: sequential), as `legwork jump --threads`.
+        #[arg(long, default_value_t = 0)]
         threads: usize,
     },
 }
@@ -99,7 +99,6 @@ fn jumps(as_json: bool, repeats: usize, knots: Option<usize>, trials: usize, nam
         let model = embedded::load(&jump.robot)?;
         let settings = super::jump::settings_of(jump, knots)?;
         let mut options = legwork::jump::PipelineOptions { contact_timing: settings, trials, ..legwork::jump::PipelineOptions::of(jump) };
-        options.contact_timing_solver.parallel = super::jump::contact_timing_parallel(threads);
         if let Some(rule) = barriers[0] {
             options.contact_timing_solver.barrier_update = rule;
         }
@@ -109,7 +108,7 @@ fn jumps(as_json: bool, repeats: usize, knots: Option<usize>, trials: usize, nam
         if barriers[2].is_some() {
             options.full_body.curvature_barrier_update = barriers[2];
         }
-        rows.push(legwork::jump::bench_jump(jump, &model, &options, repeats)?);
+        rows.push(super::jump::with_threads(threads, &mut options, |options| Ok(legwork::jump::bench_jump(jump, &model, options, repeats)?))?);
         bar.inc(1);
     }
     bar.finish_and_clear();

@@ -26,17 +26,23 @@ pub struct JumpArgs {
     /// offset; issue 17 asks for 20).
     #[arg(long, default_value_t = 0)]
     trials: usize,
-    /// Threads of the contact timing's stage work (evaluations, QP assembly, step gather):
-    /// 1 sequential (the default); more: on rayon's pool, one thread per core (capped at the
-    /// machine's cores, so any value above 1 on a 2-core machine means 2).
-    #[arg(long, default_value_t = 1)]
+    /// Threads of the full body's stage evaluations and of the trials (0: one per core, the
+    /// default; 1: sequential). The contact timing solves on one thread whatever this says:
+    /// its stages are too small to share (1.3-1.5x slower on two threads, BENCHMARKS.md).
+    #[arg(long, default_value_t = 0)]
     threads: usize,
 }
 
-/// Whether `--threads` asks for the contact timing's parallel stage work: more than one
-/// thread after capping at the machine's cores.
-pub(super) fn contact_timing_parallel(threads: usize) -> bool {
-    threads.min(std::thread::available_parallelism().map_or(1, |n| n.get())) > 1
+/// Runs `work` on a pool of `threads` threads (0: one per core) with the full body's stage
+/// evaluations parallel when there is more than one.
+pub(super) fn with_threads<T>(threads: usize, options: &mut PipelineOptions, work: impl FnOnce(&PipelineOptions) -> Result<T> + Send) -> Result<T>
+where
+    T: Send,
+{
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("--threads: cannot start the thread pool")?;
+    options.full_body.solver.parallel = pool.current_num_threads() > 1;
+    let options = &*options;
+    pool.install(|| work(options))
 }
 
 /// The jump's settings with the command line's overrides.
@@ -86,13 +92,14 @@ pub fn run(args: JumpArgs) -> Result<ExitCode> {
     bar.set_style(ProgressStyle::with_template("{spinner} {msg} ({elapsed})").expect("static template"));
     bar.enable_steady_tick(Duration::from_millis(120));
     let mut options = PipelineOptions { contact_timing: settings.clone(), trials: args.trials, ..PipelineOptions::of(&jump) };
-    options.contact_timing_solver.parallel = contact_timing_parallel(args.threads);
-    let report = pipeline::run(&jump, &model, &options, |stage, done| {
-        if done {
-            bar.println(format!("  done: {}", stage_name(stage)));
-        } else {
-            bar.set_message(stage_name(stage).to_string());
-        }
+    let report = with_threads(args.threads, &mut options, |options| {
+        Ok(pipeline::run(&jump, &model, options, |stage, done| {
+            if done {
+                bar.println(format!("  done: {}", stage_name(stage)));
+            } else {
+                bar.set_message(stage_name(stage).to_string());
+            }
+        })?)
     })?;
     bar.finish_and_clear();
     let written = write_outputs(&jump, &model, &options, &report, &out)?;
