@@ -183,7 +183,6 @@ pub struct WholeBodyWorkspace<'a> {
     step_a: DMatrix<f64>,
     step_b: DMatrix<f64>,
     chain_tmp_a: DMatrix<f64>,
-    chain_tmp_b: DMatrix<f64>,
     e: DVector<f64>,
     we: DVector<f64>,
     jac: DMatrix<f64>,
@@ -365,7 +364,6 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             step_a: DMatrix::zeros(self.nx(), self.nx()),
             step_b: DMatrix::zeros(self.nx(), self.nu()),
             chain_tmp_a: DMatrix::zeros(self.nx(), self.nx()),
-            chain_tmp_b: DMatrix::zeros(self.nx(), self.nu()),
             e: DVector::zeros(2 * nv),
             we: DVector::zeros(2 * nv),
             jac: DMatrix::zeros(2 * nv, 2 * nv),
@@ -443,11 +441,12 @@ impl<'a> Problem for WholeBodyProblem<'a> {
                 b.copy_from(&ws.derivatives.b);
             }
             if substep > 0 {
+                // The products land in scratch of the same shapes, which then trades its
+                // buffer with the knot's (no copy, no allocation).
                 ws.chain_tmp_a.gemm(1.0, &ws.step_a, &d.a, 0.0);
-                d.a.copy_from(&ws.chain_tmp_a);
-                ws.chain_tmp_b.copy_from(&ws.step_b);
-                ws.chain_tmp_b.gemm(1.0, &ws.step_a, &d.b, 1.0);
-                d.b.copy_from(&ws.chain_tmp_b);
+                std::mem::swap(&mut d.a, &mut ws.chain_tmp_a);
+                ws.step_b.gemm(1.0, &ws.step_a, &d.b, 1.0);
+                std::mem::swap(&mut d.b, &mut ws.step_b);
             }
         }
         // A clipped input does not move the state.
