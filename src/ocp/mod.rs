@@ -416,9 +416,11 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         next.q.copy_from(&x.q);
         next.v.copy_from(&x.v);
         next.anchors.clone_from(&x.anchors);
-        d.l_x.fill(0.0);
-        d.l_xx.fill(0.0);
-        d.l_ux.fill(0.0);
+        // Zeroed as slices (a memset): nalgebra's `fill` walks a matrix with its strided
+        // iterator, a few percent of the linearization at 48 x 48.
+        d.l_x.as_mut_slice().fill(0.0);
+        d.l_xx.as_mut_slice().fill(0.0);
+        d.l_ux.as_mut_slice().fill(0.0);
         let mut cost = 0.0;
         // Each substep's A_i, B_i (the anchor-extended ones with anchor states), chained
         // with the input held: A <- A_i A, B <- A_i B + B_i.
@@ -434,7 +436,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             let (a, b) = if substep == 0 { (&mut d.a, &mut d.b) } else { (&mut ws.step_a, &mut ws.step_b) };
             if self.anchor_states {
                 ws.anchor_derivatives.linearize(&ws.derivatives, &ws.dynamics, &ws.anchors_before, h, a);
-                b.fill(0.0);
+                b.as_mut_slice().fill(0.0);
                 b.view_mut((0, 0), (2 * self.model.nv, self.nu_())).copy_from(&ws.derivatives.b);
             } else {
                 a.copy_from(&ws.derivatives.a);
@@ -466,7 +468,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         if let Some(limits) = &self.joint_limit_cost {
             cost += limits.add_derivatives(self.dt, &x.q, &mut d.l_x, &mut d.l_xx);
         }
-        d.l_uu.fill(0.0);
+        d.l_uu.as_mut_slice().fill(0.0);
         for i in 0..self.nu_() {
             let r = self.input_weights[i];
             let du = u[i] - self.input_desired[i];

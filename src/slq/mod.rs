@@ -298,25 +298,26 @@ fn riccati_knot(
     gain: &mut DMatrix<f64>,
     ff: &mut DVector<f64>,
 ) -> bool {
-    // [A B]^T P' [A B] = [A^T P'A, A^T P'B; B^T P'A, B^T P'B], in large products (1.5x
-    // faster than five small ones at nx = 48, nu = 12): P' [A B], then of [A B]^T P' [A B]
-    // the blocks used, A^T P'A and [B^T P'A, B^T P'B] (not A^T P'B, G^T's round-off twin).
-    // Each entry is the same sum in the same order as in the full product (one dot product
-    // over the nx rows of P' [A B]), so the same to the bit.
+    // Q_xx = l_xx + A^T P' A;  H = l_uu + B^T P' B;  G = l_ux + B^T P' A, from P' [A B]
+    // in one large product (1.5x faster than five small ones at nx = 48, nu = 12), then
+    // each block as `l + [A B]^T (P' [A B])` by a product that adds onto a copy of `l`
+    // (the unused A^T P'B, G^T's round-off twin, is not formed). Through matrixmultiply
+    // (every dimension above nalgebra's small-matrix threshold of 5, as on the robots)
+    // every entry is the same fused dot product over the nx rows of P' [A B], in the same
+    // order, then rounded once with `l` added, as when [A B]^T P' [A B] was formed first and
+    // `l` added after: the same to the bit.
     let (nx, nu) = (d.a.nrows(), d.b.ncols());
     r.ab.columns_mut(0, nx).copy_from(&d.a);
     r.ab.columns_mut(nx, nu).copy_from(&d.b);
     r.ab.transpose_to(&mut r.ab_t);
     r.p_ab.gemm(1.0, &r.p_mat, &r.ab, 0.0);
-    r.ab_p_ab.view_mut((0, 0), (nx, nx)).gemm(1.0, &r.ab_t.rows(0, nx), &r.p_ab.columns(0, nx), 0.0);
-    r.ab_p_ab.view_mut((nx, 0), (nu, nx + nu)).gemm(1.0, &r.ab_t.rows(nx, nu), &r.p_ab, 0.0);
-    // Q_xx = l_xx + A^T P' A;  H = l_uu + B^T P' B;  G = l_ux + B^T P' A
+    let (a_t, b_t) = (r.ab_t.rows(0, nx), r.ab_t.rows(nx, nu));
     r.q_xx.copy_from(&d.l_xx);
-    r.q_xx += r.ab_p_ab.view((0, 0), (nx, nx));
+    r.q_xx.gemm(1.0, &a_t, &r.p_ab.columns(0, nx), 1.0);
     r.q_uu.copy_from(&d.l_uu);
-    r.q_uu += r.ab_p_ab.view((nx, nx), (nu, nu));
+    r.q_uu.gemm(1.0, &b_t, &r.p_ab.columns(nx, nu), 1.0);
     r.q_ux.copy_from(&d.l_ux);
-    r.q_ux += r.ab_p_ab.view((nx, 0), (nu, nx));
+    r.q_ux.gemm(1.0, &b_t, &r.p_ab.columns(0, nx), 1.0);
     // Q_x = l_x + A^T p';  g = l_u + B^T p'
     r.q_x.copy_from(&d.l_x);
     r.q_x.gemv_tr(1.0, &d.a, &r.p_vec, 1.0);
@@ -366,12 +367,13 @@ fn riccati_knot(
     // -H_ff^-1 G_f and zero clamped rows, K^T H K = -K^T G, so P = Q_xx + G^T K;
     // and p = Q_x + G^T l + K^T (H l + g), the last term zero for the Newton step
     // (and on the free rows of a box-QP solution, up to its tolerance).
-    r.p_mat.copy_from(&r.q_xx);
     // G^T K as a plain product of G^T (one small transpose): `gemm_tr` forms it
     // from 48 x 48 scalar dot products, a quarter of this pass's time in `perf`
-    // (the pass: 36.7 -> 28 ms per 1500 knots, BENCHMARKS.md).
+    // (the pass: 36.7 -> 28 ms per 1500 knots, BENCHMARKS.md). Q_xx is not needed after
+    // this: the product adds onto it, which then becomes P (its buffer traded with P').
     r.q_ux.transpose_to(&mut r.q_ux_t);
-    r.p_mat.gemm(1.0, &r.q_ux_t, gain, 1.0);
+    r.q_xx.gemm(1.0, &r.q_ux_t, gain, 1.0);
+    std::mem::swap(&mut r.p_mat, &mut r.q_xx);
     r.p_vec.copy_from(&r.q_x);
     r.p_vec.gemv_tr(1.0, &r.q_ux, ff, 1.0);
     if !inside {
@@ -379,13 +381,13 @@ fn riccati_knot(
         r.qp_residual.gemv(1.0, &r.q_uu, ff, 1.0);
         r.p_vec.gemv_tr(1.0, gain, &r.qp_residual, 1.0);
     }
-    // Keep P symmetric against round-off.
-    let nx = r.p_mat.nrows();
-    for i in 0..nx {
-        for j in (i + 1)..nx {
-            let s = 0.5 * (r.p_mat[(i, j)] + r.p_mat[(j, i)]);
-            r.p_mat[(i, j)] = s;
-            r.p_mat[(j, i)] = s;
+    // Keep P symmetric against round-off: P_ij = P_ji = (P_ij + P_ji) / 2 (column-major).
+    let p = r.p_mat.as_mut_slice();
+    for j in 0..nx {
+        for i in 0..j {
+            let s = 0.5 * (p[i + j * nx] + p[j + i * nx]);
+            p[i + j * nx] = s;
+            p[j + i * nx] = s;
         }
     }
     true
@@ -395,12 +397,10 @@ fn riccati_knot(
 struct RiccatiScratch {
     p_mat: DMatrix<f64>,
     p_vec: DVector<f64>,
-    /// `[A B]` (nx x (nx + nu)), its transpose, `P' [A B]` and `[A B]^T P' [A B]`: two
-    /// large products instead of five small ones.
+    /// `[A B]` (nx x (nx + nu)), its transpose and `P' [A B]`.
     ab: DMatrix<f64>,
     ab_t: DMatrix<f64>,
     p_ab: DMatrix<f64>,
-    ab_p_ab: DMatrix<f64>,
     q_xx: DMatrix<f64>,
     q_uu: DMatrix<f64>,
     q_ux: DMatrix<f64>,
@@ -465,7 +465,6 @@ impl<'p, P: Problem> Slq<'p, P> {
                 ab: DMatrix::zeros(nx, nx + nu),
                 ab_t: DMatrix::zeros(nx + nu, nx),
                 p_ab: DMatrix::zeros(nx, nx + nu),
-                ab_p_ab: DMatrix::zeros(nx + nu, nx + nu),
                 q_xx: DMatrix::zeros(nx, nx),
                 q_uu: DMatrix::zeros(nu, nu),
                 q_ux: DMatrix::zeros(nu, nx),
