@@ -269,6 +269,17 @@ fn divided(alpha: f64, divisor: f64, times: usize) -> f64 {
     (0..times).fold(alpha, |a, _| a / divisor)
 }
 
+/// Sets its flag if dropped while its thread panics.
+struct FlagOnPanic<'a>(&'a AtomicBool);
+
+impl Drop for FlagOnPanic<'_> {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            self.0.store(true, Ordering::Release);
+        }
+    }
+}
+
 /// The local model of a knot behind its lock, when the lock is not needed (`&mut` access).
 fn knot_mut(d: &mut Mutex<KnotDerivatives>) -> &mut KnotDerivatives {
     d.get_mut().unwrap_or_else(PoisonError::into_inner)
@@ -551,10 +562,14 @@ impl<'p, P: Problem> Slq<'p, P> {
             flag.store(false, Ordering::Relaxed);
         }
         let (states, inputs, derivatives, ready) = (&*states, &*inputs, &*derivatives, &*ready);
-        // The next knot to linearize (counting down; negative when all are claimed).
+        // The next knot to linearize (counting down; negative when all are claimed), and
+        // whether a thread panicked in a knot (which then never becomes ready: the pass
+        // panics too instead of waiting for it).
         let next = AtomicIsize::new(n as isize - 1);
+        let abandoned = AtomicBool::new(false);
         let claim_and_linearize = |ws: &mut P::Workspace, scratch: &mut P::State| -> bool {
             let Ok(k) = usize::try_from(next.fetch_sub(1, Ordering::Relaxed)) else { return false };
+            let _flag = FlagOnPanic(&abandoned);
             let mut d = derivatives[k].lock().unwrap_or_else(PoisonError::into_inner);
             problem.step_with_derivatives(ws, k, &states[k], &inputs[k], scratch, &mut d);
             drop(d);
@@ -577,6 +592,7 @@ impl<'p, P: Problem> Slq<'p, P> {
                 for k in (0..n).rev() {
                     let mut waits = 0u32;
                     while !ready[k].load(Ordering::Acquire) {
+                        assert!(!abandoned.load(Ordering::Acquire), "a thread linearizing the knots panicked");
                         // Knot k is another thread's, under way: help with the next one, or wait.
                         if !claim(own_workspace, own_scratch) {
                             waits += 1;
