@@ -308,6 +308,25 @@ fn pendulum_swings_to_its_target_and_the_cost_decreases() {
 }
 
 #[test]
+fn the_overlapped_backward_pass_gives_the_same_iterates_to_the_bit() {
+    // SlqSettings::overlap_backward_pass reorders who linearizes which knot and when the
+    // pass reads it, not the arithmetic: on 2 and 3 threads the iterates, gains and costs
+    // equal those of the separate linearization and pass (and of one thread) exactly.
+    let p = Pendulum { n: 300, dt: 0.01, target: 2.5 };
+    let solve = |threads: usize, overlap: bool| Slq::new(&p, SlqSettings { threads, max_iterations: 30, overlap_backward_pass: overlap, ..Default::default() }).unwrap().solve(&HoldDown, |_| {}).unwrap();
+    let reference = solve(1, false);
+    assert!(reference.iterations.len() > 3, "{} iterations", reference.iterations.len());
+    for (threads, overlap) in [(2, true), (3, true), (2, false)] {
+        let other = solve(threads, overlap);
+        assert_eq!(other.cost_history, reference.cost_history, "{threads} threads, overlap {overlap}");
+        assert_eq!(other.states, reference.states, "{threads} threads, overlap {overlap}");
+        assert_eq!(other.inputs, reference.inputs, "{threads} threads, overlap {overlap}");
+        assert_eq!(other.gains, reference.gains, "{threads} threads, overlap {overlap}");
+        assert_eq!(other.termination, reference.termination);
+    }
+}
+
+#[test]
 fn a_diverging_initial_policy_is_reported() {
     struct Explode;
     impl Policy<Pendulum> for Explode {

@@ -635,7 +635,7 @@ impl FeasibilityConstraints {
         if norm == 0.0 {
             return false;
         }
-        row.fill(0.0);
+        row.as_mut_slice().fill(0.0);
         // c = (|T| - eta mu F_n) / D: dc = (d|T| - eta mu dF_n) / D, and where D is eta mu
         // F_n (the ratio form above F_load) also - c dD / D = - c eta mu dF_n / D: together
         // - eta mu (1 + c) dF_n / D.
@@ -686,11 +686,11 @@ impl FeasibilityConstraints {
         // dc = a_p . dp + a_v . dpdot (rows); the slide's dF_n part first, into `row`.
         let (a_p, a_v): (Vector3<f64>, Vector3<f64>) = match which {
             Residual::Landing(_) => {
-                row.fill(0.0);
+                row.as_mut_slice().fill(0.0);
                 (n * (speeds.tangential * dw / s.landing_speed), e * (w / s.landing_speed))
             }
             Residual::Impact(_) => {
-                row.fill(0.0);
+                row.as_mut_slice().fill(0.0);
                 (n * (speeds.down * dw / s.impact_speed), -n * (w / s.impact_speed))
             }
             _ => {
@@ -711,7 +711,7 @@ impl FeasibilityConstraints {
     fn normal_force_row(&self, i: usize, at: KnotContacts<'_>, step: &StepDerivatives, row: &mut DVector<f64>) {
         let nv = at.v.len();
         let foot = &at.feet[i];
-        row.fill(0.0);
+        row.as_mut_slice().fill(0.0);
         let (jp, jd) = step.foot_jacobians(i);
         let n_t = foot.normal.transpose();
         let a_p: RowVector3<f64> = n_t * foot.contact.d_position;
@@ -726,7 +726,7 @@ impl FeasibilityConstraints {
     fn penetration_row(&self, i: usize, at: KnotContacts<'_>, step: &StepDerivatives, row: &mut DVector<f64>) {
         // p_n = r - n . (p - s): dp_n/ddq = -n^T dp/ddq.
         let nv = at.v.len();
-        row.fill(0.0);
+        row.as_mut_slice().fill(0.0);
         let (jp, _) = step.foot_jacobians(i);
         let n = at.feet[i].normal;
         for j in 0..nv {

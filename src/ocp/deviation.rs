@@ -51,7 +51,7 @@ impl StateDeviation {
             e[nv + i] = v[i] - v_des[i];
         }
         if let Some(jac) = jac {
-            jac.fill(0.0);
+            jac.as_mut_slice().fill(0.0);
             jac.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
             jac.fixed_view_mut::<3, 3>(3, 3).copy_from(&jlog3(&Vector3::new(orientation[0], orientation[1], orientation[2])));
             for i in 6..2 * nv {

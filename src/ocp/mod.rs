@@ -183,7 +183,6 @@ pub struct WholeBodyWorkspace<'a> {
     step_a: DMatrix<f64>,
     step_b: DMatrix<f64>,
     chain_tmp_a: DMatrix<f64>,
-    chain_tmp_b: DMatrix<f64>,
     e: DVector<f64>,
     we: DVector<f64>,
     jac: DMatrix<f64>,
@@ -365,7 +364,6 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             step_a: DMatrix::zeros(self.nx(), self.nx()),
             step_b: DMatrix::zeros(self.nx(), self.nu()),
             chain_tmp_a: DMatrix::zeros(self.nx(), self.nx()),
-            chain_tmp_b: DMatrix::zeros(self.nx(), self.nu()),
             e: DVector::zeros(2 * nv),
             we: DVector::zeros(2 * nv),
             jac: DMatrix::zeros(2 * nv, 2 * nv),
@@ -418,9 +416,11 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         next.q.copy_from(&x.q);
         next.v.copy_from(&x.v);
         next.anchors.clone_from(&x.anchors);
-        d.l_x.fill(0.0);
-        d.l_xx.fill(0.0);
-        d.l_ux.fill(0.0);
+        // Zeroed as slices (a memset): nalgebra's `fill` walks a matrix with its strided
+        // iterator, a few percent of the linearization at 48 x 48.
+        d.l_x.as_mut_slice().fill(0.0);
+        d.l_xx.as_mut_slice().fill(0.0);
+        d.l_ux.as_mut_slice().fill(0.0);
         let mut cost = 0.0;
         // Each substep's A_i, B_i (the anchor-extended ones with anchor states), chained
         // with the input held: A <- A_i A, B <- A_i B + B_i.
@@ -436,18 +436,19 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             let (a, b) = if substep == 0 { (&mut d.a, &mut d.b) } else { (&mut ws.step_a, &mut ws.step_b) };
             if self.anchor_states {
                 ws.anchor_derivatives.linearize(&ws.derivatives, &ws.dynamics, &ws.anchors_before, h, a);
-                b.fill(0.0);
+                b.as_mut_slice().fill(0.0);
                 b.view_mut((0, 0), (2 * self.model.nv, self.nu_())).copy_from(&ws.derivatives.b);
             } else {
                 a.copy_from(&ws.derivatives.a);
                 b.copy_from(&ws.derivatives.b);
             }
             if substep > 0 {
+                // The products land in scratch of the same shapes, which then trades its
+                // buffer with the knot's (no copy, no allocation).
                 ws.chain_tmp_a.gemm(1.0, &ws.step_a, &d.a, 0.0);
-                d.a.copy_from(&ws.chain_tmp_a);
-                ws.chain_tmp_b.copy_from(&ws.step_b);
-                ws.chain_tmp_b.gemm(1.0, &ws.step_a, &d.b, 1.0);
-                d.b.copy_from(&ws.chain_tmp_b);
+                std::mem::swap(&mut d.a, &mut ws.chain_tmp_a);
+                ws.step_b.gemm(1.0, &ws.step_a, &d.b, 1.0);
+                std::mem::swap(&mut d.b, &mut ws.step_b);
             }
         }
         // A clipped input does not move the state.
@@ -467,7 +468,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         if let Some(limits) = &self.joint_limit_cost {
             cost += limits.add_derivatives(self.dt, &x.q, &mut d.l_x, &mut d.l_xx);
         }
-        d.l_uu.fill(0.0);
+        d.l_uu.as_mut_slice().fill(0.0);
         for i in 0..self.nu_() {
             let r = self.input_weights[i];
             let du = u[i] - self.input_desired[i];

@@ -42,7 +42,11 @@ impl AnchorStepDerivatives {
         let model = ws.model;
         let nv = model.nv;
         let nx = 2 * nv;
-        a.fill(0.0);
+        // Every entry is written below but the anchor columns of a foot without an anchor
+        // and the anchor rows' blocks of the other feet: zero the anchor columns only (the
+        // last columns, contiguous in column-major storage).
+        let first_anchor_entry = nx * a.nrows();
+        a.as_mut_slice()[first_anchor_entry..].fill(0.0);
         a.view_mut((0, 0), (nx, nx)).copy_from(&step.a);
         let minv = &ws.data.minv;
         for (f, foot) in ws.feet.iter().enumerate() {

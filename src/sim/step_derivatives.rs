@@ -174,8 +174,8 @@ impl StepDerivatives {
     /// documentation), from the feet of the last contact evaluation.
     fn contact_force_derivatives(&mut self, ws: &mut ContactModelWorkspace<'_>, q: &DVector<f64>, v: &DVector<f64>) {
         let model = ws.model;
-        self.dtau_c_dq.fill(0.0);
-        self.dtau_c_dv.fill(0.0);
+        self.dtau_c_dq.as_mut_slice().fill(0.0);
+        self.dtau_c_dv.as_mut_slice().fill(0.0);
         compute_joint_jacobians(model, &mut ws.data, q);
         let axis = |k: usize, jac: &nalgebra::Matrix6xX<f64>| {
             let c = jac.column(k);
@@ -183,8 +183,8 @@ impl StepDerivatives {
         };
         for (i, foot) in model.feet.iter().enumerate() {
             let state = &ws.feet[i];
-            self.foot_dp_dq[i].fill(0.0);
-            self.foot_dpdot_dq[i].fill(0.0);
+            self.foot_dp_dq[i].as_mut_slice().fill(0.0);
+            self.foot_dpdot_dq[i].as_mut_slice().fill(0.0);
             // Every foot's Jacobians (the feasibility layer's landing rows act on a foot
             // above the ground); only a touching foot adds to tau_c (one touching with no
             // force, leaving fast, adds nothing but its anchor still follows it).

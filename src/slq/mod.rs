@@ -32,6 +32,8 @@ pub use warm_start::SolutionPolicy;
 use cholesky::SmallCholesky;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, AtomicIsize, Ordering};
+use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
 /// Solver settings (defaults in parentheses).
@@ -63,6 +65,12 @@ pub struct SlqSettings {
     pub convergence_regularization: f64,
     /// Threads for the linearization (0 = rayon's default: one per core).
     pub threads: usize,
+    /// With two or more threads, run the backward pass while the linearization is still
+    /// under way (true): the knots are linearized from the last one down, and the pass
+    /// takes each as soon as it is ready, its thread linearizing the next unclaimed knot
+    /// while it waits. The same arithmetic on every knot, so the same iterates to the bit;
+    /// only the order in which the threads do the work changes.
+    pub overlap_backward_pass: bool,
     /// An accepted step shorter than this raises the regularization by
     /// `short_step_regularization_growth` instead of lowering it tenfold (0: never).
     pub short_step: f64,
@@ -111,6 +119,7 @@ impl Default for SlqSettings {
             short_step: 0.0,
             short_step_regularization_growth: 10.0,
             threads: 0,
+            overlap_backward_pass: true,
             control_limits: ControlLimits::ProjectedRollout,
             box_qp: BoxQpSettings::default(),
         }
@@ -225,7 +234,12 @@ pub struct Slq<'p, P: Problem> {
     trials: Vec<Trial<P::State>>,
     gains: Vec<DMatrix<f64>>,
     feedforward: Vec<DVector<f64>>,
-    derivatives: Vec<KnotDerivatives>,
+    /// One local model per knot, each behind its own lock: in the overlapped pass
+    /// ([`SlqSettings::overlap_backward_pass`]) helper threads write knots while the backward
+    /// pass reads later ones (uncontended: a knot is read only once it is marked ready).
+    derivatives: Vec<Mutex<KnotDerivatives>>,
+    /// Which knots the overlapped pass has linearized.
+    ready: Vec<AtomicBool>,
     workspaces: Vec<P::Workspace>,
     scratch_states: Vec<P::State>,
     terminal_gradient: DVector<f64>,
@@ -255,16 +269,149 @@ fn divided(alpha: f64, divisor: f64, times: usize) -> f64 {
     (0..times).fold(alpha, |a, _| a / divisor)
 }
 
+/// Sets its flag if dropped while its thread panics.
+struct FlagOnPanic<'a>(&'a AtomicBool);
+
+impl Drop for FlagOnPanic<'_> {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            self.0.store(true, Ordering::Release);
+        }
+    }
+}
+
+/// The local model of a knot behind its lock, when the lock is not needed (`&mut` access).
+fn knot_mut(d: &mut Mutex<KnotDerivatives>) -> &mut KnotDerivatives {
+    d.get_mut().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// One knot of the backward pass (Step 3 of Algorithm 1), from `P'`, `p'` in `r.p_mat`,
+/// `r.p_vec` to this knot's `P`, `p` there:
+///
+/// ```text
+/// H = l_uu + B^T P' B,  G = l_ux + B^T P' A,  g = l_u + B^T p'
+/// K = -H^-1 G,  l = -H^-1 g
+/// P = l_xx + A^T P' A + K^T H K + K^T G + G^T K
+/// p = l_x + A^T p' + K^T H l + K^T g + G^T l
+/// ```
+///
+/// with `H` regularized to `H + mu I`; the gain and feedforward into `gain`, `ff`. False if
+/// `H + mu I` is not positive definite (the pass restarts with more regularization).
+#[allow(clippy::too_many_arguments)]
+fn riccati_knot(
+    r: &mut RiccatiScratch,
+    qp: &mut BoxQp,
+    control_limits: ControlLimits,
+    regularization: f64,
+    d: &KnotDerivatives,
+    u: &DVector<f64>,
+    (lower, upper, bounded): (&DVector<f64>, &DVector<f64>, bool),
+    gain: &mut DMatrix<f64>,
+    ff: &mut DVector<f64>,
+) -> bool {
+    // Q_xx = l_xx + A^T P' A;  H = l_uu + B^T P' B;  G = l_ux + B^T P' A, from P' [A B]
+    // in one large product (1.5x faster than five small ones at nx = 48, nu = 12), then
+    // each block as `l + [A B]^T (P' [A B])` by a product that adds onto a copy of `l`
+    // (the unused A^T P'B, G^T's round-off twin, is not formed). Through matrixmultiply
+    // (every dimension above nalgebra's small-matrix threshold of 5, as on the robots)
+    // every entry is the same fused dot product over the nx rows of P' [A B], in the same
+    // order, then rounded once with `l` added, as when [A B]^T P' [A B] was formed first and
+    // `l` added after: the same to the bit.
+    let (nx, nu) = (d.a.nrows(), d.b.ncols());
+    r.ab.columns_mut(0, nx).copy_from(&d.a);
+    r.ab.columns_mut(nx, nu).copy_from(&d.b);
+    r.ab.transpose_to(&mut r.ab_t);
+    r.p_ab.gemm(1.0, &r.p_mat, &r.ab, 0.0);
+    let (a_t, b_t) = (r.ab_t.rows(0, nx), r.ab_t.rows(nx, nu));
+    r.q_xx.copy_from(&d.l_xx);
+    r.q_xx.gemm(1.0, &a_t, &r.p_ab.columns(0, nx), 1.0);
+    r.q_uu.copy_from(&d.l_uu);
+    r.q_uu.gemm(1.0, &b_t, &r.p_ab.columns(nx, nu), 1.0);
+    r.q_ux.copy_from(&d.l_ux);
+    r.q_ux.gemm(1.0, &b_t, &r.p_ab.columns(0, nx), 1.0);
+    // Q_x = l_x + A^T p';  g = l_u + B^T p'
+    r.q_x.copy_from(&d.l_x);
+    r.q_x.gemv_tr(1.0, &d.a, &r.p_vec, 1.0);
+    r.q_u.copy_from(&d.l_u);
+    r.q_u.gemv_tr(1.0, &d.b, &r.p_vec, 1.0);
+    // Regularized factorization of H.
+    for i in 0..r.q_uu.nrows() {
+        r.q_uu[(i, i)] += regularization;
+    }
+    if !r.chol.factor(&r.q_uu) {
+        return false;
+    }
+    // K = -H^-1 G, l = -H^-1 g
+    r.warm.copy_from(ff);
+    ff.copy_from(&r.q_u);
+    r.chol.solve_vector_in_place(ff);
+    ff.neg_mut();
+    // Control limits (Tassa 2014, sec. III-B): if the Newton step leaves the
+    // box, l is the box-QP solution from the last step at this knot, and K has
+    // the free rows -H_ff^-1 G_f and zero rows for the clamped inputs (eq. 16).
+    let inside = control_limits == ControlLimits::ProjectedRollout || !bounded || (0..u.len()).all(|i| (lower[i]..=upper[i]).contains(&(u[i] + ff[i])));
+    if inside {
+        gain.copy_from(&r.q_ux);
+        r.chol.solve_in_place(gain);
+        gain.neg_mut();
+    } else {
+        r.du_lower.copy_from(lower);
+        r.du_lower -= u;
+        r.du_upper.copy_from(upper);
+        r.du_upper -= u;
+        let status = qp.solve(&r.q_uu, &r.q_u, &r.du_lower, &r.du_upper, &r.warm);
+        if status == BoxQpStatus::NotPositiveDefinite {
+            return false;
+        }
+        ff.copy_from(&qp.x);
+        gain.copy_from(&r.q_ux);
+        for (i, &clamped) in qp.clamped.iter().enumerate() {
+            if clamped {
+                gain.row_mut(i).fill(0.0);
+            }
+        }
+        qp.free_factor.solve_in_place(gain);
+        gain.neg_mut();
+    }
+    // P = Q_xx + K^T H K + K^T G + G^T K and p = Q_x + K^T H l + K^T g + G^T l.
+    // With K = -H^-1 G from this same (regularized) H, or its free rows
+    // -H_ff^-1 G_f and zero clamped rows, K^T H K = -K^T G, so P = Q_xx + G^T K;
+    // and p = Q_x + G^T l + K^T (H l + g), the last term zero for the Newton step
+    // (and on the free rows of a box-QP solution, up to its tolerance).
+    // G^T K as a plain product of G^T (one small transpose): `gemm_tr` forms it
+    // from 48 x 48 scalar dot products, a quarter of this pass's time in `perf`
+    // (the pass: 36.7 -> 28 ms per 1500 knots, BENCHMARKS.md). Q_xx is not needed after
+    // this: the product adds onto it, which then becomes P (its buffer traded with P').
+    r.q_ux.transpose_to(&mut r.q_ux_t);
+    r.q_xx.gemm(1.0, &r.q_ux_t, gain, 1.0);
+    std::mem::swap(&mut r.p_mat, &mut r.q_xx);
+    r.p_vec.copy_from(&r.q_x);
+    r.p_vec.gemv_tr(1.0, &r.q_ux, ff, 1.0);
+    if !inside {
+        r.qp_residual.copy_from(&r.q_u);
+        r.qp_residual.gemv(1.0, &r.q_uu, ff, 1.0);
+        r.p_vec.gemv_tr(1.0, gain, &r.qp_residual, 1.0);
+    }
+    // Keep P symmetric against round-off: P_ij = P_ji = (P_ij + P_ji) / 2 (column-major).
+    let p = r.p_mat.as_mut_slice();
+    for j in 0..nx {
+        for i in 0..j {
+            let s = 0.5 * (p[i + j * nx] + p[j + i * nx]);
+            p[i + j * nx] = s;
+            p[j + i * nx] = s;
+        }
+    }
+    true
+}
+
 /// Scratch of the backward pass.
 struct RiccatiScratch {
     p_mat: DMatrix<f64>,
     p_vec: DVector<f64>,
-    /// `[A B]` (nx x (nx + nu)), its transpose, `P' [A B]` and `[A B]^T P' [A B]`: two
-    /// large products instead of five small ones.
+    /// `[A B]` (nx x (nx + nu)), its transpose and `P' [A B]`.
     ab: DMatrix<f64>,
     ab_t: DMatrix<f64>,
     p_ab: DMatrix<f64>,
-    ab_p_ab: DMatrix<f64>,
     q_xx: DMatrix<f64>,
     q_uu: DMatrix<f64>,
     q_ux: DMatrix<f64>,
@@ -317,7 +464,8 @@ impl<'p, P: Problem> Slq<'p, P> {
             trials: (0..threads).map(|_| Trial { states: vec![x0.clone(); n + 1], inputs: vec![DVector::zeros(nu); n], dx: DVector::zeros(nx), cost: None }).collect(),
             gains: vec![DMatrix::zeros(nu, nx); n],
             feedforward: vec![DVector::zeros(nu); n],
-            derivatives: vec![KnotDerivatives::zeros(nx, nu); n],
+            derivatives: (0..n).map(|_| Mutex::new(KnotDerivatives::zeros(nx, nu))).collect(),
+            ready: (0..n).map(|_| AtomicBool::new(false)).collect(),
             workspaces: (0..threads).map(|_| problem.workspace()).collect(),
             scratch_states: vec![x0; threads],
             terminal_gradient: DVector::zeros(nx),
@@ -328,7 +476,6 @@ impl<'p, P: Problem> Slq<'p, P> {
                 ab: DMatrix::zeros(nx, nx + nu),
                 ab_t: DMatrix::zeros(nx + nu, nx),
                 p_ab: DMatrix::zeros(nx, nx + nu),
-                ab_p_ab: DMatrix::zeros(nx + nu, nx + nu),
                 q_xx: DMatrix::zeros(nx, nx),
                 q_uu: DMatrix::zeros(nu, nu),
                 q_ux: DMatrix::zeros(nu, nx),
@@ -381,7 +528,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             jobs.par_bridge().for_each(|(c, (derivs, (ws, scratch)))| {
                 for (i, d) in derivs.iter_mut().enumerate() {
                     let k = c * chunk + i;
-                    problem.step_with_derivatives(ws, k, &states[k], &inputs[k], scratch, d);
+                    problem.step_with_derivatives(ws, k, &states[k], &inputs[k], scratch, knot_mut(d));
                 }
             });
         });
@@ -389,16 +536,102 @@ impl<'p, P: Problem> Slq<'p, P> {
         problem.terminal_cost_derivatives(ws, &self.states[n], &mut self.terminal_gradient, &mut self.terminal_hessian);
     }
 
+    /// Steps 2 and 3 of an iteration at a new trajectory: [`Self::linearize`] then
+    /// [`Self::backward_pass`], or, with two or more threads and
+    /// [`SlqSettings::overlap_backward_pass`], both at once: the knots are claimed from the
+    /// last one down by every thread, and this thread runs the pass over each knot as soon
+    /// as it is linearized, linearizing the next unclaimed knot itself while it waits. Each
+    /// knot's model and each step of the pass are computed as in the two separate steps (the
+    /// same iterates to the bit); the pass no longer waits for the slowest chunk of the
+    /// linearization, and the other threads linearize while it runs. Records the time of
+    /// each (overlapped: the pass's own per-knot time, the rest as linearization).
+    fn linearize_and_backward_pass(&mut self, timing: &mut IterationTiming) -> bool {
+        let started = Instant::now();
+        if self.workspaces.len() < 2 || !self.settings.overlap_backward_pass || self.regularization > self.settings.max_regularization {
+            self.linearize();
+            timing.linearization = started.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let ok = self.backward_pass();
+            timing.backward_pass = t.elapsed().as_secs_f64();
+            return ok;
+        }
+        let Self { problem, settings, states, inputs, gains, feedforward, derivatives, ready, workspaces, scratch_states, terminal_gradient, terminal_hessian, riccati: r, regularization, pool, lower, upper, bounded, qp, .. } = self;
+        let (problem, n) = (*problem, problem.horizon());
+        problem.terminal_cost_derivatives(&mut workspaces[0], &states[n], terminal_gradient, terminal_hessian);
+        for flag in ready.iter() {
+            flag.store(false, Ordering::Relaxed);
+        }
+        let (states, inputs, derivatives, ready) = (&*states, &*inputs, &*derivatives, &*ready);
+        // The next knot to linearize (counting down; negative when all are claimed), and
+        // whether a thread panicked in a knot (which then never becomes ready: the pass
+        // panics too instead of waiting for it).
+        let next = AtomicIsize::new(n as isize - 1);
+        let abandoned = AtomicBool::new(false);
+        let claim_and_linearize = |ws: &mut P::Workspace, scratch: &mut P::State| -> bool {
+            let Ok(k) = usize::try_from(next.fetch_sub(1, Ordering::Relaxed)) else { return false };
+            let _flag = FlagOnPanic(&abandoned);
+            let mut d = derivatives[k].lock().unwrap_or_else(PoisonError::into_inner);
+            problem.step_with_derivatives(ws, k, &states[k], &inputs[k], scratch, &mut d);
+            drop(d);
+            ready[k].store(true, Ordering::Release);
+            true
+        };
+        let claim = &claim_and_linearize;
+        let (own_workspace, helper_workspaces) = workspaces.split_at_mut(1);
+        let (own_scratch, helper_scratch) = scratch_states.split_at_mut(1);
+        let (own_workspace, own_scratch) = (&mut own_workspace[0], &mut own_scratch[0]);
+        let mut backward_time = 0.0;
+        let mut ok = true;
+        pool.install(|| {
+            rayon::scope(|s| {
+                for (ws, scratch) in helper_workspaces.iter_mut().zip(helper_scratch.iter_mut()) {
+                    s.spawn(move |_| while claim(ws, scratch) {});
+                }
+                r.p_mat.copy_from(terminal_hessian);
+                r.p_vec.copy_from(terminal_gradient);
+                for k in (0..n).rev() {
+                    let mut waits = 0u32;
+                    while !ready[k].load(Ordering::Acquire) {
+                        assert!(!abandoned.load(Ordering::Acquire), "a thread linearizing the knots panicked");
+                        // Knot k is another thread's, under way: help with the next one, or wait.
+                        if !claim(own_workspace, own_scratch) {
+                            waits += 1;
+                            if waits < 64 {
+                                std::hint::spin_loop();
+                            } else {
+                                std::thread::yield_now();
+                            }
+                        }
+                    }
+                    let t = Instant::now();
+                    let d = derivatives[k].lock().unwrap_or_else(PoisonError::into_inner);
+                    let knot_ok = riccati_knot(r, qp, settings.control_limits, *regularization, &d, &inputs[k], (&lower[k], &upper[k], bounded[k]), &mut gains[k], &mut feedforward[k]);
+                    drop(d);
+                    backward_time += t.elapsed().as_secs_f64();
+                    if !knot_ok {
+                        ok = false;
+                        break;
+                    }
+                }
+                // A pass that has to restart needs every knot: finish the linearization.
+                while claim(own_workspace, own_scratch) {}
+            });
+        });
+        timing.linearization = started.elapsed().as_secs_f64() - backward_time;
+        timing.backward_pass = backward_time;
+        if ok {
+            return true;
+        }
+        // H + mu I was not positive definite at some knot: the restarts of Self::backward_pass.
+        self.regularization = (self.regularization * 10.0).max(self.settings.min_regularization * 10.0);
+        let t = Instant::now();
+        let ok = self.backward_pass();
+        timing.backward_pass += t.elapsed().as_secs_f64();
+        ok
+    }
+
     /// Step 3: the Riccati-like difference equations of Algorithm 1, backwards from
-    /// `P_N = h_xx`, `p_N = h_x`:
-    ///
-    /// ```text
-    /// H = l_uu + B^T P' B,  G = l_ux + B^T P' A,  g = l_u + B^T p'
-    /// K = -H^-1 G,  l = -H^-1 g
-    /// P = l_xx + A^T P' A + K^T H K + K^T G + G^T K
-    /// p = l_x + A^T p' + K^T H l + K^T g + G^T l
-    /// ```
-    ///
+    /// `P_N = h_xx`, `p_N = h_x` (each knot: [`riccati_knot`]).
     /// `H` is regularized to `H + mu I` (mu grows tenfold and the pass restarts while a
     /// Cholesky factorization fails). Returns false if `mu` exceeds its maximum.
     fn backward_pass(&mut self) -> bool {
@@ -411,98 +644,10 @@ impl<'p, P: Problem> Slq<'p, P> {
             r.p_mat.copy_from(&self.terminal_hessian);
             r.p_vec.copy_from(&self.terminal_gradient);
             for k in (0..n).rev() {
-                let d = &self.derivatives[k];
-                // [A B]^T P' [A B] = [A^T P'A, A^T P'B; B^T P'A, B^T P'B], in two large
-                // products (1.5x faster than five small ones at nx = 48, nu = 12).
-                let nx = d.a.nrows();
-                r.ab.columns_mut(0, nx).copy_from(&d.a);
-                r.ab.columns_mut(nx, d.b.ncols()).copy_from(&d.b);
-                r.ab.transpose_to(&mut r.ab_t);
-                r.p_ab.gemm(1.0, &r.p_mat, &r.ab, 0.0);
-                r.ab_p_ab.gemm(1.0, &r.ab_t, &r.p_ab, 0.0);
-                // Q_xx = l_xx + A^T P' A;  H = l_uu + B^T P' B;  G = l_ux + B^T P' A
-                let nu = d.b.ncols();
-                r.q_xx.copy_from(&d.l_xx);
-                r.q_xx += r.ab_p_ab.view((0, 0), (nx, nx));
-                r.q_uu.copy_from(&d.l_uu);
-                r.q_uu += r.ab_p_ab.view((nx, nx), (nu, nu));
-                r.q_ux.copy_from(&d.l_ux);
-                r.q_ux += r.ab_p_ab.view((nx, 0), (nu, nx));
-                // Q_x = l_x + A^T p';  g = l_u + B^T p'
-                r.q_x.copy_from(&d.l_x);
-                r.q_x.gemv_tr(1.0, &d.a, &r.p_vec, 1.0);
-                r.q_u.copy_from(&d.l_u);
-                r.q_u.gemv_tr(1.0, &d.b, &r.p_vec, 1.0);
-                // Regularized factorization of H.
-                for i in 0..r.q_uu.nrows() {
-                    r.q_uu[(i, i)] += self.regularization;
-                }
-                if !r.chol.factor(&r.q_uu) {
+                let d = knot_mut(&mut self.derivatives[k]);
+                if !riccati_knot(r, &mut self.qp, self.settings.control_limits, self.regularization, d, &self.inputs[k], (&self.lower[k], &self.upper[k], self.bounded[k]), &mut self.gains[k], &mut self.feedforward[k]) {
                     self.regularization = (self.regularization * 10.0).max(self.settings.min_regularization * 10.0);
                     continue 'restart;
-                }
-                // K = -H^-1 G, l = -H^-1 g
-                let gain = &mut self.gains[k];
-                let ff = &mut self.feedforward[k];
-                r.warm.copy_from(ff);
-                ff.copy_from(&r.q_u);
-                r.chol.solve_vector_in_place(ff);
-                ff.neg_mut();
-                // Control limits (Tassa 2014, sec. III-B): if the Newton step leaves the
-                // box, l is the box-QP solution from the last step at this knot, and K has
-                // the free rows -H_ff^-1 G_f and zero rows for the clamped inputs (eq. 16).
-                let u = &self.inputs[k];
-                let inside = self.settings.control_limits == ControlLimits::ProjectedRollout || !self.bounded[k] || (0..u.len()).all(|i| (self.lower[k][i]..=self.upper[k][i]).contains(&(u[i] + ff[i])));
-                if inside {
-                    gain.copy_from(&r.q_ux);
-                    r.chol.solve_in_place(gain);
-                    gain.neg_mut();
-                } else {
-                    r.du_lower.copy_from(&self.lower[k]);
-                    r.du_lower -= u;
-                    r.du_upper.copy_from(&self.upper[k]);
-                    r.du_upper -= u;
-                    let status = self.qp.solve(&r.q_uu, &r.q_u, &r.du_lower, &r.du_upper, &r.warm);
-                    if status == BoxQpStatus::NotPositiveDefinite {
-                        self.regularization = (self.regularization * 10.0).max(self.settings.min_regularization * 10.0);
-                        continue 'restart;
-                    }
-                    ff.copy_from(&self.qp.x);
-                    gain.copy_from(&r.q_ux);
-                    for (i, &clamped) in self.qp.clamped.iter().enumerate() {
-                        if clamped {
-                            gain.row_mut(i).fill(0.0);
-                        }
-                    }
-                    self.qp.free_factor.solve_in_place(gain);
-                    gain.neg_mut();
-                }
-                // P = Q_xx + K^T H K + K^T G + G^T K and p = Q_x + K^T H l + K^T g + G^T l.
-                // With K = -H^-1 G from this same (regularized) H, or its free rows
-                // -H_ff^-1 G_f and zero clamped rows, K^T H K = -K^T G, so P = Q_xx + G^T K;
-                // and p = Q_x + G^T l + K^T (H l + g), the last term zero for the Newton step
-                // (and on the free rows of a box-QP solution, up to its tolerance).
-                r.p_mat.copy_from(&r.q_xx);
-                // G^T K as a plain product of G^T (one small transpose): `gemm_tr` forms it
-                // from 48 x 48 scalar dot products, a quarter of this pass's time in `perf`
-                // (the pass: 36.7 -> 28 ms per 1500 knots, BENCHMARKS.md).
-                r.q_ux.transpose_to(&mut r.q_ux_t);
-                r.p_mat.gemm(1.0, &r.q_ux_t, gain, 1.0);
-                r.p_vec.copy_from(&r.q_x);
-                r.p_vec.gemv_tr(1.0, &r.q_ux, ff, 1.0);
-                if !inside {
-                    r.qp_residual.copy_from(&r.q_u);
-                    r.qp_residual.gemv(1.0, &r.q_uu, ff, 1.0);
-                    r.p_vec.gemv_tr(1.0, gain, &r.qp_residual, 1.0);
-                }
-                // Keep P symmetric against round-off.
-                let nx = r.p_mat.nrows();
-                for i in 0..nx {
-                    for j in (i + 1)..nx {
-                        let s = 0.5 * (r.p_mat[(i, j)] + r.p_mat[(j, i)]);
-                        r.p_mat[(i, j)] = s;
-                        r.p_mat[(j, i)] = s;
-                    }
                 }
             }
             return true;
@@ -606,15 +751,15 @@ impl<'p, P: Problem> Slq<'p, P> {
         let mut linearized = false;
         for iteration in 1..=self.settings.max_iterations {
             let mut timing = IterationTiming::default();
-            if !linearized {
+            let ok = if linearized {
                 let t = Instant::now();
-                self.linearize();
-                timing.linearization = t.elapsed().as_secs_f64();
+                let ok = self.backward_pass();
+                timing.backward_pass = t.elapsed().as_secs_f64();
+                ok
+            } else {
                 linearized = true;
-            }
-            let t = Instant::now();
-            let ok = self.backward_pass();
-            timing.backward_pass = t.elapsed().as_secs_f64();
+                self.linearize_and_backward_pass(&mut timing)
+            };
             if !ok {
                 termination = Termination::BackwardPassFailed { iteration };
                 break;
@@ -674,10 +819,11 @@ impl<'p, P: Problem> Slq<'p, P> {
         // Feedback gains for the returned trajectory (the last backward pass was made at the
         // trajectory before the last step).
         if matches!(termination, Termination::Converged | Termination::CostStalled | Termination::NormalizedCostFlat | Termination::MaxIterations) {
-            if !linearized {
-                self.linearize();
+            if linearized {
+                self.backward_pass();
+            } else {
+                self.linearize_and_backward_pass(&mut IterationTiming::default());
             }
-            self.backward_pass();
         }
         Ok(SlqSolution {
             states: self.states,
