@@ -136,6 +136,11 @@ pub struct FullBodySettings {
     /// Start the joint torques from inverse dynamics of the guess's motion with the SRB's
     /// forces (false: the guess's massless-leg torques `-J^T f`, the default).
     pub start_torques_by_inverse_dynamics: bool,
+    /// The curvature's gradient passes take `w^T d RNEA / d(q, v)` by a weighted backward
+    /// sweep (`dynamics::rnea_derivatives_tr_mul`, `O(nv)`) instead of forming the two RNEA
+    /// derivative matrices and multiplying (`O(nv d)`); same values up to rounding, which the
+    /// forward differences amplify (docs/experiments/fb-speed-3.md).
+    pub curvature_rnea_tr_mul: bool,
     /// The barrier update of the curvature phase (`None`: the solver's, the default).
     pub curvature_barrier_update: Option<BarrierUpdate>,
     /// The interior-point solver's settings (`ipocp` defaults, 300 iterations at most,
@@ -206,6 +211,7 @@ impl Default for FullBodySettings {
             constraint_curvature_after: None,
             curvature_max_violation: 1.0,
             start_torques_by_inverse_dynamics: false,
+            curvature_rnea_tr_mul: false,
             curvature_barrier_update: None,
             solver: Settings { max_iterations: 300, tolerance: 1e-6, constraint_violation_tolerance: 1e-6, parallel: true, ..Settings::default() },
         }
