@@ -276,8 +276,8 @@ pub fn rnea_derivatives_tr_mul(model: &Model, data: &mut Data, w: &[f64], w_dtau
     for i in 1..n {
         let jnt = &model.joints[i];
         let mut wi = if jnt.parent > 0 { data.w_ancestors[jnt.parent] } else { Motion::zero() };
-        for k in jnt.idx_v..jnt.idx_v + jnt.nv {
-            wi += col(&data.jacobian, k) * w[k];
+        for (k, &w_k) in w.iter().enumerate().skip(jnt.idx_v).take(jnt.nv) {
+            wi += col(&data.jacobian, k) * w_k;
         }
         data.w_ancestors[i] = wi;
         data.w_dfda[i] = Force::zero();
