@@ -179,6 +179,49 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig { cases: CASES, .. ProptestConfig::default() })]
+
+    /// `w^T d RNEA / dq` and `w^T d RNEA / dv` by the weighted backward sweep against the
+    /// products with `compute_rnea_derivatives`' matrices (1e-12, relative: the sums are in
+    /// another order) and against central differences of `w^T RNEA` (1e-6); the mass matrix
+    /// of `rnea_derivatives_forward` to the bit.
+    #[test]
+    fn weighted_rnea_derivatives_match_the_matrix_products_and_differences(seed in any::<u64>()) {
+        for model in robots() {
+            let mut rng = Rng::new(seed);
+            let n = model.nv;
+            let (q, v, a, w) = (rng.configuration(model), rng.vector(n, 2.0), rng.vector(n, 5.0), rng.vector(n, 3.0));
+            let mut data = Data::new(model);
+            compute_rnea_derivatives(model, &mut data, &q, &v, &a);
+            let want_q = data.dtau_dq.tr_mul(&w);
+            let want_v = data.dtau_dv.tr_mul(&w);
+            let mass_matrix = data.mass_matrix.clone();
+            let mut data = Data::new(model);
+            rnea_derivatives_forward(model, &mut data, &q, &v, &a, true);
+            prop_assert!(data.mass_matrix == mass_matrix, "M differs");
+            let (mut got_q, mut got_v) = (DVector::zeros(n), DVector::zeros(n));
+            rnea_derivatives_tr_mul(model, &mut data, w.as_slice(), got_q.as_mut_slice(), got_v.as_mut_slice());
+            close(&got_q, &want_q, 1e-12)?;
+            close(&got_v, &want_v, 1e-12)?;
+            let h = 1e-6;
+            let mut fd_q = DVector::zeros(n);
+            let mut fd_v = DVector::zeros(n);
+            for j in 0..n {
+                let mut e = DVector::zeros(n);
+                e[j] = h;
+                let (mut qp, mut qm) = (q.clone(), q.clone());
+                integrate(model, &q, &e, &mut qp);
+                integrate(model, &q, &(-&e), &mut qm);
+                fd_q[j] = (w.dot(rnea(model, &mut data, &qp, &v, &a)) - w.dot(rnea(model, &mut data, &qm, &v, &a))) / (2.0 * h);
+                fd_v[j] = (w.dot(rnea(model, &mut data, &q, &(&v + &e), &a)) - w.dot(rnea(model, &mut data, &q, &(&v - &e), &a))) / (2.0 * h);
+            }
+            close(&got_q, &fd_q, 1e-6)?;
+            close(&got_v, &fd_v, 1e-6)?;
+        }
+    }
+}
+
 /// `dexp^-1` of the free-flyer part: the rate of the exponential coordinates `theta` of
 /// `M = M0 exp(theta)` for a body twist `v` is `v + [theta, v] / 2 + [theta, [theta, v]] / 12`
 /// (truncated after the terms RKMK4 needs); the joints are Euclidean.

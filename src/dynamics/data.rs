@@ -90,6 +90,12 @@ pub struct Data {
     /// Angular halves of the columns `dY^T J` (their linear halves are zero).
     pub(crate) dytj: Matrix3xX<f64>,
     pub(crate) tmp_nv: DVector<f64>,
+    /// Of [`super::rnea_derivatives_tr_mul`]: `W_i = sum_{k in anc(i)} w_k J_k` (the weights
+    /// of the rows of `i` and its ancestors), and the strict subtree's `sum_r w_r (dF/da)_r`
+    /// and `sum_r w_r (dY^T J)_r`.
+    pub(crate) w_ancestors: Vec<Motion>,
+    pub(crate) w_dfda: Vec<Force>,
+    pub(crate) w_dytj: Vec<Vector3<f64>>,
     /// `L^T D L` factor of `M` (Featherstone 2008, §6.5).
     pub(crate) ltdl: DMatrix<f64>,
     /// `L^-1`.
@@ -160,6 +166,9 @@ impl Data {
             dfda: Matrix6xX::zeros(nv),
             dytj: Matrix3xX::zeros(nv),
             tmp_nv: DVector::zeros(nv),
+            w_ancestors: vec![Motion::zero(); n],
+            w_dfda: vec![Force::zero(); n],
+            w_dytj: vec![Vector3::zeros(); n],
             ltdl: DMatrix::zeros(nv, nv),
             linv: DMatrix::zeros(nv, nv),
         }

@@ -45,4 +45,4 @@ pub use frames::{frame_placement, frame_position, update_frame_placements};
 pub use jacobian::{compute_joint_jacobians, frame_jacobian, ReferenceFrame};
 pub use kinematics::{forward_kinematics, forward_kinematics_velocity, joint_transform};
 pub use rnea::{generalized_gravity, nonlinear_effects, rnea};
-pub use rnea_derivatives::compute_rnea_derivatives;
+pub use rnea_derivatives::{compute_rnea_derivatives, rnea_derivatives_forward, rnea_derivatives_tr_mul};

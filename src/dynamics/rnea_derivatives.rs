@@ -85,57 +85,8 @@ fn dot3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 /// dtau/dv likewise with dA/dv and J.
 /// ```
 pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>) {
+    forward_pass(model, data, q, v, a);
     let n = model.njoints();
-    let minus_g = -model.gravity;
-    // ---- forward pass
-    for i in 1..n {
-        let jnt = &model.joints[i];
-        let p = jnt.parent;
-        let li = local_placement(model, data, i, q);
-        let vj = joint_motion(model, i, v);
-        let aj = joint_motion(model, i, a);
-        let (vi, ai, omi) = if p > 0 {
-            let vi = li.act_inv(&data.v[p]) + vj;
-            (vi, li.act_inv(&data.a[p]) + aj + vi.cross(&vj), data.o_m_i[p] * li)
-        } else {
-            (vj, aj + vj.cross(&vj), li)
-        };
-        data.li_m_i[i] = li;
-        data.o_m_i[i] = omi;
-        data.v[i] = vi;
-        data.a[i] = ai;
-        let oy = data.body_moments[i].transformed(&omi);
-        let ov = omi.act(&vi);
-        let oa_gf = omi.act(&ai) + minus_g;
-        let oh = oy.mul_motion(&ov);
-        data.of[i] = oy.mul_motion(&oa_gf) + ov.cross_force(&oh);
-        data.o_y_crb[i] = oy;
-        data.ov[i] = ov;
-        data.oa[i] = oa_gf;
-        data.oh[i] = oh;
-        let (ov_p, oa_gf_p) = if p > 0 { (data.ov[p], data.oa[p]) } else { (Motion::zero(), minus_g) };
-        for k in jnt.idx_v..jnt.idx_v + jnt.nv {
-            let s_local = match jnt.kind {
-                JointKind::FreeFlyer => {
-                    let mut e = Vector6::zeros();
-                    e[k - jnt.idx_v] = 1.0;
-                    Motion::from_vector(&e)
-                }
-                kind => kind.subspace(),
-            };
-            let jc = omi.act(&s_local);
-            let dvdq = ov_p.cross(&jc);
-            let dadq = oa_gf_p.cross(&jc) + ov_p.cross(&dvdq);
-            let dadv = ov.cross(&jc) + dvdq; // dJ + dV/dq
-            set_col(&mut data.jacobian, k, &jc);
-            set_col(&mut data.dvdq, k, &dvdq);
-            set_col(&mut data.dadq, k, &dadq);
-            set_col(&mut data.dadv, k, &dadv);
-        }
-        let (t, b) = inertia_variation(&oy, &ov, &oh);
-        data.do_y_top[i] = t;
-        data.do_y_b[i] = b;
-    }
     // ---- backward pass
     let nv = model.nv;
     for i in (1..n).rev() {
@@ -205,6 +156,157 @@ pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>
     for r in 0..nv {
         for c in 0..r {
             data.mass_matrix[(r, c)] = data.mass_matrix[(c, r)];
+        }
+    }
+}
+
+/// The forward pass of [`compute_rnea_derivatives`]: placements, world velocities and
+/// accelerations, the bodies' world inertias `oY_i`, forces `f_i` and inertia variations
+/// `dY_i` (not yet summed over the subtrees), and the columns `J`, `dV/dq`, `dA/dq`, `dA/dv`.
+fn forward_pass(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>) {
+    let n = model.njoints();
+    let minus_g = -model.gravity;
+    for i in 1..n {
+        let jnt = &model.joints[i];
+        let p = jnt.parent;
+        let li = local_placement(model, data, i, q);
+        let vj = joint_motion(model, i, v);
+        let aj = joint_motion(model, i, a);
+        let (vi, ai, omi) = if p > 0 {
+            let vi = li.act_inv(&data.v[p]) + vj;
+            (vi, li.act_inv(&data.a[p]) + aj + vi.cross(&vj), data.o_m_i[p] * li)
+        } else {
+            (vj, aj + vj.cross(&vj), li)
+        };
+        data.li_m_i[i] = li;
+        data.o_m_i[i] = omi;
+        data.v[i] = vi;
+        data.a[i] = ai;
+        let oy = data.body_moments[i].transformed(&omi);
+        let ov = omi.act(&vi);
+        let oa_gf = omi.act(&ai) + minus_g;
+        let oh = oy.mul_motion(&ov);
+        data.of[i] = oy.mul_motion(&oa_gf) + ov.cross_force(&oh);
+        data.o_y_crb[i] = oy;
+        data.ov[i] = ov;
+        data.oa[i] = oa_gf;
+        data.oh[i] = oh;
+        let (ov_p, oa_gf_p) = if p > 0 { (data.ov[p], data.oa[p]) } else { (Motion::zero(), minus_g) };
+        for k in jnt.idx_v..jnt.idx_v + jnt.nv {
+            let s_local = match jnt.kind {
+                JointKind::FreeFlyer => {
+                    let mut e = Vector6::zeros();
+                    e[k - jnt.idx_v] = 1.0;
+                    Motion::from_vector(&e)
+                }
+                kind => kind.subspace(),
+            };
+            let jc = omi.act(&s_local);
+            let dvdq = ov_p.cross(&jc);
+            let dadq = oa_gf_p.cross(&jc) + ov_p.cross(&dvdq);
+            let dadv = ov.cross(&jc) + dvdq; // dJ + dV/dq
+            set_col(&mut data.jacobian, k, &jc);
+            set_col(&mut data.dvdq, k, &dvdq);
+            set_col(&mut data.dadq, k, &dadq);
+            set_col(&mut data.dadv, k, &dadv);
+        }
+        let (t, b) = inertia_variation(&oy, &ov, &oh);
+        data.do_y_top[i] = t;
+        data.do_y_b[i] = b;
+    }
+}
+
+/// The first half of [`rnea_derivatives_tr_mul`]: the forward pass of
+/// [`compute_rnea_derivatives`] at `(q, v, a)` and the composite quantities `oYc_i`, `dYc_i`,
+/// `f_i` summed over each subtree (the same sums in the same order); with `mass_matrix`,
+/// also `data.mass_matrix` (`M[k, sub] = J_k^T oYc J_sub`, mirrored), to the bit the one
+/// [`compute_rnea_derivatives`] forms.
+pub fn rnea_derivatives_forward(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>, mass_matrix: bool) {
+    forward_pass(model, data, q, v, a);
+    let nv = model.nv;
+    for i in (1..model.njoints()).rev() {
+        let jnt = &model.joints[i];
+        let p = jnt.parent;
+        if mass_matrix {
+            let (iv, nvj) = (jnt.idx_v, jnt.nv);
+            let oyc = data.o_y_crb[i];
+            for k in iv..iv + nvj {
+                set_col_f(&mut data.dfda, k, &oyc.mul_motion(&col(&data.jacobian, k)));
+            }
+            let (js, dfda, mm) = (data.jacobian.as_slice(), data.dfda.as_slice(), data.mass_matrix.as_mut_slice());
+            for c in iv..iv + model.nv_subtree[i] {
+                let fa = col6(dfda, c);
+                for k in iv..iv + nvj {
+                    mm[k + c * nv] = dot6(&col6(js, k), &fa);
+                }
+            }
+        }
+        if p > 0 {
+            let (oyc, t, b, of) = (data.o_y_crb[i], data.do_y_top[i], data.do_y_b[i], data.of[i]);
+            data.o_y_crb[p] += oyc;
+            data.do_y_top[p] += t;
+            data.do_y_b[p] += b;
+            data.of[p] += of;
+        }
+    }
+    if mass_matrix {
+        for r in 0..nv {
+            for c in 0..r {
+                data.mass_matrix[(r, c)] = data.mass_matrix[(c, r)];
+            }
+        }
+    }
+}
+
+/// `w^T d tau / dq` and `w^T d tau / dv` of `tau = RNEA(q, v, a)` at the point of the last
+/// [`rnea_derivatives_forward`], without forming the two `nv x nv` matrices (the weighted
+/// sums of the rows of [`compute_rnea_derivatives`]' backward pass, `O(nv)` instead of
+/// `O(nv d)`). Of column `c` of joint `i` (parent `p`), its rows are those of `i` and its
+/// ancestors (`J_k^T dF/dq_c`, with `J_c x* f_i` added for the ancestors' rows) and those of
+/// the strict subtree (`(dF/da)_r . dA/dq_c + (dY^T J)_r . dV/dq_c`):
+///
+/// ```text
+/// W_i = W_p + sum_{k in i} w_k J_k                       (forward)
+/// S_i = sum_{r in sub(i) \ i} w_r (dF/da)_r,   T_i = sum_{r in sub(i) \ i} w_r (dY^T J)_r   (backward)
+/// (w^T dtau/dq)_c = W_i . dF/dq_c + W_p . (J_c x* f_i) + S_i . dA/dq_c + T_i . (dV/dq_c)_w
+/// (w^T dtau/dv)_c = W_i . dF/dv_c + S_i . dA/dv_c + T_i . (J_c)_w
+/// ```
+pub fn rnea_derivatives_tr_mul(model: &Model, data: &mut Data, w: &[f64], w_dtau_dq: &mut [f64], w_dtau_dv: &mut [f64]) {
+    let n = model.njoints();
+    for i in 1..n {
+        let jnt = &model.joints[i];
+        let mut wi = if jnt.parent > 0 { data.w_ancestors[jnt.parent] } else { Motion::zero() };
+        for (k, &w_k) in w.iter().enumerate().skip(jnt.idx_v).take(jnt.nv) {
+            wi += col(&data.jacobian, k) * w_k;
+        }
+        data.w_ancestors[i] = wi;
+        data.w_dfda[i] = Force::zero();
+        data.w_dytj[i] = Vector3::zeros();
+    }
+    for i in (1..n).rev() {
+        let jnt = &model.joints[i];
+        let p = jnt.parent;
+        let (oyc, t, b, of) = (data.o_y_crb[i], data.do_y_top[i], data.do_y_b[i], data.of[i]);
+        let wi = data.w_ancestors[i];
+        let wp = if p > 0 { data.w_ancestors[p] } else { Motion::zero() };
+        let (s_sub, t_sub) = (data.w_dfda[i], data.w_dytj[i]);
+        let (mut s_own, mut t_own) = (Force::zero(), Vector3::zeros());
+        for k in jnt.idx_v..jnt.idx_v + jnt.nv {
+            let (jc, dvdq, dadq, dadv) = (col(&data.jacobian, k), col(&data.dvdq, k), col(&data.dadq, k), col(&data.dadv, k));
+            let mut dfdq = oyc.mul_motion(&dadq);
+            if p > 0 {
+                dfdq += Force::new(t.cross(&dvdq.w), b * dvdq.w);
+            }
+            let dfdv = oyc.mul_motion(&dadv) + Force::new(t.cross(&jc.w), b * jc.w);
+            w_dtau_dq[k] = wi.dot(&dfdq) + wp.dot(&jc.cross_force(&of)) + dadq.dot(&s_sub) + t_sub.dot(&dvdq.w);
+            w_dtau_dv[k] = wi.dot(&dfdv) + dadv.dot(&s_sub) + t_sub.dot(&jc.w);
+            s_own += oyc.mul_motion(&jc) * w[k];
+            t_own += (b.tr_mul(&jc.w) - t.cross(&jc.v)) * w[k];
+        }
+        let (s_i, t_i) = (s_sub + s_own, t_sub + t_own);
+        if p > 0 {
+            data.w_dfda[p] += s_i;
+            data.w_dytj[p] += t_i;
         }
     }
 }

@@ -249,9 +249,17 @@ impl FullBodyProblem {
         // remaining iterations from phase 1's barrier parameter.
         let t0 = Instant::now();
         self.shared.curvature.store(false, Ordering::Relaxed);
+        // With `curvature_on_stall`: also hand over once the violation is at most the bound
+        // and has not reached a new low for that many iterations (the Gauss-Newton steps have
+        // stopped making the iterate more feasible).
         let mut switched = false;
+        let (mut lowest, mut lowest_at) = (f64::INFINITY, 0);
         let mut stop = |iteration: usize, violation: f64| {
-            switched = iteration >= gauss_newton_iterations && violation <= settings.curvature_max_violation;
+            if violation < lowest {
+                (lowest, lowest_at) = (violation, iteration);
+            }
+            let stalled = settings.curvature_on_stall.is_some_and(|window| iteration - lowest_at >= window);
+            switched = (iteration >= gauss_newton_iterations || stalled) && violation <= settings.curvature_max_violation;
             switched
         };
         let mut solver = Solver::new(&self.problem, settings.solver.clone()).map_err(solver_error)?;

@@ -133,9 +133,21 @@ pub struct FullBodySettings {
     /// curvature phase (1.0; infinite: after `constraint_curvature_after` iterations whatever
     /// the violation).
     pub curvature_max_violation: f64,
+    /// `Some(w)`: hand over to the curvature phase before `constraint_curvature_after`
+    /// iterations too, once the violation is at most `curvature_max_violation` and has not
+    /// reached a new low for `w` Gauss-Newton iterations (a stalled Gauss-Newton phase;
+    /// docs/experiments/fb-speed-3.md). `None`: the iteration count only (the default).
+    pub curvature_on_stall: Option<usize>,
     /// Start the joint torques from inverse dynamics of the guess's motion with the SRB's
     /// forces (false: the guess's massless-leg torques `-J^T f`, the default).
     pub start_torques_by_inverse_dynamics: bool,
+    /// The curvature's gradient passes take `w^T d RNEA / d(q, v)` by a weighted backward
+    /// sweep (`dynamics::rnea_derivatives_tr_mul`, `O(nv)`) instead of forming the two RNEA
+    /// derivative matrices and multiplying (`O(nv d)`); same values up to rounding, which the
+    /// forward differences amplify (docs/experiments/fb-speed-3.md: -12.5 % instructions per
+    /// curvature iteration on lateral_down, the seven jumps' status and landings unchanged).
+    /// Default on; off: the matrices (the iterates of before, to the bit).
+    pub curvature_rnea_tr_mul: bool,
     /// The barrier update of the curvature phase (`None`: the solver's, the default).
     pub curvature_barrier_update: Option<BarrierUpdate>,
     /// The interior-point solver's settings (`ipocp` defaults, 300 iterations at most,
@@ -205,7 +217,9 @@ impl Default for FullBodySettings {
             momentum_balance_in_stance: false,
             constraint_curvature_after: None,
             curvature_max_violation: 1.0,
+            curvature_on_stall: None,
             start_torques_by_inverse_dynamics: false,
+            curvature_rnea_tr_mul: true,
             curvature_barrier_update: None,
             solver: Settings { max_iterations: 300, tolerance: 1e-6, constraint_violation_tolerance: 1e-6, parallel: true, ..Settings::default() },
         }

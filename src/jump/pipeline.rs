@@ -121,11 +121,20 @@ impl Verdict {
 }
 
 /// Gauss-Newton iterations of the full-body solve before the constraints' curvature is added
-/// (`FullBodySettings::constraint_curvature_after`): jumps that converge with Gauss-Newton
-/// (lateral, spin_90, diagonal, barrel_roll: 30-65 iterations) are unchanged; the box jumps'
-/// main loop stalls at a large dual infeasibility without the curvature
-/// (docs/experiments/jump-box.md).
-pub const FULL_BODY_GAUSS_NEWTON_ITERATIONS: usize = 100;
+/// (`FullBodySettings::constraint_curvature_after`, then at the first iterate with violation at
+/// most 1): lateral, spin_90 and diagonal (25-31 iterations) converge before it, barrel_roll
+/// takes 2 curvature iterations (62 in all, 61 with 100); the box jumps' main loop stalls at a
+/// large dual infeasibility without the curvature (docs/experiments/jump-box.md). 60 instead
+/// of 100: lateral_down 156 -> 138 iterations, double_barrel_roll 131 -> 94, double_backflip
+/// 184 -> 125, the five that land still 20/20 (docs/experiments/fb-speed-3.md).
+pub const FULL_BODY_GAUSS_NEWTON_ITERATIONS: usize = 60;
+
+/// The full body's stall rule (`FullBodySettings::curvature_on_stall`): the curvature also
+/// before [`FULL_BODY_GAUSS_NEWTON_ITERATIONS`] once the violation is at most 1 and has not
+/// reached a new low for this many Gauss-Newton iterations. Of the seven jumps only
+/// double_backflip stalls so (at iteration 31: 125 -> 94 iterations); the others' iterates are
+/// unchanged (docs/experiments/fb-speed-3.md).
+pub const FULL_BODY_STALL_ITERATIONS: usize = 10;
 
 /// Options of [`run`] beyond the jump file.
 #[derive(Clone, Debug)]
@@ -154,6 +163,7 @@ impl PipelineOptions {
                 let defaults = FullBodySettings::default();
                 FullBodySettings {
                     constraint_curvature_after: Some(FULL_BODY_GAUSS_NEWTON_ITERATIONS),
+                    curvature_on_stall: Some(FULL_BODY_STALL_ITERATIONS),
                     airborne_foot_margin: jump.full_body.airborne_foot_margin.unwrap_or(defaults.clearance),
                     lift_off_normal_force: jump.full_body.lift_off_normal_force.unwrap_or(defaults.lift_off_normal_force),
                     ..defaults

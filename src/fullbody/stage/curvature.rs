@@ -25,7 +25,7 @@
 use super::{add_state_columns, FullBodyStage, Workspace, TRUNK_CORNERS};
 use crate::dynamics::{
     aba, compute_joint_jacobians, compute_rnea_derivatives, integrate, integrate_velocity_jacobian, mass_matrix_factor, mass_matrix_factored_solve,
-    tangent_jacobian_tr_mul,
+    rnea_derivatives_forward, rnea_derivatives_tr_mul, tangent_jacobian_tr_mul,
 };
 use crate::fullbody::kinematics::{add_point_force_derivative, foot_position, knee_position, point_jacobian};
 use crate::ipocp::StageMultipliers;
@@ -44,6 +44,9 @@ pub(super) struct GradientCurvature {
     mu: DVector<f64>,
     w: DVector<f64>,
     t: DVector<f64>,
+    /// `w^T d RNEA / dq` and `w^T d RNEA / dv` (with `curvature_rnea_tr_mul`).
+    w_dtau_dq: DVector<f64>,
+    w_dtau_dv: DVector<f64>,
     /// The kinematic rows' part of `t` and of the gradient, and `d tau_gen / dq`, at the
     /// last configuration evaluated: a velocity perturbation changes the dynamics only.
     t_kinematics: DVector<f64>,
@@ -62,6 +65,8 @@ impl GradientCurvature {
             mu: DVector::zeros(nv),
             w: DVector::zeros(nv),
             t: DVector::zeros(nv),
+            w_dtau_dq: DVector::zeros(nv),
+            w_dtau_dv: DVector::zeros(nv),
             t_kinematics: DVector::zeros(nv),
             gradient_kinematics: DVector::zeros(nz),
             dgen_dq: DMatrix::zeros(nv, nv),
@@ -233,7 +238,15 @@ impl FullBodyStage {
             }
             aba(model, &mut ws.data, &ws.q, &ws.v, &ws.tau);
             let qdd = std::mem::replace(&mut ws.data.ddq, DVector::zeros(0));
-            compute_rnea_derivatives(model, &mut ws.data, &ws.q, &ws.v, &qdd);
+            // Only `w^T d RNEA / d(q, v)` is used below, `w = M^-1 mu` needing `M` first: with
+            // `curvature_rnea_tr_mul` the forward pass and `M` now, the weighted backward sweep
+            // once `w` is known; otherwise both derivative matrices (and `M`) now.
+            let weighted_sweep = s.curvature_rnea_tr_mul;
+            if weighted_sweep {
+                rnea_derivatives_forward(model, &mut ws.data, &ws.q, &ws.v, &qdd, kinematics);
+            } else {
+                compute_rnea_derivatives(model, &mut ws.data, &ws.q, &ws.v, &qdd);
+            }
             // The step q' = q (+) dt v' and dq' = q' (-) qbar'.
             ws.data.ddq = qdd;
             ws.semi_implicit_step(model, dt, spec.qbar_next.as_ref().expect("a stage with dynamics has a next knot"));
@@ -256,11 +269,18 @@ impl FullBodyStage {
             }
             mass_matrix_factored_solve(model, &ws.data, fd.w.as_mut_slice());
             // mu^T dv'/dz, column blocks dq (through t), v, tau, lambda.
-            ws.dgen_dq -= &ws.data.dtau_dq;
-            t.gemv_tr(dt, &ws.dgen_dq, &fd.w, 1.0);
             let mut gv = g.rows_mut(nv, nv);
             gv += &fd.mu;
-            gv.gemv_tr(-dt, &ws.data.dtau_dv, &fd.w, 1.0);
+            if weighted_sweep {
+                rnea_derivatives_tr_mul(model, &mut ws.data, fd.w.as_slice(), fd.w_dtau_dq.as_mut_slice(), fd.w_dtau_dv.as_mut_slice());
+                t.gemv_tr(dt, &ws.dgen_dq, &fd.w, 1.0);
+                t.axpy(-dt, &fd.w_dtau_dq, 1.0);
+                gv.axpy(-dt, &fd.w_dtau_dv, 1.0);
+            } else {
+                ws.dgen_dq -= &ws.data.dtau_dq;
+                t.gemv_tr(dt, &ws.dgen_dq, &fd.w, 1.0);
+                gv.gemv_tr(-dt, &ws.data.dtau_dv, &fd.w, 1.0);
+            }
             for j in 0..nj {
                 g[2 * nv + j] += dt * fd.w[6 + j];
             }
