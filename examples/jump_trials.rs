@@ -11,6 +11,7 @@
 //! ```
 //!
 //! `--jump NAME` runs on the embedded jump's terrain (its box); flat ground otherwise.
+//! `JUMP_RUN_OUT=run.json` writes the nominal run's recorded knots.
 //! `--normal-force-max N`, `--stance-kp`, `--stance-kd`, `--position-kp`, `--position-kd`,
 //! `--extension-time S`, `--orientation-kp`, `--orientation-kd`, `--moment-weight` set the landing controller's settings of those names.
 //! `--lift-off-lead S` sets `JumpSettings::lift_off_lead` to the constant lead `S` (s).
@@ -131,6 +132,9 @@ fn main() -> anyhow::Result<()> {
     let nominal = run_jump(&model, terrain.as_ref(), &reference, &settings)?;
     println!("reference {source}: {} knots, {:.2} s; target ({:.3}, {:.3}) m, yaw {:.1} deg", reference.knots.len(), reference.duration(), nominal.target.position.x, nominal.target.position.y, nominal.target.yaw.to_degrees());
     row("nominal", &nominal, None);
+    if let Ok(path) = std::env::var("JUMP_RUN_OUT") {
+        nominal.trajectory.save_file(&path)?;
+    }
     println!("(nominal run: {:.2} s wall)", start.elapsed().as_secs_f64());
     let trial_settings = TrialSettings { trials, ..TrialSettings::default() };
     let start = std::time::Instant::now();
