@@ -11,6 +11,9 @@
 //! ```
 //!
 //! `--jump NAME` runs on the embedded jump's terrain (its box); flat ground otherwise.
+//! `JUMP_RUN_OUT=run.json` writes the nominal run's recorded knots.
+//! `--normal-force-max N`, `--stance-kp`, `--stance-kd`, `--position-kp`, `--position-kd`,
+//! `--extension-time S`, `--orientation-kp`, `--orientation-kd`, `--moment-weight` set the landing controller's settings of those names.
 //! `--lift-off-lead S` sets `JumpSettings::lift_off_lead` to the constant lead `S` (s).
 //!
 //! `REFERENCE.json` is a trajectory file (`io::Trajectory`, 10 ms knots) of the full-body
@@ -80,6 +83,16 @@ fn main() -> anyhow::Result<()> {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     let terrain = common::jump_terrain(&mut args)?;
     let lift_off_lead: Option<f64> = common::take(&mut args, "--lift-off-lead")?.map(|s| s.parse()).transpose().context("--lift-off-lead: a time (s)")?;
+    let mut number = |flag: &str| -> anyhow::Result<Option<f64>> { common::take(&mut args, flag)?.map(|s| s.parse::<f64>()).transpose().with_context(|| format!("{flag}: a number")) };
+    let normal_force_max = number("--normal-force-max")?;
+    let stance_kp = number("--stance-kp")?;
+    let stance_kd = number("--stance-kd")?;
+    let position_kd = number("--position-kd")?;
+    let position_kp = number("--position-kp")?;
+    let extension_time = number("--extension-time")?;
+    let orientation_kp = number("--orientation-kp")?;
+    let orientation_kd = number("--orientation-kd")?;
+    let moment_weight = number("--moment-weight")?;
     let Some(source) = args.first() else { bail!("usage: jump_trials REFERENCE.json|drop:HEIGHT:VY [TRIALS]") };
     let trials: usize = args.get(1).map(|s| s.parse()).transpose().context("TRIALS must be a whole number")?.unwrap_or(20);
     let model = embedded::load("a1")?;
@@ -98,7 +111,20 @@ fn main() -> anyhow::Result<()> {
         Trajectory::load_file(source)?
     };
     let defaults = JumpSettings::default();
-    let settings = JumpSettings { lift_off_lead: lift_off_lead.or(defaults.lift_off_lead), ..defaults };
+    let mut settings = JumpSettings { lift_off_lead: lift_off_lead.or(defaults.lift_off_lead), ..defaults };
+    // Landing settings under test (docs/experiments/jump-flip-4.md); absent: the defaults.
+    let landing = &mut settings.landing;
+    landing.qp.normal_force_max = normal_force_max.unwrap_or(landing.qp.normal_force_max);
+    landing.stance_joint_kp = stance_kp.unwrap_or(landing.stance_joint_kp);
+    landing.stance_joint_kd = stance_kd.unwrap_or(landing.stance_joint_kd);
+    landing.qp.position_kd = position_kd.map_or(landing.qp.position_kd, nalgebra::Vector3::repeat);
+    landing.qp.position_kp = position_kp.map_or(landing.qp.position_kp, nalgebra::Vector3::repeat);
+    landing.qp.orientation_kp = orientation_kp.map_or(landing.qp.orientation_kp, nalgebra::Vector3::repeat);
+    landing.qp.orientation_kd = orientation_kd.map_or(landing.qp.orientation_kd, nalgebra::Vector3::repeat);
+    if let Some(w) = moment_weight {
+        landing.qp.wrench_weight.fixed_rows_mut::<3>(3).fill(w);
+    }
+    settings.extension.time = extension_time.unwrap_or(settings.extension.time);
     if let Ok(path) = std::env::var("JUMP_REFERENCE_OUT") {
         reference.save_file(&path)?;
     }
@@ -106,6 +132,9 @@ fn main() -> anyhow::Result<()> {
     let nominal = run_jump(&model, terrain.as_ref(), &reference, &settings)?;
     println!("reference {source}: {} knots, {:.2} s; target ({:.3}, {:.3}) m, yaw {:.1} deg", reference.knots.len(), reference.duration(), nominal.target.position.x, nominal.target.position.y, nominal.target.yaw.to_degrees());
     row("nominal", &nominal, None);
+    if let Ok(path) = std::env::var("JUMP_RUN_OUT") {
+        nominal.trajectory.save_file(&path)?;
+    }
     println!("(nominal run: {:.2} s wall)", start.elapsed().as_secs_f64());
     let trial_settings = TrialSettings { trials, ..TrialSettings::default() };
     let start = std::time::Instant::now();

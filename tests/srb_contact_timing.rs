@@ -193,3 +193,28 @@ fn phase_time_bounds_hold_each_phase() {
         assert!(e.contains(refusal), "{e}");
     }
 }
+
+/// `JumpSpec::landing_extension` raises the final CoM over the landing feet by exactly that
+/// much and leaves the landing feet where the standing pose puts them (lateral, 15 knots:
+/// 0 and 8 cm solve, the final CoM heights differ by 8 cm, the final feet not at all).
+#[test]
+fn landing_extension_raises_the_final_com_over_the_same_feet() {
+    let params = SrbParams::a1().unwrap();
+    let standing = Jump::embedded("lateral").unwrap().srb();
+    let extended = legwork::srb::JumpSpec { landing_extension: 0.08, ..standing.clone() };
+    let settings = ContactTimingSettings { knots_per_phase: 15, ..Default::default() };
+    let last_knot = |jump: &legwork::srb::JumpSpec| {
+        let ct = ContactTimingProblem::new(jump, &params, &settings).unwrap();
+        let mut solver = ct.solver(ContactTimingProblem::solver_settings()).unwrap();
+        let r = ct.solve(&mut solver).unwrap();
+        assert_eq!(r.status, Status::Solved, "landing_extension {}: after {} iterations", jump.landing_extension, r.iterations);
+        let trajectory = legwork::srb::SrbTrajectory::from_solution(&ct, &r.last.primal).unwrap();
+        trajectory.knots.last().unwrap().clone()
+    };
+    let (a, b) = (last_knot(&standing), last_knot(&extended));
+    assert!((b.com.z - a.com.z - 0.08).abs() < 1e-6, "final CoM z {} vs {}", b.com.z, a.com.z);
+    assert!((b.com.xy() - a.com.xy()).norm() < 1e-6, "final CoM {} vs {}", b.com, a.com);
+    for f in 0..4 {
+        assert!((b.feet[f] - a.feet[f]).norm() < 1e-12, "foot {f}: {} vs {}", b.feet[f], a.feet[f]);
+    }
+}

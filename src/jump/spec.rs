@@ -13,6 +13,9 @@
 //! displacement = [0.0, 0.3, -0.3]    # CoM displacement, world, m
 //! axis = [0.0, 0.0, 1.0]             # unit axis of the base's rotation over the jump
 //! angle_deg = 0.0                    # or `turns = -2.0`: exactly one of the two
+//! landing_extension = 0.0            # optional: the CoM this much (m) higher over the
+//!                                    # landing feet than standing (straighter legs at
+//!                                    # touch-down), 0 <= x <= 0.12 (default 0)
 //!
 //! [box]                              # optional: the start box (absent: flat ground)
 //! height = 0.3                       # top above the ground (z = 0), m
@@ -59,6 +62,11 @@ pub const EMBEDDED_JUMPS: &[(&str, &str, &str)] = &[
     ("double_barrel_roll", "double_barrel_roll", include_str!("../../jumps/double_barrel_roll.toml")),
     ("double_backflip", "double_backflip", include_str!("../../jumps/double_backflip.toml")),
 ];
+
+/// The largest `[target] landing_extension` (m): the SRB's stance CoM height bound is the
+/// standing height + 0.15 m (`ContactTimingProblem`), and the A1's legs (0.2 + 0.2 m) are
+/// straight about 0.13 m above its standing pose.
+pub const MAX_LANDING_EXTENSION: f64 = 0.12;
 
 /// Foot names of the `phases` lists, in the contact-timing formulation's order.
 pub const FOOT_NAMES: [&str; 4] = ["LF", "RF", "LH", "RH"];
@@ -126,6 +134,8 @@ struct TargetFile {
     angle_deg: Option<f64>,
     #[serde(default)]
     turns: Option<f64>,
+    #[serde(default)]
+    landing_extension: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -223,6 +233,9 @@ pub struct Jump {
     /// Unit axis and angle (rad) of the base's rotation over the jump.
     pub axis: Vector3<f64>,
     pub angle: f64,
+    /// The CoM's rise (m) over the landing feet above the standing pose at touch-down
+    /// ([`JumpSpec::landing_extension`]; `[target] landing_extension`, default 0).
+    pub landing_extension: f64,
     pub platform: Option<Platform>,
     /// The CoM displacement of the reference script's problem (`[reference]`), where it
     /// differs from the file's target (the script's landings over the start box).
@@ -353,6 +366,10 @@ impl Jump {
             (Some(_), Some(_)) | (None, None) => return bad("target", "exactly one of `angle_deg` and `turns`", format!("angle_deg {:?}, turns {:?}", t.angle_deg, t.turns)),
             _ => return bad("target.angle_deg / target.turns", "a finite number", format!("angle_deg {:?}, turns {:?}", t.angle_deg, t.turns)),
         };
+        let landing_extension = t.landing_extension.unwrap_or(0.0);
+        if !(0.0..=MAX_LANDING_EXTENSION).contains(&landing_extension) {
+            return bad("target.landing_extension", &format!("a rise within [0, {MAX_LANDING_EXTENSION}] (m)"), landing_extension.to_string());
+        }
         let platform = match &file.platform {
             None => None,
             Some(p) => {
@@ -407,6 +424,7 @@ impl Jump {
             displacement: Vector3::from(t.displacement),
             axis,
             angle,
+            landing_extension,
             platform,
             reference_displacement,
             contact_timing,
@@ -428,6 +446,7 @@ impl Jump {
             displacement: self.displacement,
             axis: self.axis,
             angle: self.angle,
+            landing_extension: self.landing_extension,
             box_height: self.box_height(),
             clear_of: self.platform.as_ref().map(|p| BoxExtent { x: p.x, y: p.y }),
             phases: self.phases.clone(),
@@ -442,7 +461,7 @@ impl Jump {
     /// `t_lo`, `t_hi`, not the file's `phase_time`): the script has neither, its optimum is
     /// checked like with like.
     pub fn reference_srb(&self) -> JumpSpec {
-        JumpSpec { clear_of: None, phase_time: None, ..self.reference().srb() }
+        JumpSpec { clear_of: None, phase_time: None, landing_extension: 0.0, ..self.reference().srb() }
     }
 
     /// This jump with the reference script's target (see [`Self::reference_srb`]).
@@ -538,6 +557,8 @@ mod tests {
         assert!(e.contains("field `phase_time`: expected 2 [lo, hi] pairs (one per phase, s), got [[0.3, 0.6]]"), "{e}");
         let e = error_of(&LATERAL.replace("total_time = [0.5, 1.5]", "total_time = [0.5, 1.5]\nphase_time = [[0.3, 0.6], [0.4, 0.2]]"));
         assert!(e.contains("field `phase_time[1]`: expected [lo, hi] with 0 < lo <= hi (s), got [0.4, 0.2]"), "{e}");
+        let e = error_of(&LATERAL.replace("angle_deg = 0.0", "angle_deg = 0.0\nlanding_extension = 0.2"));
+        assert!(e.contains("field `target.landing_extension`: expected a rise within [0, 0.12] (m), got 0.2"), "{e}");
         let e = error_of(&LATERAL.replace("total_time = [0.5, 1.5]", "total_time = [0.5, 1.5]\nphase_time = [[0.1, 0.2], [0.1, 0.2]]"));
         assert!(e.contains("field `phase_time`: expected bounds whose sums meet total_time [0.5, 1.5]"), "{e}");
         let e = Jump::embedded("moonwalk").unwrap_err().to_string();
@@ -557,5 +578,13 @@ mod tests {
         assert_eq!(j.srb().phase_time, Some(vec![(0.4, 0.6), (0.25, 0.35)]));
         assert_eq!(j.reference_srb().phase_time, None);
         assert_eq!(Jump::from_toml(LATERAL, "t").unwrap().srb().phase_time, None);
+    }
+
+    #[test]
+    fn landing_extension_reaches_the_jumps_problem_but_not_the_reference_scripts() {
+        let j = Jump::from_toml(&LATERAL.replace("angle_deg = 0.0", "angle_deg = 0.0\nlanding_extension = 0.06"), "t").unwrap();
+        assert_eq!(j.srb().landing_extension, 0.06);
+        assert_eq!(j.reference_srb().landing_extension, 0.0);
+        assert_eq!(Jump::from_toml(LATERAL, "t").unwrap().srb().landing_extension, 0.0);
     }
 }

@@ -45,6 +45,11 @@ pub struct JumpSpec {
     /// Bounds `[lo, hi]` of each phase's duration `T_i` (s), one per phase; `None`: every
     /// phase within the settings' `[t_lo, t_hi]` (the reference script's 0.1-1.0 s).
     pub phase_time: Option<Vec<(f64, f64)>>,
+    /// How much higher (m, world z) than in the standing pose the CoM ends over the landing
+    /// feet (0: the standing pose). The final pose is the touch-down pose and the full body
+    /// lands in its legs' inverse kinematics: straighter legs leave a longer stroke to stop
+    /// the touch-down speed in under the motors' torque limit (docs/experiments/jump-flip-4.md).
+    pub landing_extension: f64,
 }
 
 /// The seven jumps of the paper's Table I under the reference script's names (`lateral30`,
@@ -226,10 +231,13 @@ impl ContactTimingProblem {
         let h0 = -params.foot_rel_com.iter().map(|f| f[2]).sum::<f64>() / 4.0;
         let pbar: [Vector3<f64>; 4] = std::array::from_fn(|f| Vector3::new(params.foot_rel_com[f][0], params.foot_rel_com[f][1], -h0));
         let p0 = Vector3::new(0.0, 0.0, jump.box_height + h0);
-        let pg = p0 + jump.displacement;
+        // The landing feet stand where the standing pose at the displaced CoM puts them; the
+        // CoM ends `landing_extension` above that pose (the legs straighter at touch-down).
+        let pg_standing = p0 + jump.displacement;
+        let pg = pg_standing + Vector3::new(0.0, 0.0, jump.landing_extension);
         let rg = rotation(&jump.axis, jump.angle);
         let feet_start = std::array::from_fn(|f| p0 + pbar[f]);
-        let feet_goal = std::array::from_fn(|f| pg + rg * pbar[f]);
+        let feet_goal = std::array::from_fn(|f| pg_standing + rg * pbar[f]);
         let shared = Arc::new(Shared {
             mass: params.mass,
             inertia: params.inertia,
