@@ -65,6 +65,42 @@ fn dot3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// Column `k`'s `dF/dq` (without the ancestors' `J x* f`, added where the rows need it) and
+/// `dF/dv` of a joint with composite inertia `oYc` and inertia variation `dYc = (t, B)`
+/// (`dY x = [t x x_w; B x_w]`; the root's children have no `dV/dq` term):
+///
+/// ```text
+/// dF/dq_k = oYc dA/dq_k + dYc dV/dq_k,   dF/dv_k = oYc dA/dv_k + dYc J_k
+/// ```
+#[inline(always)]
+fn force_derivative_columns(oyc: &InertiaMoments, (t, b): (&Vector3<f64>, &Matrix3<f64>), has_parent: bool, jc: &Motion, dvdq: &Motion, dadq: &Motion, dadv: &Motion) -> (Force, Force) {
+    let mut dfdq = oyc.mul_motion(dadq);
+    if has_parent {
+        dfdq += Force::new(t.cross(&dvdq.w), b * dvdq.w);
+    }
+    let dfdv = oyc.mul_motion(dadv) + Force::new(t.cross(&jc.w), b * jc.w);
+    (dfdq, dfdv)
+}
+
+/// The angular half of `dYc^T J_k = [0; -t x J_v + B^T J_w]` (its linear half is zero).
+#[inline(always)]
+fn dy_transpose_j((t, b): (&Vector3<f64>, &Matrix3<f64>), jc: &Motion) -> Vector3<f64> {
+    b.tr_mul(&jc.w) - t.cross(&jc.v)
+}
+
+/// Adds joint `i`'s subtree sums (`oYc_i`, `dYc_i`, `f_i`) into its parent's, if any: the
+/// composite quantities of the backward pass.
+#[inline]
+fn add_to_parent(data: &mut Data, i: usize, parent: usize) {
+    if parent > 0 {
+        let (oyc, t, b, of) = (data.o_y_crb[i], data.do_y_top[i], data.do_y_b[i], data.of[i]);
+        data.o_y_crb[parent] += oyc;
+        data.do_y_top[parent] += t;
+        data.do_y_b[parent] += b;
+        data.of[parent] += of;
+    }
+}
+
 /// Partial derivatives of `tau = RNEA(q, v, a)`: `data.dtau_dq`, `data.dtau_dv`, and
 /// `data.mass_matrix` (`= d tau / d a`, full and symmetric); `data.tau` is set too.
 ///
@@ -102,16 +138,10 @@ pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>
             data.tau[k] = jc.dot(&of);
             // dF/da = oYc J (the A_g column at the world origin); dY^T J = [0; -t x J_v + B^T J_w]
             set_col_f(&mut data.dfda, k, &oyc.mul_motion(&jc));
-            let yt = b.tr_mul(&jc.w) - t.cross(&jc.v);
+            let yt = dy_transpose_j((&t, &b), &jc);
             data.dytj.as_mut_slice()[3 * k..3 * k + 3].copy_from_slice(yt.as_slice());
-            let (dvdq, dadq, dadv) = (col(&data.dvdq, k), col(&data.dadq, k), col(&data.dadv, k));
-            // dY x = [t x x_w; B x_w]
-            let mut dfdq = oyc.mul_motion(&dadq);
-            if p > 0 {
-                dfdq += Force::new(t.cross(&dvdq.w), b * dvdq.w);
-            }
+            let (dfdq, dfdv) = force_derivative_columns(&oyc, (&t, &b), p > 0, &jc, &col(&data.dvdq, k), &col(&data.dadq, k), &col(&data.dadv, k));
             set_col_f(&mut data.dfdq, k, &dfdq);
-            let dfdv = oyc.mul_motion(&dadv) + Force::new(t.cross(&jc.w), b * jc.w);
             set_col_f(&mut data.dfdv, k, &dfdv);
         }
         let (js, dfda, dytj, dfdq, dfdv) =
@@ -145,19 +175,10 @@ pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>
             let cur = col(&data.dfdq, k);
             set_col(&mut data.dfdq, k, &Motion::new(cur.v + add.f, cur.w + add.n));
         }
-        if p > 0 {
-            data.o_y_crb[p] += oyc;
-            data.do_y_top[p] += t;
-            data.do_y_b[p] += b;
-            data.of[p] += of;
-        }
+        add_to_parent(data, i, p);
     }
     // M: mirror the upper triangle.
-    for r in 0..nv {
-        for c in 0..r {
-            data.mass_matrix[(r, c)] = data.mass_matrix[(c, r)];
-        }
-    }
+    data.mass_matrix.fill_lower_triangle_with_upper_triangle();
 }
 
 /// The forward pass of [`compute_rnea_derivatives`]: placements, world velocities and
@@ -241,20 +262,10 @@ pub fn rnea_derivatives_forward(model: &Model, data: &mut Data, q: &DVector<f64>
                 }
             }
         }
-        if p > 0 {
-            let (oyc, t, b, of) = (data.o_y_crb[i], data.do_y_top[i], data.do_y_b[i], data.of[i]);
-            data.o_y_crb[p] += oyc;
-            data.do_y_top[p] += t;
-            data.do_y_b[p] += b;
-            data.of[p] += of;
-        }
+        add_to_parent(data, i, p);
     }
     if mass_matrix {
-        for r in 0..nv {
-            for c in 0..r {
-                data.mass_matrix[(r, c)] = data.mass_matrix[(c, r)];
-            }
-        }
+        data.mass_matrix.fill_lower_triangle_with_upper_triangle();
     }
 }
 
@@ -293,15 +304,11 @@ pub fn rnea_derivatives_tr_mul(model: &Model, data: &mut Data, w: &[f64], w_dtau
         let (mut s_own, mut t_own) = (Force::zero(), Vector3::zeros());
         for k in jnt.idx_v..jnt.idx_v + jnt.nv {
             let (jc, dvdq, dadq, dadv) = (col(&data.jacobian, k), col(&data.dvdq, k), col(&data.dadq, k), col(&data.dadv, k));
-            let mut dfdq = oyc.mul_motion(&dadq);
-            if p > 0 {
-                dfdq += Force::new(t.cross(&dvdq.w), b * dvdq.w);
-            }
-            let dfdv = oyc.mul_motion(&dadv) + Force::new(t.cross(&jc.w), b * jc.w);
+            let (dfdq, dfdv) = force_derivative_columns(&oyc, (&t, &b), p > 0, &jc, &dvdq, &dadq, &dadv);
             w_dtau_dq[k] = wi.dot(&dfdq) + wp.dot(&jc.cross_force(&of)) + dadq.dot(&s_sub) + t_sub.dot(&dvdq.w);
             w_dtau_dv[k] = wi.dot(&dfdv) + dadv.dot(&s_sub) + t_sub.dot(&jc.w);
             s_own += oyc.mul_motion(&jc) * w[k];
-            t_own += (b.tr_mul(&jc.w) - t.cross(&jc.v)) * w[k];
+            t_own += dy_transpose_j((&t, &b), &jc) * w[k];
         }
         let (s_i, t_i) = (s_sub + s_own, t_sub + t_own);
         if p > 0 {
