@@ -166,6 +166,17 @@ fn parallel_stage_work_takes_the_sequential_path() {
     }
 }
 
+/// `jump` on the A1 at 15 knots per phase with the pipeline's solver settings, solved
+/// (`what` names the variant in the failure message): the problem and its optimum.
+fn solve_at_15_knots(jump: &legwork::srb::JumpSpec, what: &str) -> (ContactTimingProblem, Vec<DVector<f64>>) {
+    let settings = ContactTimingSettings { knots_per_phase: 15, ..Default::default() };
+    let ct = ContactTimingProblem::new(jump, &SrbParams::a1().unwrap(), &settings).unwrap();
+    let mut solver = ct.solver(ContactTimingProblem::solver_settings()).unwrap();
+    let r = ct.solve(&mut solver).unwrap();
+    assert_eq!(r.status, Status::Solved, "{what}: after {} iterations", r.iterations);
+    (ct, r.last.primal)
+}
+
 /// A jump's own per-phase duration bounds (`JumpSpec::phase_time`) hold each `T_i` where
 /// the settings' common `[t_lo, t_hi]` lets the optimum leave them; bounds that are not one
 /// per phase, or cannot sum into `total_time`, are refused.
@@ -177,11 +188,8 @@ fn phase_time_bounds_hold_each_phase() {
     let bounded = legwork::srb::JumpSpec { phase_time: Some(bounds.clone()), ..free.clone() };
     let settings = ContactTimingSettings { knots_per_phase: 15, ..Default::default() };
     let durations = |jump: &legwork::srb::JumpSpec| {
-        let ct = ContactTimingProblem::new(jump, &params, &settings).unwrap();
-        let mut solver = ct.solver(ContactTimingProblem::solver_settings()).unwrap();
-        let r = ct.solve(&mut solver).unwrap();
-        assert_eq!(r.status, Status::Solved, "{:?}: after {} iterations", jump.phase_time, r.iterations);
-        ct.durations(&r.last.primal)
+        let (ct, primal) = solve_at_15_knots(jump, &format!("{:?}", jump.phase_time));
+        ct.durations(&primal)
     };
     let (t_free, t_bounded) = (durations(&free), durations(&bounded));
     let inside = |t: &[f64]| t.iter().zip(&bounds).all(|(t, (lo, hi))| *t >= lo - 1e-8 && *t <= hi + 1e-8);
@@ -199,18 +207,19 @@ fn phase_time_bounds_hold_each_phase() {
 /// 0 and 8 cm solve, the final CoM heights differ by 8 cm, the final feet not at all).
 #[test]
 fn landing_extension_raises_the_final_com_over_the_same_feet() {
-    let params = SrbParams::a1().unwrap();
     let standing = Jump::embedded("lateral").unwrap().srb();
     let extended = legwork::srb::JumpSpec { landing_extension: 0.08, ..standing.clone() };
-    let settings = ContactTimingSettings { knots_per_phase: 15, ..Default::default() };
     let last_knot = |jump: &legwork::srb::JumpSpec| {
-        let ct = ContactTimingProblem::new(jump, &params, &settings).unwrap();
-        let mut solver = ct.solver(ContactTimingProblem::solver_settings()).unwrap();
-        let r = ct.solve(&mut solver).unwrap();
-        assert_eq!(r.status, Status::Solved, "landing_extension {}: after {} iterations", jump.landing_extension, r.iterations);
-        let trajectory = legwork::srb::SrbTrajectory::from_solution(&ct, &r.last.primal).unwrap();
+        let (ct, primal) = solve_at_15_knots(jump, &format!("landing_extension {}", jump.landing_extension));
+        let trajectory = legwork::srb::SrbTrajectory::from_solution(&ct, &primal).unwrap();
         trajectory.knots.last().unwrap().clone()
     };
+    // Outside [0, MAX_LANDING_EXTENSION], or NaN, the problem is refused.
+    for rise in [-0.01, legwork::srb::MAX_LANDING_EXTENSION + 0.01, f64::NAN] {
+        let jump = legwork::srb::JumpSpec { landing_extension: rise, ..standing.clone() };
+        let e = ContactTimingProblem::new(&jump, &SrbParams::a1().unwrap(), &ContactTimingSettings::default()).err().expect("refused").to_string();
+        assert!(e.contains("landing_extension must be within"), "{rise}: {e}");
+    }
     let (a, b) = (last_knot(&standing), last_knot(&extended));
     assert!((b.com.z - a.com.z - 0.08).abs() < 1e-6, "final CoM z {} vs {}", b.com.z, a.com.z);
     assert!((b.com.xy() - a.com.xy()).norm() < 1e-6, "final CoM {} vs {}", b.com, a.com);

@@ -43,7 +43,7 @@
 //! expected. The jump starts standing on the box (or the ground) and lands on the ground:
 //! `displacement[2] = -box.height`.
 
-use crate::srb::{BoxExtent, ContactTimingError, ContactTimingSettings, Contacts, ExpMap, JumpSpec, SrbParams};
+use crate::srb::{BoxExtent, ContactTimingError, ContactTimingSettings, Contacts, ExpMap, JumpSpec, SrbParams, MAX_LANDING_EXTENSION};
 use crate::terrain::{BoxSpec, Boxes};
 use nalgebra::{Matrix3, Vector3};
 use serde::Deserialize;
@@ -62,11 +62,6 @@ pub const EMBEDDED_JUMPS: &[(&str, &str, &str)] = &[
     ("double_barrel_roll", "double_barrel_roll", include_str!("../../jumps/double_barrel_roll.toml")),
     ("double_backflip", "double_backflip", include_str!("../../jumps/double_backflip.toml")),
 ];
-
-/// The largest `[target] landing_extension` (m): the SRB's stance CoM height bound is the
-/// standing height + 0.15 m (`ContactTimingProblem`), and the A1's legs (0.2 + 0.2 m) are
-/// straight about 0.13 m above its standing pose.
-pub const MAX_LANDING_EXTENSION: f64 = 0.12;
 
 /// Foot names of the `phases` lists, in the contact-timing formulation's order.
 pub const FOOT_NAMES: [&str; 4] = ["LF", "RF", "LH", "RH"];

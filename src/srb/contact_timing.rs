@@ -52,6 +52,11 @@ pub struct JumpSpec {
     pub landing_extension: f64,
 }
 
+/// The largest [`JumpSpec::landing_extension`] (m): the stance CoM height bound is the
+/// standing height + 0.15 m, and the A1's legs (0.2 + 0.2 m) are straight about 0.13 m above
+/// its standing pose.
+pub const MAX_LANDING_EXTENSION: f64 = 0.12;
+
 /// The seven jumps of the paper's Table I under the reference script's names (`lateral30`,
 /// `spin90`, ...: its `JUMPS` keys and results), read from the embedded jump files
 /// ([`crate::jump::EMBEDDED_JUMPS`]): the files' targets, which land clear of the box.
@@ -222,6 +227,9 @@ impl ContactTimingProblem {
         let sum = |f: fn(&(f64, f64)) -> f64| phase_time.iter().map(f).sum::<f64>();
         if sum(|b| b.0) > t_max || sum(|b| b.1) < t_min {
             return Err(bad("the phase_time bounds cannot sum into total_time (2j)"));
+        }
+        if !(0.0..=MAX_LANDING_EXTENSION).contains(&jump.landing_extension) {
+            return Err(bad("landing_extension must be within [0, MAX_LANDING_EXTENSION = 0.12] m"));
         }
         let inertia_inv = params.inertia.try_inverse().ok_or(ContactTimingError::SingularInertia(params.inertia))?;
         let np = jump.phases.len();

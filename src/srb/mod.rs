@@ -9,7 +9,7 @@ mod params;
 pub mod solution;
 mod stage;
 
-pub use contact_timing::{jumps, reference_jumps, BoxExtent, ContactTimingError, ContactTimingProblem, ContactTimingSettings, Contacts, JumpSpec};
+pub use contact_timing::{jumps, reference_jumps, BoxExtent, ContactTimingError, ContactTimingProblem, ContactTimingSettings, Contacts, JumpSpec, MAX_LANDING_EXTENSION};
 pub use exp_map::ExpMap;
 pub use params::{SrbParams, SrbParamsError};
 pub use solution::{SrbKnot, SrbSolutionError, SrbTrajectory};
