@@ -106,6 +106,29 @@ fn initial_guess_legs_reach_their_contact_points() {
 }
 
 #[test]
+fn initial_guess_moves_the_base_towards_out_of_reach_feet_without_a_jump() {
+    // lateral_down's SRB plan puts the CoM beyond the legs' reach over the last stance knots;
+    // the guess moves the base towards the feet there. Moved knot by knot, the base jumped
+    // 14 cm within one 10 ms step before lift-off (a 14 m/s velocity the dynamics rows spent
+    // ~40 iterations undoing); smoothed over +-5 knots, its speed stays near the SRB's.
+    let model = embedded::load("a1").unwrap();
+    let srb = srb_solution("lateral_down").resample(0.01).unwrap();
+    let guess = initial_guess(&model, &srb, 8).unwrap();
+    let srb_speed = srb.knots.iter().map(|k| k.com_velocity.norm()).fold(0.0, f64::max);
+    let base_speed = guess.knots.iter().map(|k| (k.v[0] * k.v[0] + k.v[1] * k.v[1] + k.v[2] * k.v[2]).sqrt()).fold(0.0, f64::max);
+    assert!(base_speed < srb_speed + 1.0, "base speed {base_speed:.2} m/s against the SRB's {srb_speed:.2} m/s");
+    // The stance feet still reach their contact points.
+    let mut data = Data::new(&model);
+    for (k, knot) in guess.knots.iter().enumerate() {
+        forward_kinematics(&model, &mut data, &DVector::from_column_slice(&knot.q));
+        for f in (0..4).filter(|&f| knot.in_contact[f]) {
+            let p = frame_position(&model, &data, model.feet[f].frame);
+            assert!((p - srb.knots[k].feet[f]).norm() < 1e-6, "knot {k} foot {f}");
+        }
+    }
+}
+
+#[test]
 fn initial_guess_rejects_a_pre_landing_window_longer_than_the_flight() {
     let model = embedded::load("a1").unwrap();
     let srb = srb_solution("lateral30").resample(0.01).unwrap();

@@ -5,8 +5,10 @@
 //!   nominal pose is the SRB CoM, `t = p - R c_b` (`c_b` the nominal CoM in the base frame);
 //! - stance legs by inverse kinematics to their contact points (at the lift-off knot as
 //!   close as the joint limits allow); where the SRB's foot sphere (2d) asks for more than
-//!   a leg reaches, the base is moved towards the feet until every stance foot is reached; a leg in the air blends (smoothstep) from its lift-off angles to
-//!   the pre-landing angles, which it holds over the last `a` knots;
+//!   a leg reaches, the base is moved towards the feet until every stance foot is reached
+//!   (the move smoothed over +-5 knots, so that it does not start and stop within one
+//!   step); a leg in the air blends (smoothstep) from its lift-off angles to the
+//!   pre-landing angles, which it holds over the last `a` knots;
 //! - the pre-landing angles: inverse kinematics of the SRB's final feet in the final pose;
 //! - joint velocities by backward differences (`q_k = q_{k-1} (+) dt v_k`, the semi-implicit
 //!   Euler step of the full-body dynamics), `v_0 = 0`;
@@ -16,7 +18,7 @@
 //!   closer to the box than its radius plus a margin is moved out along the box's
 //!   signed-distance gradient (up above the top while over it, out past the edge beside
 //!   it) by inverse kinematics, so the guess starts the box-clearance rows satisfied
-//!   where the leg reaches.
+//!   where the leg reaches (the lift smoothed over +-5 knots).
 
 // Index loops over legs and joints read like the equations they implement.
 #![allow(clippy::needless_range_loop)]
@@ -89,6 +91,54 @@ pub const BOX_MARGIN: f64 = 0.03;
 /// Half-width (knots) of the window over which the guess smooths the feet's lift off the box.
 pub const BOX_SMOOTHING: usize = 5;
 
+/// Half-width (knots) of the window over which the guess smooths the base's shift towards
+/// stance feet the SRB places beyond the legs' reach.
+pub const BASE_SMOOTHING: usize = 5;
+
+/// Per knot, the mean over `k - w ..= k + w` of each knot's widest value (by norm) within
+/// its own `+-w` window: equal to a value where it is the largest within `2 w` knots, and
+/// ramping up to it over the `2 w` knots before and after instead of within one knot.
+fn windowed_envelope(values: &[[f64; 3]], w: usize) -> Vec<[f64; 3]> {
+    let n = values.len();
+    let window = |k: usize| k.saturating_sub(w)..(k + w + 1).min(n);
+    let norm = |l: &[f64; 3]| l.iter().map(|x| x * x).sum::<f64>();
+    let widest: Vec<[f64; 3]> = (0..n).map(|k| window(k).map(|j| values[j]).max_by(|a, b| norm(a).total_cmp(&norm(b))).unwrap_or_default()).collect();
+    (0..n)
+        .map(|k| {
+            let count = window(k).len() as f64;
+            std::array::from_fn(|a| window(k).map(|j| widest[j][a]).sum::<f64>() / count)
+        })
+        .collect()
+}
+
+/// Stance legs by inverse kinematics to their contact points `feet`, with the base moved
+/// towards them where the SRB's foot sphere (2d) asks for more than a leg reaches (the knee
+/// stops at -52.5 deg); returns the base's move.
+fn reach_stance_feet(model: &Model, data: &mut Data, legs: &[Leg], k: usize, feet: &[Vector3<f64>; 4], stance: &[usize], q: &mut DVector<f64>) -> Result<Vector3<f64>, FullBodyError> {
+    let mut shift = Vector3::zeros();
+    for _ in 0..=50 {
+        let mut pull = Vector3::zeros();
+        let mut worst = 0.0f64;
+        for &f in stance {
+            let miss = leg_inverse_kinematics(model, data, &legs[f], &feet[f], q);
+            if miss > IK_TOLERANCE {
+                pull += feet[f] - frame_position(model, data, legs[f].foot_frame);
+            }
+            worst = worst.max(miss);
+        }
+        if worst <= IK_TOLERANCE {
+            return Ok(shift);
+        }
+        for a in 0..3 {
+            q[a] += pull[a];
+        }
+        shift += pull;
+    }
+    let d = |f: usize| (feet[f] - frame_position(model, data, legs[f].foot_frame)).norm();
+    let f = stance.iter().copied().max_by(|&a, &b| d(a).total_cmp(&d(b))).unwrap_or(0);
+    Err(FullBodyError::Unreachable { foot: model.feet[f].name.clone(), knot: k, distance: d(f) })
+}
+
 /// The initial guess on the grid of `srb` (uniform, as [`SrbTrajectory::resample`] makes
 /// it), with the pre-landing angles over the last `pre_landing_knots` knots (and the last).
 pub fn initial_guess(model: &Model, srb: &SrbTrajectory, pre_landing_knots: usize) -> Result<Trajectory, FullBodyError> {
@@ -127,41 +177,27 @@ pub fn initial_guess_clear_of(model: &Model, srb: &SrbTrajectory, pre_landing_kn
     let mut data = Data::new(model);
     let mut qs: Vec<DVector<f64>> = Vec::with_capacity(n);
     let mut q = nominal(model)?;
+    let stance_at = |k: usize| -> Vec<usize> { (0..4).filter(|&f| k < lift_off[f]).collect() };
+    // The base shift each knot's stance legs need, smoothed over time: a shift that starts
+    // and stops within one knot is a velocity jump the dynamics rows cannot follow.
+    let mut base_shift = vec![[0.0f64; 3]; n];
+    for (k, knot) in srb.knots.iter().enumerate() {
+        set_base(&mut q, &knot.com, &knot.rotation, &params.com_in_base);
+        let shift = reach_stance_feet(model, &mut data, &legs, k, &knot.feet, &stance_at(k), &mut q)?;
+        base_shift[k] = [shift.x, shift.y, shift.z];
+    }
+    let base_shift = windowed_envelope(&base_shift, BASE_SMOOTHING);
     let mut lift_off_angles = [[0.0; 3]; 4];
     // Per knot and leg, the joint-angle change that lifts an airborne foot off the box.
     let mut box_lift = vec![[[0.0f64; 3]; 4]; n];
     for (k, knot) in srb.knots.iter().enumerate() {
         set_base(&mut q, &knot.com, &knot.rotation, &params.com_in_base);
-        // Stance legs, with the base moved towards the feet where the SRB's foot sphere (2d)
-        // asks for more than a leg reaches (the knee stops at -52.5 deg).
-        let stance: Vec<usize> = (0..4).filter(|&f| k < lift_off[f]).collect();
-        let mut shift_left = 50;
-        loop {
-            let mut pull = Vector3::zeros();
-            let mut worst = 0.0f64;
-            for &f in &stance {
-                let target = knot.feet[f];
-                let miss = leg_inverse_kinematics(model, &mut data, &legs[f], &target, &mut q);
-                if miss > IK_TOLERANCE {
-                    pull += target - frame_position(model, &data, legs[f].foot_frame);
-                }
-                worst = worst.max(miss);
-            }
-            if worst <= IK_TOLERANCE {
-                break;
-            }
-            if shift_left == 0 {
-                let f = stance.iter().copied().max_by(|&a, &b| {
-                    let d = |f: usize| (knot.feet[f] - frame_position(model, &data, legs[f].foot_frame)).norm();
-                    d(a).total_cmp(&d(b))
-                });
-                return Err(FullBodyError::Unreachable { foot: model.feet[f.unwrap_or(0)].name.clone(), knot: k, distance: worst });
-            }
-            shift_left -= 1;
-            for a in 0..3 {
-                q[a] += pull[a];
-            }
+        for a in 0..3 {
+            q[a] += base_shift[k][a];
         }
+        // Stance legs, with the base moved further towards the feet if the smoothed shift
+        // still leaves one out of reach.
+        reach_stance_feet(model, &mut data, &legs, k, &knot.feet, &stance_at(k), &mut q)?;
         for f in 0..4 {
             let leg = &legs[f];
             if k < lift_off[f] {
@@ -207,17 +243,14 @@ pub fn initial_guess_clear_of(model: &Model, srb: &SrbTrajectory, pre_landing_kn
         // +-BOX_SMOOTHING knots, averaged over the same window, so the foot rises before
         // it needs to and comes down after it has passed the edge.
         let w = BOX_SMOOTHING;
-        let norm = |l: &[f64; 3]| l.iter().map(|x| x * x).sum::<f64>();
         for f in 0..4 {
-            let widest: Vec<[f64; 3]> = (0..n).map(|k| (k.saturating_sub(w)..(k + w + 1).min(n)).map(|j| box_lift[j][f]).max_by(|a, b| norm(a).total_cmp(&norm(b))).unwrap_or_default()).collect();
+            let lift_of_leg: Vec<[f64; 3]> = box_lift.iter().map(|l| l[f]).collect();
+            let smoothed = windowed_envelope(&lift_of_leg, w);
             for k in (0..n).filter(|&k| k > lift_off[f] && k < prelanding_start) {
-                let window = k.saturating_sub(w)..(k + w + 1).min(n);
-                let count = window.len() as f64;
                 for a in 0..3 {
                     let i = legs[f].q_index[a];
-                    let lift = window.clone().map(|j| widest[j][a]).sum::<f64>() / count;
                     let jnt = &model.joints[model.joint_of_dof[legs[f].v_index[a]]];
-                    qs[k][i] = (qs[k][i] + lift).clamp(jnt.limits.lower[0], jnt.limits.upper[0]);
+                    qs[k][i] = (qs[k][i] + smoothed[k][a]).clamp(jnt.limits.lower[0], jnt.limits.upper[0]);
                 }
             }
         }
