@@ -8,14 +8,16 @@
 //!     [--no-restoration] [--plain-guess] [--reference-targets] [--w-acceleration W]
 //!     [--max-acceleration A] [--w-velocity W] [--max-stance-speed V] [--out DIR]
 //!     [--barrier RULE] [--ct-barrier RULE] [--curvature-after N] [--curvature-violation V]
-//!     [--curvature-by-jacobians] [--curvature-stall W] [--id-torques] [--rnea-tr-mul on|off] [--foot-margin M] [--lift-off-force F]
+//!     [--curvature-by-jacobians] [--curvature-stall W] [--curvature-refresh R] [--id-torques] [--rnea-tr-mul on|off] [--foot-margin M] [--lift-off-force F]
 //!     [--ballistic off|angular|full] [--w-flight-momentum W] [--stance-balance] [--start-defect]
 //!     [jump ... | file.toml ...]
 //! ```
 //!
 //! The pipeline's settings (`legwork jump`, `legwork bench jumps`) are `--curvature-after 60
-//! --curvature-stall 10 --foot-margin 0.01` plus the jump file's `--lift-off-force` (lateral_down: 20); without
-//! them the example solves Gauss-Newton throughout. `--curvature-violation V`: hand over to
+//! --curvature-stall 5 --curvature-refresh 2 --foot-margin 0.01` plus the jump file's
+//! `--lift-off-force` (lateral_down: 20); without them the example solves Gauss-Newton
+//! throughout; `--curvature-refresh R`: the curvature formed every R iterations, reused in
+//! between (default 1). `--curvature-violation V`: hand over to
 //! the curvature phase at violation V (default 1); `--curvature-stall W`: also before N
 //! iterations once the violation is at most V and has not reached a new low for W iterations;
 //! `--curvature-by-jacobians`: that
@@ -63,6 +65,7 @@ fn main() -> anyhow::Result<()> {
     let mut id_torques = false;
     let mut rnea_tr_mul = None;
     let mut curvature_stall = None;
+    let mut curvature_refresh = 1;
     let mut start_defect = false;
     let mut foot_margin = 0.0;
     let mut lift_off_force = f64::INFINITY;
@@ -106,6 +109,7 @@ fn main() -> anyhow::Result<()> {
             "--curvature-violation" => curvature_violation = Some(args.next().ok_or_else(|| anyhow::anyhow!("--curvature-violation: a bound"))?.parse::<f64>()?),
             "--curvature-by-jacobians" => curvature_by_jacobians = true,
             "--id-torques" => id_torques = true,
+            "--curvature-refresh" => curvature_refresh = args.next().ok_or_else(|| anyhow::anyhow!("--curvature-refresh: iterations"))?.parse()?,
             "--curvature-stall" => curvature_stall = Some(args.next().ok_or_else(|| anyhow::anyhow!("--curvature-stall: iterations"))?.parse()?),
             "--rnea-tr-mul" => rnea_tr_mul = Some(args.next().as_deref() == Some("on")),
             "--start-defect" => start_defect = true,
@@ -133,6 +137,7 @@ fn main() -> anyhow::Result<()> {
         curvature_max_violation: curvature_violation.unwrap_or(defaults.curvature_max_violation),
         start_torques_by_inverse_dynamics: id_torques,
         curvature_on_stall: curvature_stall,
+        curvature_refresh,
         curvature_rnea_tr_mul: rnea_tr_mul.unwrap_or(defaults.curvature_rnea_tr_mul),
         airborne_foot_margin: foot_margin,
         lift_off_normal_force: lift_off_force,

@@ -340,6 +340,47 @@ fn constraint_curvature_by_gradients_matches_the_jacobian_differences() {
     }
 }
 
+/// `curvature_refresh = 2`: a knot's second Hessian of a curvature phase adds the curvature
+/// its first one formed (at the first point and multipliers), the third forms it anew, and
+/// a new phase does not reuse the last one's.
+#[test]
+fn lagged_curvature_reuses_the_last_formed_one() {
+    let (lagged, _) = lateral_problem_with(FullBodySettings { curvature_refresh: 2, ..FullBodySettings::default() }, None);
+    let (exact, _) = lateral_problem(None);
+    let mut rng = Lcg(3);
+    let k = 5;
+    let (stage, exact_stage) = (lagged.problem.stage(k), exact.problem.stage(k));
+    let d = stage.dims();
+    let nz = d.nz();
+    let point = |rng: &mut Lcg| DVector::from_fn(nz, |i, _| lagged.start[k][i] + if i < 36 { 0.02 } else { 0.5 } * rng.next());
+    let (z1, z2) = (point(&mut rng), point(&mut rng));
+    let lam = DVector::from_fn(d.nx_next, |_, _| 10.0 * rng.next());
+    let nu = DVector::from_fn(d.ng, |_, _| 10.0 * rng.next());
+    let y = DVector::from_fn(d.nh, |_, _| 10.0 * rng.next());
+    let m = StageMultipliers { cost: 1.0, dynamics: lam.as_slice(), equalities: nu.as_slice(), inequalities: y.as_slice() };
+    let hessian = |stage: &dyn Stage, z: &DVector<f64>| {
+        let mut h = DMatrix::zeros(nz, nz);
+        stage.lagrangian_hessian(z.as_slice(), m, &mut h);
+        h
+    };
+    let (gauss_newton_1, gauss_newton_2) = (hessian(stage, &z1), hessian(stage, &z2));
+    lagged.set_constraint_curvature(true);
+    exact.set_constraint_curvature(true);
+    let formed = hessian(stage, &z1);
+    let reused = hessian(stage, &z2);
+    let formed_again = hessian(stage, &z2);
+    let curvature_1 = &formed - &gauss_newton_1;
+    assert!(curvature_1.amax() > 1e-3, "no curvature formed");
+    assert!((&reused - &gauss_newton_2 - &curvature_1).amax() < 1e-9 * curvature_1.amax(), "the second Hessian does not add the first one's curvature");
+    let exact_2 = hessian(exact_stage, &z2);
+    assert_eq!(formed_again, exact_2, "the third Hessian is not formed anew");
+    assert!((&exact_2 - &reused).amax() > 1e-6, "the points give the same curvature: the test cannot tell");
+    // A new phase forms its own first.
+    lagged.set_constraint_curvature(false);
+    lagged.set_constraint_curvature(true);
+    assert_eq!(hessian(stage, &z2), exact_2);
+}
+
 #[test]
 fn lateral_jump_solves_end_to_end_within_every_limit() {
     let (fb, _) = lateral_problem(None);
@@ -424,6 +465,8 @@ fn full_body_problem_rejects_bad_input() {
     let new = |s: &FullBodySettings, b: Option<BoxObstacle>, g: &legwork::io::Trajectory| FullBodyProblem::new(&model, &srb, g, s, b).err().unwrap();
     let e = new(&FullBodySettings { w_torque: 0.0, ..settings.clone() }, None, &guess);
     assert_eq!(e, FullBodyError::Setting { field: "w_torque", value: 0.0, expected: "> 0" });
+    let e = new(&FullBodySettings { curvature_refresh: 0, ..settings.clone() }, None, &guess);
+    assert_eq!(e, FullBodyError::Setting { field: "curvature_refresh", value: 0.0, expected: ">= 1" });
     let e = new(&FullBodySettings { lift_off_normal_force: 1.0, ..settings.clone() }, None, &guess);
     assert!(matches!(e, FullBodyError::Setting { field: "lift_off_normal_force", .. }), "{e}");
     let e = new(&FullBodySettings { dt: 0.02, ..settings.clone() }, None, &guess);

@@ -17,7 +17,7 @@ use crate::model::Model;
 use crate::srb::SrbTrajectory;
 use nalgebra::{DVector, Vector3};
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -147,6 +147,7 @@ impl FullBodyProblem {
             foot_radius: model.feet[0].radius,
             curvature: AtomicBool::new(false),
             curvature_by_jacobians: AtomicBool::new(false),
+            curvature_phase: AtomicUsize::new(0),
         });
         let q_final = DVector::from_column_slice(&guess.knots[last].q);
         let qbar: Vec<DVector<f64>> = (0..n)
@@ -267,7 +268,7 @@ impl FullBodyProblem {
         if !switched {
             return Ok(self.plan(&first, t0.elapsed()));
         }
-        self.shared.curvature.store(true, Ordering::Relaxed);
+        self.set_constraint_curvature(true);
         let second_settings = Settings {
             max_iterations: settings.solver.max_iterations - first.iterations,
             mu_init: first.mu,
@@ -295,8 +296,13 @@ impl FullBodyProblem {
     }
 
     /// Adds (or no longer adds) the constraints' curvature to the stages' Hessians: what the
-    /// second phase of [`Self::solve`] with `constraint_curvature_after` does.
+    /// second phase of [`Self::solve`] with `constraint_curvature_after` does. Each call
+    /// that turns it on starts a new curvature phase: no knot reuses a curvature formed
+    /// before it (`FullBodySettings::curvature_refresh`).
     pub fn set_constraint_curvature(&self, on: bool) {
+        if on {
+            self.shared.curvature_phase.fetch_add(1, Ordering::Relaxed);
+        }
         self.shared.curvature.store(on, Ordering::Relaxed);
     }
 

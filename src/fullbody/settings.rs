@@ -148,6 +148,12 @@ pub struct FullBodySettings {
     /// curvature iteration on lateral_down, the seven jumps' status and landings unchanged).
     /// Default on; off: the matrices (the iterates of before, to the bit).
     pub curvature_rnea_tr_mul: bool,
+    /// The curvature phase forms the constraints' curvature at every `curvature_refresh`-th
+    /// iteration of each knot and reuses the last one formed in between (a lagged Hessian:
+    /// the iterations in between cost a Gauss-Newton one; knots with the flight's momentum
+    /// rows, whose curvature is taken from the Jacobians, form it every iteration). 1: formed
+    /// every iteration (the default; the jump pipeline uses 2, docs/experiments/fb-curvature-lag.md).
+    pub curvature_refresh: usize,
     /// The barrier update of the curvature phase (`None`: the solver's, the default).
     pub curvature_barrier_update: Option<BarrierUpdate>,
     /// The interior-point solver's settings (`ipocp` defaults, 300 iterations at most,
@@ -221,6 +227,7 @@ impl Default for FullBodySettings {
             start_torques_by_inverse_dynamics: false,
             curvature_rnea_tr_mul: true,
             curvature_barrier_update: None,
+            curvature_refresh: 1,
             solver: Settings { max_iterations: 300, tolerance: 1e-6, constraint_violation_tolerance: 1e-6, parallel: true, ..Settings::default() },
         }
     }
@@ -232,6 +239,7 @@ impl FullBodySettings {
         let check = |field, value: f64, ok: bool, expected| if ok { Ok(()) } else { Err(FullBodyError::Setting { field, value, expected }) };
         check("dt", self.dt, self.dt > 0.0 && self.dt.is_finite(), "a finite positive step")?;
         check("pre_landing_knots", self.pre_landing_knots as f64, self.pre_landing_knots >= 1, ">= 1")?;
+        check("curvature_refresh", self.curvature_refresh as f64, self.curvature_refresh >= 1, ">= 1")?;
         check("mu", self.mu, self.mu > 0.0 && self.mu.is_finite(), "> 0")?;
         check("min_normal_force", self.min_normal_force, self.min_normal_force >= 0.0 && self.min_normal_force.is_finite(), ">= 0")?;
         check(

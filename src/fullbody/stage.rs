@@ -41,7 +41,7 @@ use crate::ipocp::{Stage, StageDims, StageJacobians, StageMultipliers, StageValu
 use crate::model::Model;
 use crate::spatial::skew;
 use nalgebra::{DMatrix, DVector, DVectorView, Matrix3, Matrix3xX, Vector3};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 mod curvature;
@@ -64,6 +64,9 @@ pub(crate) struct Shared {
     /// Take that curvature by central differences of the full Jacobians (the reference, `2 nx`
     /// Jacobian passes) instead of forward differences of the multiplier-weighted gradient.
     pub curvature_by_jacobians: AtomicBool,
+    /// Counts the curvature phases started: a knot's curvature formed in an earlier one is
+    /// not reused (`FullBodySettings::curvature_refresh`).
+    pub curvature_phase: AtomicUsize,
 }
 
 /// What one knot is.

@@ -137,6 +137,16 @@ pub const FULL_BODY_GAUSS_NEWTON_ITERATIONS: usize = 60;
 /// diagonal do not stall so; the five that land still land 20/20 in legwork and MuJoCo.
 pub const FULL_BODY_STALL_ITERATIONS: usize = 5;
 
+/// The curvature phase forms the constraints' curvature every this many iterations and
+/// reuses it in between (`FullBodySettings::curvature_refresh`; a curvature iteration costs
+/// ~5 Gauss-Newton ones). 2 (1, 3 in brackets; interleaved, idle AMD EPYC, full-body seconds,
+/// docs/experiments/fb-curvature-lag.md): lateral_down 0.73-0.77 (0.88-1.11, 0.83-0.95),
+/// barrel_roll 0.42-0.44 (0.50-0.63, 0.37-0.38), double_barrel_roll 1.68-1.70 (1.83-2.05,
+/// 1.40-1.55), double_backflip 2.52-2.64 (3.30-3.54, 2.03-2.06); 3 took lateral_down 98 ->
+/// 118 iterations. The same optima (lateral_down's and barrel_roll's costs to 7 digits) and
+/// landings.
+pub const FULL_BODY_CURVATURE_REFRESH: usize = 2;
+
 /// Options of [`run`] beyond the jump file.
 #[derive(Clone, Debug)]
 pub struct PipelineOptions {
@@ -152,7 +162,8 @@ pub struct PipelineOptions {
 
 impl PipelineOptions {
     /// The jump file's contact-timing settings, the full body's defaults with the constraint
-    /// curvature after [`FULL_BODY_GAUSS_NEWTON_ITERATIONS`], airborne feet kept
+    /// curvature after [`FULL_BODY_GAUSS_NEWTON_ITERATIONS`] (formed every
+    /// [`FULL_BODY_CURVATURE_REFRESH`] iterations), airborne feet kept
     /// `clearance` (1 cm) beyond their radius from the box, and the jump file's
     /// `[full_body]` settings (the lift-off force bound, the airborne feet's margin), every
     /// other setting its default.
@@ -165,6 +176,7 @@ impl PipelineOptions {
                 FullBodySettings {
                     constraint_curvature_after: Some(FULL_BODY_GAUSS_NEWTON_ITERATIONS),
                     curvature_on_stall: Some(FULL_BODY_STALL_ITERATIONS),
+                    curvature_refresh: FULL_BODY_CURVATURE_REFRESH,
                     airborne_foot_margin: jump.full_body.airborne_foot_margin.unwrap_or(defaults.clearance),
                     lift_off_normal_force: jump.full_body.lift_off_normal_force.unwrap_or(defaults.lift_off_normal_force),
                     ..defaults

@@ -30,6 +30,7 @@ use crate::dynamics::{
 use crate::fullbody::kinematics::{add_point_force_derivative, foot_position, knee_position, point_jacobian};
 use crate::ipocp::StageMultipliers;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use std::sync::atomic::Ordering;
 
 /// Buffers of [`FullBodyStage::add_constraint_curvature_by_gradients`].
 pub(super) struct GradientCurvature {
@@ -52,6 +53,9 @@ pub(super) struct GradientCurvature {
     t_kinematics: DVector<f64>,
     gradient_kinematics: DVector<f64>,
     dgen_dq: DMatrix<f64>,
+    /// The curvature phase `curvature` was formed in, and the Hessians asked for since.
+    phase: usize,
+    evaluations: usize,
 }
 
 impl GradientCurvature {
@@ -70,6 +74,8 @@ impl GradientCurvature {
             t_kinematics: DVector::zeros(nv),
             gradient_kinematics: DVector::zeros(nz),
             dgen_dq: DMatrix::zeros(nv, nv),
+            phase: usize::MAX,
+            evaluations: 0,
         }
     }
 }
@@ -91,6 +97,14 @@ impl FullBodyStage {
         let (nz, nx) = (d.nz(), d.nx);
         let mut guard = self.gradient_fd.lock().unwrap_or_else(|e| e.into_inner());
         let fd = guard.get_or_insert_with(|| GradientCurvature::new(self.nv(), nz, nx));
+        let phase = self.shared.curvature_phase.load(Ordering::Relaxed);
+        let refresh = self.shared.settings.curvature_refresh.max(1);
+        if fd.phase == phase && fd.evaluations % refresh != 0 {
+            fd.evaluations += 1;
+            add_state_columns(&fd.curvature, nx, out);
+            return;
+        }
+        (fd.phase, fd.evaluations) = (phase, 1);
         let mut ws_guard = self.ws.lock().unwrap_or_else(|e| e.into_inner());
         let ws = &mut *ws_guard;
         let nv = self.nv();
