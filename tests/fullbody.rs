@@ -109,7 +109,7 @@ fn initial_guess_legs_reach_their_contact_points() {
 fn initial_guess_moves_the_base_towards_out_of_reach_feet_without_a_jump() {
     // lateral_down's SRB plan puts the CoM beyond the legs' reach over the last stance knots;
     // the guess moves the base towards the feet there. Moved knot by knot, the base jumped
-    // 14 cm within one 10 ms step before lift-off (a 14 m/s velocity the dynamics rows spent
+    // 14 cm within one 10 ms step before lift-off (12.8 m/s in the guess; the dynamics rows spent
     // ~40 iterations undoing); smoothed over +-5 knots, its speed stays near the SRB's.
     let model = embedded::load("a1").unwrap();
     let srb = srb_solution("lateral_down").resample(0.01).unwrap();
