@@ -116,7 +116,8 @@ fn windowed_envelope(values: &[[f64; 3]], w: usize) -> Vec<[f64; 3]> {
 /// stops at -52.5 deg); returns the base's move.
 fn reach_stance_feet(model: &Model, data: &mut Data, legs: &[Leg], k: usize, feet: &[Vector3<f64>; 4], stance: &[usize], q: &mut DVector<f64>) -> Result<Vector3<f64>, FullBodyError> {
     let mut shift = Vector3::zeros();
-    for _ in 0..=50 {
+    let mut moves_left = 50;
+    loop {
         let mut pull = Vector3::zeros();
         let mut worst = 0.0f64;
         for &f in stance {
@@ -129,14 +130,17 @@ fn reach_stance_feet(model: &Model, data: &mut Data, legs: &[Leg], k: usize, fee
         if worst <= IK_TOLERANCE {
             return Ok(shift);
         }
+        if moves_left == 0 {
+            let d = |f: usize| (feet[f] - frame_position(model, data, legs[f].foot_frame)).norm();
+            let f = stance.iter().copied().max_by(|&a, &b| d(a).total_cmp(&d(b))).unwrap_or(0);
+            return Err(FullBodyError::Unreachable { foot: model.feet[f].name.clone(), knot: k, distance: worst });
+        }
+        moves_left -= 1;
         for a in 0..3 {
             q[a] += pull[a];
         }
         shift += pull;
     }
-    let d = |f: usize| (feet[f] - frame_position(model, data, legs[f].foot_frame)).norm();
-    let f = stance.iter().copied().max_by(|&a, &b| d(a).total_cmp(&d(b))).unwrap_or(0);
-    Err(FullBodyError::Unreachable { foot: model.feet[f].name.clone(), knot: k, distance: d(f) })
 }
 
 /// The initial guess on the grid of `srb` (uniform, as [`SrbTrajectory::resample`] makes
