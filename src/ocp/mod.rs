@@ -26,6 +26,7 @@ mod limit_cost;
 mod metrics;
 mod physical_gains;
 mod run;
+mod target;
 mod task;
 
 pub use constraints::{relaxed_barrier, tangential_demand, FeasibilityConstraints, FeasibilitySettings, FrictionForm, FeasibilitySettingsError, KnotContacts, Violation};
@@ -35,6 +36,7 @@ pub use limit_cost::{JointLimitCost, JointLimitCostSpec};
 pub use metrics::{joint_limit_excess, Feasibility, LimitExcess, MotionMetrics, Snapshot, FRICTION_MARGIN, SLIDE_SPEED};
 pub use physical_gains::{physical_gain, PhysicalGainWorkspace};
 pub use run::{solution_trajectory, solve_task, Rerun, SlqPolicyController, SolveError, SolveOptions, TaskRun};
+pub use target::{all_met, CheckTime, Target, TargetCoordinate, TargetResult, TargetSpec, TargetTime};
 pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, TaskError, TaskSpec, WaypointSpec, WeightSpec, EMBEDDED_TASKS};
 
 use crate::control::JointPd;

@@ -49,6 +49,11 @@
 //! rho = 400.0               # 1/s^2: window exp(-rho/2 (t - time)^2)
 //! desired = { base_position = [0.0, 0.0, 0.8] }
 //! weights = { base_position = [0.0, 0.0, 2000.0] }
+//!
+//! [[target]]                # what counts as done (any number; see legwork::ocp::Target)
+//! at = "apex"
+//! base_position = ["any", "any", 0.8]
+//! position_tolerance = 0.01
 //! ```
 //!
 //! Every field is checked; unknown fields, a joint name the robot does not have, a NaN or a
@@ -174,6 +179,10 @@ pub struct TaskSpec {
     pub input: InputSpec,
     #[serde(default, rename = "waypoint")]
     pub waypoints: Vec<WaypointSpec>,
+    /// What counts as done (`[[target]]`, see [`super::Target`]); absent: no target, and
+    /// `legwork solve` says so.
+    #[serde(default, rename = "target")]
+    pub targets: Vec<super::TargetSpec>,
 }
 
 /// A task file that cannot be used; names the file and the field.
@@ -225,6 +234,11 @@ impl TaskSpec {
             known: EMBEDDED_TASKS.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "),
         })?;
         Self::from_toml(text, &format!("embedded task {name}"))
+    }
+
+    /// The task's targets, resolved for `model`; names the file and field of a bad one.
+    pub fn target(&self, model: &Model, origin: &str) -> Result<super::Target, TaskError> {
+        super::Target::resolve(&self.targets, model, self.duration, origin)
     }
 
     /// Number of knots.

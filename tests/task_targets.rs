@@ -1,0 +1,143 @@
+//! Task targets (`[[target]]`, issue 18): parsing with named errors, and the checks on a
+//! motion built knot by knot, so each verdict is known before the check runs.
+
+use legwork::io::{Knot, Trajectory};
+use legwork::model::{embedded, Model};
+use legwork::ocp::{all_met, TargetResult, TaskError, TaskSpec};
+use legwork::terrain::{Plane, Terrain};
+
+const TASK: &str = r#"
+name = "shift"
+summary = "move the base 5 cm forward"
+robot = "hyq"
+duration = 1.0
+dt = 0.01
+[running]
+[final]
+base_position = [1000.0, 1000.0, 1000.0]
+[input]
+weight = 1e-4
+"#;
+
+fn task(targets: &str) -> Result<TaskSpec, TaskError> {
+    TaskSpec::from_toml(&format!("{TASK}\n{targets}"), "shift.toml")
+}
+
+fn error_of(targets: &str, model: &Model) -> String {
+    match task(targets).and_then(|t| t.target(model, "shift.toml")) {
+        Ok(_) => panic!("accepted: {targets}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+/// HyQ standing still for 1 s, then moved: base x and yaw ramp to `x_end`, `yaw_end_deg`
+/// over the motion; the front-left foot is off the ground from 0.3 to 0.5 s, and every foot
+/// from 0.6 to 0.75 s.
+fn motion(model: &Model, x_end: f64, yaw_end_deg: f64) -> Trajectory {
+    let ground = Plane::flat(0.0);
+    let stance = legwork::sim::standing_on_ground(model, &ground, 0.0).unwrap();
+    let mut traj = Trajectory::new(model, "test", 0.01, ground.spec());
+    for k in 0..=100 {
+        let t = k as f64 * 0.01;
+        let mut q: Vec<f64> = stance.iter().copied().collect();
+        q[0] += x_end * t;
+        let half = 0.5 * (yaw_end_deg * t).to_radians();
+        // Base orientation (x, y, z, w), a yaw.
+        q[3..7].copy_from_slice(&[0.0, 0.0, half.sin(), half.cos()]);
+        let lf_up = (30..50).contains(&k);
+        let all_up = (60..75).contains(&k);
+        let in_contact = vec![!lf_up && !all_up, !all_up, !all_up, !all_up];
+        traj.knots.push(Knot { t, q, v: vec![0.0; model.nv], tau: vec![0.0; model.nv - 6], contact_force: vec![[0.0; 3]; 4], in_contact, feedback_gain: None });
+    }
+    traj
+}
+
+fn by_what<'a>(results: &'a [TargetResult], what: &str) -> &'a TargetResult {
+    results.iter().find(|r| r.what == what).unwrap_or_else(|| panic!("no check '{what}' in {results:?}"))
+}
+
+#[test]
+fn bad_targets_are_named() {
+    let model = embedded::load("hyq").unwrap();
+    for (targets, expected) in [
+        ("[[target]]\nbase_position = [2.0, 0.0, \"any\"]", vec!["shift.toml", "target[0].position_tolerance", "no default"]),
+        ("[[target]]\nbase_rpy_deg = [0.0, 0.0, 45.0]\nangle_tolerance_deg = -1.0", vec!["target[0].angle_tolerance_deg", "positive"]),
+        ("[[target]]\nat = 2.0\nfeet_up = [\"lf_foot\"]", vec!["target[0].at", "0-1 s"]),
+        ("[[target]]\nat = \"takeoff\"\nfeet_up = [\"lf_foot\"]", vec!["target[0].at", "\"takeoff\""]),
+        ("[[target]]\nfeet_up = [\"left_paw\"]", vec!["target[0].feet_up", "no foot named \"left_paw\"", "lf_foot"]),
+        ("[[target]]\nbase_position = [\"somewhere\", 0.0, 0.0]\nposition_tolerance = 0.1", vec!["target[0].base_position[0]", "\"somewhere\""]),
+        ("[[target]]\nat = \"end\"", vec!["target[0]", "checks nothing"]),
+        ("[[target]]\nposition_tolerance = 0.1\nfeet_up = [\"lf_foot\"]", vec!["target[0].position_tolerance", "without base_position or feet"]),
+        ("[[target]]\nliftoffs_per_foot = 1\n[[target]]\nliftoffs_per_foot = 2", vec!["target[1].liftoffs_per_foot", "give it once"]),
+    ] {
+        let message = error_of(targets, &model);
+        for part in expected {
+            assert!(message.contains(part), "'{message}' does not say '{part}'");
+        }
+    }
+    // An unknown field is the parser's error, with the file's name.
+    let message = task("[[target]]\nbase_height = 0.8").unwrap_err().to_string();
+    assert!(message.contains("shift.toml") && message.contains("base_height"), "{message}");
+}
+
+#[test]
+fn targets_check_position_angle_feet_and_counts_on_a_known_motion() {
+    let model = embedded::load("hyq").unwrap();
+    let spec = task(
+        r#"
+[[target]]
+base_position = [0.30, "start", "any"]
+position_tolerance = 0.05
+base_rpy_deg = ["any", "any", 45.0]
+angle_tolerance_deg = 5.0
+liftoffs_per_foot = 1
+min_flight_time = 0.1
+
+[[target]]
+at = 0.4
+feet_up = ["lf_foot"]
+feet_down = ["rf_foot", "lh_foot", "rh_foot"]
+"#,
+    )
+    .unwrap();
+    let target = spec.target(&model, "shift.toml").unwrap();
+    assert!(!target.is_empty());
+
+    // x 0.33 m (0.03 off), yaw 47 deg (2 deg off): met.
+    let results = target.check(&model, &motion(&model, 0.33, 47.0), 1.0);
+    assert!(all_met(&results), "{results:#?}");
+    assert_eq!(by_what(&results, "lift-offs per foot").value, "2/1/1/1");
+    assert_eq!(by_what(&results, "flight time (all feet up)").value, "0.150 s");
+    assert!(by_what(&results, "lf_foot at 0.4 s").met);
+
+    // x 0.39 m: 0.09 off, missed at the plan's tolerance, met at twice it.
+    let far = motion(&model, 0.39, 47.0);
+    let results = target.check(&model, &far, 1.0);
+    assert!(!all_met(&results));
+    let x = by_what(&results, "base x at the end");
+    assert!(!x.met && x.value == "0.390 m" && x.required == "0.300 +- 0.050 m", "{x:?}");
+    assert!(all_met(&target.check(&model, &far, 2.0)));
+
+    // Yaw compares on the circle: a goal of 178 deg is met by -179 deg.
+    let spec = task("[[target]]\nbase_rpy_deg = [\"any\", \"any\", 178.0]\nangle_tolerance_deg = 5.0").unwrap();
+    let results = spec.target(&model, "shift.toml").unwrap().check(&model, &motion(&model, 0.0, -179.0), 1.0);
+    assert!(all_met(&results), "{results:?}");
+    let results = spec.target(&model, "shift.toml").unwrap().check(&model, &motion(&model, 0.0, 160.0), 1.0);
+    assert!(!all_met(&results), "{results:?}");
+
+    // "start" is the first knot's value: y stays where it started.
+    let y = by_what(&target.check(&model, &motion(&model, 0.3, 45.0), 1.0), "base y at the end").clone();
+    assert!(y.met, "{y:?}");
+}
+
+#[test]
+fn a_task_without_targets_has_none_and_every_embedded_task_has_one() {
+    let model = embedded::load("hyq").unwrap();
+    assert!(task("").unwrap().target(&model, "shift.toml").unwrap().is_empty());
+    assert!(!all_met(&[]), "no result is not a met target");
+    for (name, _) in legwork::ocp::EMBEDDED_TASKS {
+        let spec = TaskSpec::embedded(name).unwrap();
+        let target = spec.target(&embedded::load(&spec.robot).unwrap(), name).unwrap();
+        assert!(!target.is_empty(), "{name} declares no target");
+    }
+}
