@@ -128,3 +128,48 @@ fn simulate_track_reproduces_the_tracking_rerun_of_solve() {
     let plan = Trajectory::load_file(&plan).unwrap();
     assert!(plan.metadata.initial_anchors.as_ref().is_some_and(|a| a.iter().all(Option::is_some)), "four feet down at the start");
 }
+
+/// `legwork solve`'s exit codes (`legwork --help`): 0 the plan met the task's target, 1 it
+/// ran and missed it (said in the summary and in trajectory.json), 2 bad input, 3 the job
+/// could not finish (here: the output folder cannot be created).
+#[test]
+fn solve_exit_codes_tell_met_missed_bad_input_and_could_not_finish() {
+    let dir = out_dir("exit-codes");
+    std::fs::create_dir_all(&dir).unwrap();
+    let solve = |name: &str, target: &str, out: &std::path::Path| {
+        let task = dir.join(format!("{name}.toml"));
+        std::fs::write(&task, format!("{SHIFT_TASK}\n{target}")).unwrap();
+        legwork(&["solve", task.to_str().unwrap(), "--out", out.to_str().unwrap()])
+    };
+    // Anywhere within 5 cm of the 5 cm goal: the 4-iteration plan gets there.
+    let met = "[[target]]\nbase_position = [0.05, 0.0, \"any\"]\nposition_tolerance = 0.05\n";
+    let o = solve("met", met, &dir.join("met"));
+    let stdout = text(&o.stdout);
+    assert_eq!(o.status.code(), Some(0), "{stdout}\n{}", text(&o.stderr));
+    assert!(stdout.contains("Target met by the plan (exit code 0)."), "{stdout}");
+    // 100 m ahead in 0.6 s: missed, and said.
+    let o = solve("far", "[[target]]\nbase_position = [100.0, \"any\", \"any\"]\nposition_tolerance = 0.05\n", &dir.join("far"));
+    let stdout = text(&o.stdout);
+    assert_eq!(o.status.code(), Some(1), "{stdout}\n{}", text(&o.stderr));
+    assert!(stdout.contains("base x at the end (100.000 +- 0.050 m)") && stdout.contains("MISSED") && stdout.contains("TARGET MISSED"), "{stdout}");
+    let summary = Trajectory::load_file(dir.join("far").join("trajectory.json")).unwrap().summary;
+    assert_eq!((summary["verdict"].as_str(), summary["exit_code"].as_u64()), (Some("missed"), Some(1)));
+    assert_eq!(summary["target"]["plan"][0]["met"], false);
+    // No target declared: said, exit code 0.
+    let o = solve("none", "", &dir.join("none"));
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    assert!(text(&o.stdout).contains("Target: none declared"));
+    // Bad input: a target without its tolerance, named.
+    let o = solve("bad", "[[target]]\nbase_position = [0.05, 0.0, \"any\"]\n", &dir.join("bad"));
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("bad.toml") && err.contains("target[0].position_tolerance"), "{err}");
+    // Could not finish: the output folder would be inside a file.
+    let blocker = dir.join("a-file");
+    std::fs::write(&blocker, "not a folder").unwrap();
+    let o = solve("blocked", met, &blocker.join("out"));
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(err.contains("cannot create the output folder"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -41,7 +41,7 @@ fn walk_writes_its_files_and_a_consistent_summary() {
     let out = out_dir("flat");
     let o = legwork(&["walk", "flat", "--out", out.to_str().unwrap(), "--seed", "3"]);
     let stdout = text(&o.stdout);
-    assert!(o.status.success(), "{}\n{stdout}", text(&o.stderr));
+    assert!(matches!(o.status.code(), Some(0 | 1)), "{}\n{stdout}", text(&o.stderr));
 
     // summary.json: the trial's numbers, consistent with each other.
     let summary: Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
@@ -51,6 +51,8 @@ fn walk_writes_its_files_and_a_consistent_summary() {
     assert_eq!(summary["robot"], "hyq");
     let success = trial["success"].as_bool().unwrap();
     assert_eq!(trial["failure"].is_null(), success, "{trial}");
+    // The exit code is the trial's verdict: 0 reached the goal, 1 did not.
+    assert_eq!(o.status.code(), Some(if success { 0 } else { 1 }), "{trial}");
     let timings = trial["plan_timings"].as_array().unwrap();
     let plans = trial["plans"].as_u64().unwrap() as usize;
     assert_eq!(timings.len(), plans);
@@ -181,9 +183,30 @@ fn bad_walk_input_is_refused_with_a_named_error() {
     for (args, needle) in cases {
         let o = legwork(&args);
         let err = text(&o.stderr);
-        assert!(!o.status.success(), "{args:?} succeeded");
+        assert_eq!(o.status.code(), Some(2), "{args:?}: bad input is exit code 2: {err}");
         assert!(err.starts_with("error: ") && err.contains(needle), "{args:?}: {err}");
         assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
     }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A walk that cannot reach its goal (behind a 1 m wall) runs, says FAILED and why, and
+/// exits with 1, the "ran but missed its target" code; summary.json says the same.
+#[test]
+fn a_failed_walk_exits_with_the_target_missed_code() {
+    let dir = out_dir("walled");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("walled.toml");
+    let toml = "name = \"walled\"\nsummary = \"a goal behind a 1 m wall\"\nstart = [0.0, 0.0, 0.0]\ngoal = [1.0, 0.0, 0.0]\ntime_limit = 12.0\n\n\
+                [world]\norigin = [-1.0, -1.0]\nsize = [3.0, 2.0]\n\n[[world.block]]\nname = \"wall\"\nx = [0.7, 1.5]\ny = [-1.0, 1.0]\ntop = 1.0\n";
+    std::fs::write(&path, toml).unwrap();
+    let out = dir.join("out");
+    let o = legwork(&["walk", path.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let stdout = text(&o.stdout);
+    assert_eq!(o.status.code(), Some(1), "{stdout}\n{}", text(&o.stderr));
+    assert!(stdout.contains("walled: FAILED: "), "{stdout}");
+    let traj = Trajectory::load_file(out.join("trajectory.json")).unwrap();
+    assert_eq!(traj.summary["verdict"], "missed");
+    assert_eq!(traj.summary["exit_code"], 1);
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -8,6 +8,7 @@ use legwork::jump::{pipeline, srb_plan_trajectory, Jump, JumpReport, PipelineOpt
 use legwork::model::Model;
 use legwork::srb::{ContactTimingSettings, SrbParams};
 use std::path::{Path, PathBuf};
+use super::outcome::OrCouldNotFinish;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
@@ -100,9 +101,10 @@ pub fn run(args: JumpArgs) -> Result<ExitCode> {
                 bar.set_message(stage_name(stage).to_string());
             }
         })?)
-    })?;
+    })
+    .or_could_not_finish()?;
     bar.finish_and_clear();
-    let written = write_outputs(&jump, &model, &options, &report, &out)?;
+    let written = write_outputs(&jump, &model, &options, &report, &out).or_could_not_finish()?;
     print_report(&jump, &report);
     say!("Wrote {} ({}) in {:.1} s", out.display(), written.join(", "), started.elapsed().as_secs_f64());
     let verdict = report.verdict();

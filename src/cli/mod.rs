@@ -19,7 +19,7 @@ pub(crate) fn emit(args: std::fmt::Arguments) {
             std::process::exit(0);
         }
         eprintln!("error: cannot write to standard output: {e}");
-        std::process::exit(1);
+        std::process::exit(outcome::COULD_NOT_FINISH.into());
     }
 }
 
@@ -28,6 +28,7 @@ mod check;
 mod control;
 mod export;
 mod jump;
+pub mod outcome;
 mod robot;
 mod simulate;
 mod solve;
@@ -39,11 +40,17 @@ use std::process::ExitCode;
 
 /// Whole-body motion generation for quadruped robots.
 #[derive(Debug, Parser)]
-#[command(name = "legwork", version, about, long_about = None)]
+#[command(name = "legwork", version, about, long_about = None, after_help = EXIT_CODES)]
 pub struct Cli {
     #[command(subcommand)]
     command: Command,
 }
+
+/// The exit-code convention of every command ([`outcome`]).
+const EXIT_CODES: &str = "Exit codes (every command): 0 the job ran and met its target (a command without a target: it ran); \
+1 it ran but missed its target (a solve's [[target]], a walk short of its goal, a jump off target); \
+2 bad input (command line, file, field, value); 3 the job could not finish (an optimizer failed, \
+a simulation diverged, an output could not be written). --json summaries carry the verdict.";
 
 #[derive(Debug, Subcommand)]
 enum Command {
@@ -59,8 +66,8 @@ enum Command {
     Tasks,
     /// Plan and run one of Nguyen 2022's 3D jumps: contact timing, full-body trajectory
     /// optimization, controllers in legwork's simulator. Writes the trajectory, a replay with
-    /// the box, plots and a summary. Exit code 0: landed on target; 2: contact timing failed;
-    /// 3: full-body optimization failed; 4: landed off target; 5: fell; 1: bad input.
+    /// the box, plots and a summary. Exit code 0: landed on target; 1: landed off target or
+    /// fell; 3: an optimization failed.
     Jump(jump::JumpArgs),
     /// List the embedded jumps.
     Jumps,
@@ -90,12 +97,12 @@ pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Jump(args) => return finish(jump::run(args)),
+        Command::Solve(args) => return finish(solve::run(args).map(ExitCode::from)),
+        Command::Walk(args) => return finish(walk::run(args).map(ExitCode::from)),
         Command::Robot(cmd) => robot::run(cmd),
         Command::Simulate(args) => simulate::run(args),
-        Command::Solve(args) => solve::run(args),
         Command::Tasks => solve::list(),
         Command::Jumps => jump::list(),
-        Command::Walk(args) => walk::run(args),
         Command::Bench(cmd) => bench::run(cmd),
         Command::View(args) => view::run(args),
         Command::Export(cmd) => export::run(cmd),
@@ -105,13 +112,14 @@ pub fn main() -> ExitCode {
     finish(result.map(|()| ExitCode::SUCCESS))
 }
 
-/// The command's exit code, or 1 with the error and its causes printed.
+/// The command's exit code, or the error with its causes printed and its code
+/// ([`outcome::error_code`]: 3 for a job that could not finish, 2 for bad input).
 fn finish(result: anyhow::Result<ExitCode>) -> ExitCode {
     match result {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
-            ExitCode::FAILURE
+            ExitCode::from(outcome::error_code(&e))
         }
     }
 }

@@ -1,5 +1,6 @@
 //! `legwork simulate`: a robot on a terrain with a controller, written to a folder.
 
+use super::outcome::{OrCouldNotFinish, Verdict};
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -140,7 +141,7 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         bar.set_position((fraction * 1000.0) as u64);
     });
     bar.finish_and_clear();
-    let run = result?;
+    let run = result.or_could_not_finish()?;
     let stats = &run.stats;
     let last = run.trajectory.knots.last().context("empty trajectory")?;
     let final_height = last.q[2];
@@ -157,6 +158,9 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     )
     .to_lowercase();
     let summary = json!({
+        // A simulation has no target: it met its job by running to the end.
+        "verdict": Verdict::Met.as_str(),
+        "exit_code": Verdict::Met.exit_code(),
         "robot": model.name,
         "controller": controller.name(),
         "duration_s": args.duration,
@@ -179,14 +183,14 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     if let serde_json::Value::Object(map) = summary {
         traj.summary = map;
     }
-    std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create the output folder {}", args.out.display()))?;
+    std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create the output folder {}", args.out.display())).or_could_not_finish()?;
     let json_path = args.out.join("trajectory.json");
     let csv_path = args.out.join("trajectory.csv");
-    traj.save_file(&json_path)?;
-    traj.save_csv(&csv_path)?;
+    traj.save_file(&json_path).or_could_not_finish()?;
+    traj.save_csv(&csv_path).or_could_not_finish()?;
     let replay_path = args.out.join("replay.html");
-    legwork::viz::write_replay(&model, &traj, &replay_path)?;
-    let plots = legwork::viz::write_plots(&traj, args.out.join("plots"))?;
+    legwork::viz::write_replay(&model, &traj, &replay_path).or_could_not_finish()?;
+    let plots = legwork::viz::write_plots(&traj, args.out.join("plots")).or_could_not_finish()?;
 
     say!("Simulated {} for {} s with the {} controller ({} physics steps).", model.name, args.duration, controller.name(), stats.steps);
     say!("  final base height     {:.4} m (standing height {:.4} m, difference {:+.1} mm)", final_height, standing_height, (final_height - standing_height) * 1e3);

@@ -1,9 +1,10 @@
 //! `legwork solve <task>` and `legwork tasks`: Neunert 2017's trajectory optimization.
 
+use super::outcome::{OrCouldNotFinish, Verdict};
 use anyhow::{Context, Result};
 use clap::Args;
 use legwork::export::{check_plan_in_mujoco, MujocoCheck};
-use legwork::ocp::{solve_task, MotionMetrics, Rerun, Snapshot, SolveOptions, TaskSpec, EMBEDDED_TASKS};
+use legwork::ocp::{all_met, solve_task, MotionMetrics, Rerun, Snapshot, SolveError, SolveOptions, Target, TargetResult, TaskSpec, EMBEDDED_TASKS};
 use legwork::terrain::{Plane, Terrain};
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -41,7 +42,9 @@ pub enum CheckSimulator {
 
 pub(super) fn load_task(spec: &str) -> Result<(TaskSpec, String)> {
     let path = Path::new(spec);
-    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml")) || path.exists() {
+    // A folder that happens to share an embedded task's name (`out/gallop`'s parent, say)
+    // is not a task file.
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml")) || path.is_file() {
         return Ok((TaskSpec::load_file(path)?, spec.to_string()));
     }
     Ok((TaskSpec::embedded(spec)?, format!("embedded task {spec}")))
@@ -68,15 +71,19 @@ pub(super) fn rerun_json(r: &Rerun) -> serde_json::Value {
     }
 }
 
-pub fn run(args: SolveArgs) -> Result<()> {
+/// The exit code's verdict: the plan meets the task's `[[target]]` (and, with `--check
+/// mujoco`, both MuJoCo runs meet it at twice the tolerances); a task without a target is
+/// met when the solve and its re-runs ran.
+pub fn run(args: SolveArgs) -> Result<Verdict> {
     let (spec, origin) = load_task(&args.task)?;
     let robot = args.robot.clone().unwrap_or_else(|| spec.robot.clone());
     let (model, _) = super::robot::load(&robot)?;
+    let target = spec.target(&model, &origin)?;
     let terrain = Plane::flat(0.0);
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&spec.name));
     // A missing MuJoCo environment is reported before the solve, not after it.
     let mujoco = match args.check {
-        Some(CheckSimulator::Mujoco) => Some(MujocoCheck::locate()?),
+        Some(CheckSimulator::Mujoco) => Some(MujocoCheck::locate().or_could_not_finish()?),
         None => None,
     };
     say!("Solving {} ({}) for {}: {} s, {} knots of {} s", spec.name, spec.summary, model.name, spec.duration, spec.knots(), spec.dt);
@@ -101,22 +108,48 @@ pub fn run(args: SolveArgs) -> Result<()> {
             t.backward_pass * 1e3,
             t.line_search * 1e3
         );
+    })
+    .map_err(|e| match e {
+        // The task's own numbers, found wanting once the robot is known: its input.
+        SolveError::Task(_) | SolveError::IterationBudget { .. } => anyhow::Error::new(e),
+        e => anyhow::Error::new(super::outcome::CouldNotFinish(e.into())),
     })?;
     let sol = &run.solution;
     let solve_time = run.solve_time();
     let plan = &run.plan_metrics;
     let mut traj = run.plan.clone();
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot create the output folder {}", out.display()))?;
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create the output folder {}", out.display())).or_could_not_finish()?;
     // MuJoCo: the plan as solved, on the ground it was solved on, the task's friction.
     let mujoco_reruns = match &mujoco {
         Some(check) => {
             say!("Checking the plan in MuJoCo (tracking controller, feedback policy) ...");
-            Some(check_plan_in_mujoco(check, &model, &run.plan, &terrain.spec(), &out.join("mujoco"))?)
+            Some(check_plan_in_mujoco(check, &model, &run.plan, &terrain.spec(), &out.join("mujoco")).or_could_not_finish()?)
         }
         None => None,
     };
+    // The target: on the plan, and at twice the tolerances on every run of it.
+    let mut checked: Vec<(&str, Option<Vec<TargetResult>>)> = vec![("plan", Some(target.check(&model, &run.plan, 1.0)))];
+    let rerun_results = |r: &Rerun| match r {
+        Rerun::Completed { trajectory, .. } => Some(target.check(&model, trajectory, 2.0)),
+        Rerun::Failed { .. } => None,
+    };
+    checked.push(("SLQ policy", rerun_results(&run.policy_rerun)));
+    checked.push(("tracking ctrl", rerun_results(&run.tracking_rerun)));
+    if let Some(m) = &mujoco_reruns {
+        checked.push(("MuJoCo track", rerun_results(&m.tracking)));
+        checked.push(("MuJoCo policy", rerun_results(&m.policy)));
+    }
+    let met = |name: &str| checked.iter().find(|(n, _)| *n == name).and_then(|(_, r)| r.as_deref()).is_some_and(all_met);
+    let verdict = if target.is_empty() {
+        Verdict::Met
+    } else {
+        Verdict::from_met(met("plan") && (mujoco_reruns.is_none() || (met("MuJoCo track") && met("MuJoCo policy"))))
+    };
     let mut summary = json!({
         "task": spec.name,
+        "verdict": verdict.as_str(),
+        "exit_code": verdict.exit_code(),
+        "target": checked.iter().map(|(name, results)| (name.to_string(), results.as_ref().map_or(json!("failed"), |r| json!(r)))).collect::<serde_json::Map<_, _>>(),
         "robot": model.name,
         "knots": spec.knots(),
         "dt_s": spec.dt,
@@ -141,15 +174,15 @@ pub fn run(args: SolveArgs) -> Result<()> {
     if let serde_json::Value::Object(map) = summary {
         traj.summary = map;
     }
-    traj.save_file(out.join("trajectory.json"))?;
+    traj.save_file(out.join("trajectory.json")).or_could_not_finish()?;
     for (rerun, file) in [(&run.policy_rerun, "rerun_slq_policy.json"), (&run.tracking_rerun, "rerun_tracking.json")] {
         if let Rerun::Completed { trajectory, .. } = rerun {
-            trajectory.save_file(out.join(file))?;
+            trajectory.save_file(out.join(file)).or_could_not_finish()?;
         }
     }
-    legwork::viz::write_replay(&model, &traj, out.join("replay.html"))?;
-    let plots = legwork::viz::write_plots(&traj, out.join("plots"))?;
-    legwork::viz::write_cost_plot(&sol.cost_history, &format!("{}: normalized cost per SLQ iteration", spec.name), out.join("plots").join("cost.svg"))?;
+    legwork::viz::write_replay(&model, &traj, out.join("replay.html")).or_could_not_finish()?;
+    let plots = legwork::viz::write_plots(&traj, out.join("plots")).or_could_not_finish()?;
+    legwork::viz::write_cost_plot(&sol.cost_history, &format!("{}: normalized cost per SLQ iteration", spec.name), out.join("plots").join("cost.svg")).or_could_not_finish()?;
 
     for (i, stage) in run.stages.iter().enumerate() {
         say!("continuation stage {} on {} s: {:?} after {} iterations in {:.2} s (cost {:.4e} -> {:.4e})", i + 1, stage.horizon, stage.termination, stage.iterations, stage.time, stage.initial_cost, stage.final_cost);
@@ -172,8 +205,37 @@ pub fn run(args: SolveArgs) -> Result<()> {
         columns.push(Column::of("MuJoCo policy", &m.policy));
     }
     print_figures(&model, &spec.waypoints.iter().map(|w| w.time).collect::<Vec<_>>(), &columns);
+    print_target(&target, &checked, mujoco_reruns.is_some(), verdict);
     say!("Wrote {} (trajectory.json, closed-loop re-runs, replay.html, {} plots) in {:.1} s", out.display(), plots.len() + 1, started.elapsed().as_secs_f64());
-    Ok(())
+    Ok(verdict)
+}
+
+/// The target's checks, one row each with a column per run, and the verdict.
+fn print_target(target: &Target, checked: &[(&str, Option<Vec<TargetResult>>)], mujoco: bool, verdict: Verdict) {
+    if target.is_empty() {
+        say!("Target: none declared (a task file's [[target]] entries say what counts as done); exit code 0 means the solve and its re-runs ran.");
+        return;
+    }
+    let plan = checked[0].1.as_deref().unwrap_or_default();
+    say!("Target (the plan; the runs at twice the tolerances):");
+    let what = plan.iter().map(|r| r.what.len() + r.required.len() + 3).max().unwrap_or(0);
+    let header: String = checked.iter().map(|(name, _)| format!("{name:<16}")).collect();
+    say!("  {:<what$} {}", "", header.trim_end());
+    for (i, r) in plan.iter().enumerate() {
+        let cells: String = checked
+            .iter()
+            .map(|(_, results)| {
+                let cell = results.as_ref().map_or("failed".to_string(), |rs| format!("{} {}", rs[i].value, if rs[i].met { "ok" } else { "MISSED" }));
+                format!("{cell:<16}")
+            })
+            .collect();
+        say!("  {:<what$} {}", format!("{} ({})", r.what, r.required), cells.trim_end());
+    }
+    let whose = if mujoco { "the plan and both MuJoCo runs" } else { "the plan" };
+    match verdict {
+        Verdict::Met => say!("Target met by {whose} (exit code 0)."),
+        Verdict::Missed => say!("TARGET MISSED: {whose} must meet every check above (exit code {}).", verdict.exit_code()),
+    }
 }
 
 /// One column of the figures table: a plan or a re-run, or why a re-run failed.

@@ -3,6 +3,7 @@
 //! its files: trajectory.json, replay.html (planned footholds, CoG and ZMP drawn over the
 //! terrain), plots (Fig. 8's CoG and ZMP over the support triangles) and summary.json.
 
+use super::outcome::{OrCouldNotFinish, Verdict};
 use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -35,7 +36,8 @@ fn opt(x: Option<f64>, decimals: usize) -> String {
     x.map_or("-".into(), |x| format!("{x:.decimals$}"))
 }
 
-pub fn run(args: WalkArgs) -> Result<()> {
+/// The exit code's verdict: met when the trial reached its goal.
+pub fn run(args: WalkArgs) -> Result<Verdict> {
     let spec = ScenarioSpec::resolve(&args.scenario)?;
     let (model, _) = super::robot::load(&spec.robot)?;
     let config = WalkConfig::hyq(&model).with_context(|| format!("cannot set up the walk for robot {}", model.name))?;
@@ -73,7 +75,7 @@ pub fn run(args: WalkArgs) -> Result<()> {
         bar.suspend(|| say!("  t = {t:6.2} s  {what}  ({:.1} s elapsed)", started.elapsed().as_secs_f64()));
     });
     bar.finish_and_clear();
-    let outcome = result?;
+    let outcome = result.or_could_not_finish()?;
     let wall = started.elapsed().as_secs_f64();
     let report = TrialReport::new(&outcome, wall);
 
@@ -88,6 +90,8 @@ pub fn run(args: WalkArgs) -> Result<()> {
     let summary = json!({
         "scenario": spec.name,
         "success": report.success,
+        "verdict": Verdict::from_met(report.success).as_str(),
+        "exit_code": Verdict::from_met(report.success).exit_code(),
         "failure": report.failure.clone().unwrap_or_else(|| "none".into()),
         "goal_error_m": report.goal_error_m.map(|e| round(e, 3)),
         "walking_time_s": round(report.walking_time_s, 2),
@@ -101,17 +105,17 @@ pub fn run(args: WalkArgs) -> Result<()> {
     if let serde_json::Value::Object(map) = summary {
         traj.summary = map;
     }
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot create the output folder {}", out.display()))?;
-    traj.save_file(out.join("trajectory.json"))?;
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create the output folder {}", out.display())).or_could_not_finish()?;
+    traj.save_file(out.join("trajectory.json")).or_could_not_finish()?;
     let world = spec.world_at(f64::INFINITY);
     let end_time = traj.knots.last().map_or(0.0, |k| k.t);
     let overlay = legwork::viz::walk::plan_overlay(&outcome.plans, &world, end_time);
-    legwork::viz::write_replay_with_overlay(&model, &traj, Some(&overlay), out.join("replay.html"))?;
-    let mut plots = legwork::viz::write_plots(&traj, out.join("plots"))?;
+    legwork::viz::write_replay_with_overlay(&model, &traj, Some(&overlay), out.join("replay.html")).or_could_not_finish()?;
+    let mut plots = legwork::viz::write_plots(&traj, out.join("plots")).or_could_not_finish()?;
     plots.extend(legwork::viz::walk::write_walk_plots(&model, &outcome.plans, &traj, out.join("plots"))?);
     let summary_path = out.join("summary.json");
-    let text = serde_json::to_string_pretty(&json!({ "scenario_summary": spec.summary, "robot": model.name, "trial": report }))?;
-    std::fs::write(&summary_path, text + "\n").with_context(|| format!("cannot write {}", summary_path.display()))?;
+    let text = serde_json::to_string_pretty(&json!({ "scenario_summary": spec.summary, "robot": model.name, "trial": report })).or_could_not_finish()?;
+    std::fs::write(&summary_path, text + "\n").with_context(|| format!("cannot write {}", summary_path.display())).or_could_not_finish()?;
 
     // The summary.
     match &report.failure {
@@ -160,5 +164,5 @@ pub fn run(args: WalkArgs) -> Result<()> {
         }
     }
     say!("Wrote {} (trajectory.json, replay.html, summary.json, {} plots in plots/)", out.display(), plots.len());
-    Ok(())
+    Ok(Verdict::from_met(report.success))
 }

@@ -99,14 +99,14 @@ pub enum Verdict {
 }
 
 impl Verdict {
-    /// 0 for a landed jump; 1 is any error before the pipeline runs (bad file, no robot).
+    /// `legwork jump`'s exit code, by the convention of every command (`legwork --help`):
+    /// 0 landed on target; 1 ran but missed the target (landed off target, or fell); 3 an
+    /// optimization failed, so there is no motion to run. Bad input (2) never gets here.
     pub fn exit_code(self) -> u8 {
         match self {
             Verdict::Landed => 0,
-            Verdict::ContactTimingFailed => 2,
-            Verdict::FullBodyFailed => 3,
-            Verdict::MissedTarget => 4,
-            Verdict::Fell => 5,
+            Verdict::MissedTarget | Verdict::Fell => 1,
+            Verdict::ContactTimingFailed | Verdict::FullBodyFailed => 3,
         }
     }
     pub fn describe(self) -> &'static str {
