@@ -118,8 +118,12 @@ fn bad_jumps_are_refused_with_exit_code_2() {
 #[test]
 fn bench_jumps_json_has_a_row_per_jump() {
     let out = legwork(&["bench", "jumps", "--json", "--repeats", "1", "--knots", "6", "--trials", "0", "--jumps", "lateral,double_backflip"]);
-    assert!(out.status.success(), "{}", text(&out.stderr));
-    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("not JSON ({e}): {}", text(&out.stderr)));
+    // No trials, so no row meets the targets (every trial landed): the verdict is "missed",
+    // exit code 1, the same in the JSON.
+    assert_eq!(v["meets_targets"], serde_json::json!([false, false]));
+    assert_eq!((v["verdict"].as_str(), v["exit_code"].as_i64()), (Some("missed"), Some(1)));
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out.stderr));
     let rows = v["jumps"].as_array().unwrap();
     let names: Vec<&str> = rows.iter().map(|r| r["jump"].as_str().unwrap()).collect();
     assert_eq!(names, ["lateral", "double_backflip"]);

@@ -73,8 +73,11 @@ fn tasks_lists_the_embedded_tasks_and_bench_slq_reports_json() {
     assert!(text(&o.stdout).lines().any(|l| l.starts_with("squat_jump ")));
     // Structure only: the numbers are timings, checked by the benchmark itself, not here.
     let o = legwork(&["bench", "slq", "--json", "--iterations", "1"]);
-    assert!(o.status.success(), "{}", text(&o.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("not JSON ({e}): {}", text(&o.stderr)));
+    // The exit code is the tasks' verdict: 1 while any embedded task misses its target.
+    let missed = report["tasks"].as_array().unwrap().iter().any(|t| t["target_met"] != true);
+    assert_eq!(report["verdict"], if missed { "missed" } else { "met" });
+    assert_eq!(o.status.code(), Some(if missed { 1 } else { 0 }), "{}", text(&o.stderr));
     assert_eq!(report["scaling"].as_array().unwrap().len(), 6);
     assert!(report["linear_fit"]["r_squared"].is_number());
     assert_eq!(report["tasks"].as_array().unwrap().len(), legwork::ocp::EMBEDDED_TASKS.len());

@@ -112,8 +112,11 @@ fn bench_terrain_json_has_the_promised_fields() {
     let scenario = short_scenario(&dir);
     let scenarios = format!("pallet,{}", scenario.display());
     let o = legwork(&["bench", "terrain", "--trials", "1", "--json", "--threads", "2", "--scenarios", &scenarios]);
-    assert!(o.status.success(), "{}", text(&o.stderr));
     let report: Value = serde_json::from_str(&text(&o.stdout)).unwrap_or_else(|e| panic!("not JSON ({e}):\n{}", text(&o.stdout)));
+    // The exit code is the table's verdict: 1 when a paper terrain's row misses its targets.
+    let missed = report["terrains"].as_array().unwrap().iter().any(|r| r["meets_targets"] == false);
+    assert_eq!(report["verdict"], if missed { "missed" } else { "met" });
+    assert_eq!(o.status.code(), Some(if missed { 1 } else { 0 }), "{}", text(&o.stderr));
     assert_eq!(report["robot"], "hyq");
     assert_eq!(report["trials_per_terrain"], 1);
     assert_eq!(report["threads"], 2);

@@ -13,6 +13,8 @@ use legwork::terrain::{Plane, Terrain};
 use legwork::report::walk::{paper_result, terrain_benchmark, TerrainBenchmark, TrialReport, TABLE_I, TARGET_SPEED_FACTOR, TARGET_SUCCESS_RATE};
 use legwork::walk::trial::WalkConfig;
 use legwork::walk::{ScenarioSpec, EMBEDDED_SCENARIOS};
+use super::outcome::{OrCouldNotFinish, Verdict};
+use legwork::ocp::all_met;
 use serde_json::json;
 
 #[derive(Debug, Subcommand)]
@@ -86,7 +88,7 @@ pub enum BenchCommand {
 }
 
 /// `legwork bench jumps`.
-fn jumps(as_json: bool, repeats: usize, knots: Option<usize>, trials: usize, names: &[String], barriers: [Option<legwork::ipocp::BarrierUpdate>; 3], threads: usize) -> Result<()> {
+fn jumps(as_json: bool, repeats: usize, knots: Option<usize>, trials: usize, names: &[String], barriers: [Option<legwork::ipocp::BarrierUpdate>; 3], threads: usize) -> Result<Verdict> {
     if repeats == 0 {
         bail!("--repeats: expected at least one solve per jump, got 0");
     }
@@ -108,13 +110,15 @@ fn jumps(as_json: bool, repeats: usize, knots: Option<usize>, trials: usize, nam
         if barriers[2].is_some() {
             options.full_body.curvature_barrier_update = barriers[2];
         }
-        rows.push(super::jump::with_threads(threads, &mut options, |options| Ok(legwork::jump::bench_jump(jump, &model, options, repeats)?))?);
+        rows.push(super::jump::with_threads(threads, &mut options, |options| Ok(legwork::jump::bench_jump(jump, &model, options, repeats)?)).or_could_not_finish()?);
         bar.inc(1);
     }
     bar.finish_and_clear();
+    let verdict = Verdict::from_met(rows.iter().all(|r| r.meets_targets()));
     if as_json {
-        say!("{}", serde_json::to_string_pretty(&json!({ "repeats": repeats, "trials": trials, "cpu": cpu_name(), "jumps": rows }))?);
-        return Ok(());
+        let meets: Vec<bool> = rows.iter().map(|r| r.meets_targets()).collect();
+        say!("{}", serde_json::to_string_pretty(&json!({ "repeats": repeats, "trials": trials, "cpu": cpu_name(), "jumps": rows, "meets_targets": meets, "verdict": verdict.as_str(), "exit_code": verdict.exit_code() }))?);
+        return Ok(verdict);
     }
     let opt = |x: Option<f64>, d: usize| x.map_or("-".to_string(), |x| format!("{x:.d$}"));
     let list = |v: &[f64]| v.iter().map(|x| format!("{x:.1}")).collect::<Vec<_>>().join(", ");
@@ -144,7 +148,17 @@ fn jumps(as_json: bool, repeats: usize, knots: Option<usize>, trials: usize, nam
         }
     }
     say!("  targets: contact timing at most 0.1 s per jump, full body at most 1 s within every limit; 20 trials per jump, success = upright, within 5 cm and 5 deg of the target");
-    Ok(())
+    let missed: Vec<&str> = rows.iter().filter(|r| !r.meets_targets()).map(|r| r.jump.as_str()).collect();
+    say_verdict(verdict, &missed);
+    Ok(verdict)
+}
+
+/// The benchmark's verdict line: which rows missed their targets, and the exit code.
+fn say_verdict(verdict: Verdict, missed: &[&str]) {
+    match verdict {
+        Verdict::Met => say!("Targets met by every row (exit code 0)."),
+        Verdict::Missed => say!("TARGETS MISSED by {} (exit code {}).", missed.join(", "), verdict.exit_code()),
+    }
 }
 
 /// The CPU's model name (Linux), for the record.
@@ -152,7 +166,8 @@ fn cpu_name() -> String {
     std::fs::read_to_string("/proc/cpuinfo").ok().and_then(|s| s.lines().find(|l| l.starts_with("model name")).and_then(|l| l.split(':').nth(1)).map(|s| s.trim().to_string())).unwrap_or_else(|| "unknown".into())
 }
 
-pub fn run(cmd: BenchCommand) -> Result<()> {
+/// The exit code's verdict: met when every row of the table meets its targets.
+pub fn run(cmd: BenchCommand) -> Result<Verdict> {
     match cmd {
         BenchCommand::Jumps { json, repeats, knots, trials, jumps: names, barrier_contact_timing, barrier_full_body, barrier_curvature, threads } => jumps(json, repeats, knots, trials, &names, [barrier_contact_timing, barrier_full_body, barrier_curvature], threads),
         BenchCommand::Slq { json, threads, iterations, check } => slq(json, threads, iterations, check.is_some()),
@@ -170,7 +185,7 @@ fn terrain_scenarios(names: &[String]) -> Result<Vec<ScenarioSpec>> {
     names.iter().map(|n| ScenarioSpec::resolve(n.trim()).map_err(Into::into)).collect()
 }
 
-fn terrain(trials: usize, as_json: bool, threads: usize, names: &[String]) -> Result<()> {
+fn terrain(trials: usize, as_json: bool, threads: usize, names: &[String]) -> Result<Verdict> {
     if trials == 0 {
         bail!("--trials: expected at least one trial per terrain, got 0");
     }
@@ -193,12 +208,21 @@ fn terrain(trials: usize, as_json: bool, threads: usize, names: &[String]) -> Re
     };
     let bench = pool.install(|| terrain_benchmark(&model, &config, &scenarios, trials, on_trial));
     bar.finish_and_clear();
+    // A terrain that is not one of the paper's has no target row (meets_targets = null).
+    let missed: Vec<&str> = bench.terrains.iter().filter(|r| r.meets_targets == Some(false)).map(|r| r.scenario.as_str()).collect();
+    let verdict = Verdict::from_met(missed.is_empty());
     if as_json {
-        say!("{}", serde_json::to_string_pretty(&bench)?);
+        let mut value = serde_json::to_value(&bench)?;
+        if let serde_json::Value::Object(map) = &mut value {
+            map.insert("verdict".into(), json!(verdict.as_str()));
+            map.insert("exit_code".into(), json!(verdict.exit_code()));
+        }
+        say!("{}", serde_json::to_string_pretty(&value)?);
     } else {
         print_table_i(&bench);
+        say_verdict(verdict, &missed);
     }
-    Ok(())
+    Ok(verdict)
 }
 
 /// The first line of `text`, cut at `max` characters.
@@ -281,9 +305,9 @@ fn linear_fit(x: &[f64], y: &[f64]) -> (f64, f64, f64) {
     (a, b, 1.0 - ss_res / ss_tot)
 }
 
-fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> Result<()> {
+fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> Result<Verdict> {
     // A missing MuJoCo environment is reported before the benchmark, not after it.
-    let mujoco = if check_mujoco { Some(MujocoCheck::locate()?) } else { None };
+    let mujoco = if check_mujoco { Some(MujocoCheck::locate().or_could_not_finish()?) } else { None };
     let model = embedded::load("hyq")?;
     let ground = Plane::flat(0.0);
     // Fig. 13: one cost structure (the squat jump's running and final costs, no waypoint),
@@ -298,7 +322,7 @@ fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> 
         spec.duration = horizon;
         let problem = spec.problem(&model, &ground, initial.clone(), "bench")?;
         let settings = SlqSettings { threads, max_iterations: iterations, feedforward_tolerance: 0.0, relative_cost_tolerance: 0.0, normalized_cost_tolerance: 0.0, ..Default::default() };
-        let sol = Slq::new(&problem, settings)?.solve(&PdPolicy(&pd), |_| {})?;
+        let sol = Slq::new(&problem, settings)?.solve(&PdPolicy(&pd), |_| {}).or_could_not_finish()?;
         let n = sol.iterations.len().max(1) as f64;
         let mean = |f: &dyn Fn(&legwork::slq::IterationTiming) -> f64| sol.iterations.iter().map(|l| f(&l.timing)).sum::<f64>() / n * 1e3;
         let total = mean(&|t| t.linearization + t.backward_pass + t.line_search);
@@ -321,13 +345,22 @@ fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> 
     for (name, _) in EMBEDDED_TASKS {
         let spec = TaskSpec::embedded(name)?;
         let task_model = embedded::load(&spec.robot)?;
-        let run = solve_task(&spec, &task_model, &ground, name, &SolveOptions { threads, max_iterations: None }, |_| ())?;
+        let target = spec.target(&task_model, name)?;
+        let run = solve_task(&spec, &task_model, &ground, name, &SolveOptions { threads, max_iterations: None }, |_| ()).or_could_not_finish()?;
         let sol = &run.solution;
+        // The task's target on the plan, and at twice its tolerances in MuJoCo (as `solve`).
+        let mut target_met = all_met(&target.check(&task_model, &run.plan, 1.0));
         // The plan and legwork's tracking re-run beside MuJoCo's two runs, when asked.
         let mujoco_figures = match &mujoco {
             Some(check) => {
                 let folder = std::path::Path::new("out").join("bench").join(name).join("mujoco");
-                let m = check_plan_in_mujoco(check, &task_model, &run.plan, &ground.spec(), &folder)?;
+                let m = check_plan_in_mujoco(check, &task_model, &run.plan, &ground.spec(), &folder).or_could_not_finish()?;
+                for rerun in [&m.tracking, &m.policy] {
+                    target_met &= match rerun {
+                        legwork::ocp::Rerun::Completed { trajectory, .. } => all_met(&target.check(&task_model, trajectory, 2.0)),
+                        legwork::ocp::Rerun::Failed { .. } => false,
+                    };
+                }
                 json!({
                     "plan": super::solve::metrics_json(&run.plan_metrics),
                     "tracking_controller_rerun": super::solve::rerun_json(&run.tracking_rerun),
@@ -340,6 +373,7 @@ fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> 
         tasks.push(json!({
             "mujoco": mujoco_figures,
             "task": name,
+            "target_met": target_met,
             "knots": spec.knots(),
             "iterations": run.iterations(),
             // The costs are the full horizon's: after the stages, its first rollout is warm-started.
@@ -352,7 +386,11 @@ fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> 
         }));
     }
     let threads_used = if threads == 0 { rayon::current_num_threads() } else { threads };
+    let missed: Vec<&str> = tasks.iter().filter(|t| t["target_met"] != true).filter_map(|t| t["task"].as_str()).collect();
+    let verdict = Verdict::from_met(missed.is_empty());
     let report = json!({
+        "verdict": verdict.as_str(),
+        "exit_code": verdict.exit_code(),
         "robot": "hyq",
         "dt_s": base.dt,
         "threads": threads_used,
@@ -362,7 +400,7 @@ fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> 
     });
     if as_json {
         say!("{}", serde_json::to_string_pretty(&report)?);
-        return Ok(());
+        return Ok(verdict);
     }
     say!("SLQ time per iteration against knots (HyQ, dt = {} s, {threads_used} threads, {iterations} iterations each):", base.dt);
     say!("  {:>6} {:>6} {:>12} {:>12} {:>12} {:>12} {:>14}", "T [s]", "knots", "iter [ms]", "linearize", "backward", "line search", "us/knot/iter");
@@ -383,7 +421,7 @@ fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> 
     for t in &tasks {
         let stages = t["continuation_stages"].as_u64().unwrap_or(0);
         say!(
-            "  {:<14} {:>5} knots  {:>3} iterations ({}){}  {:>6.2} s  cost {:.4e} -> {:.4e}",
+            "  {:<14} {:>5} knots  {:>3} iterations ({}){}  {:>6.2} s  cost {:.4e} -> {:.4e}  target {}",
             t["task"].as_str().unwrap_or(""),
             t["knots"],
             t["iterations"],
@@ -391,7 +429,8 @@ fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> 
             if stages > 0 { format!(", {stages} continuation stages first") } else { String::new() },
             t["solve_time_s"].as_f64().unwrap_or(0.0),
             t["initial_cost"].as_f64().unwrap_or(0.0),
-            t["final_cost"].as_f64().unwrap_or(0.0)
+            t["final_cost"].as_f64().unwrap_or(0.0),
+            if t["target_met"] == true { "met" } else { "MISSED" }
         );
         if !t["mujoco"].is_null() {
             let cell = |key: &str| {
@@ -413,5 +452,6 @@ fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> 
             }
         }
     }
-    Ok(())
+    say_verdict(verdict, &missed);
+    Ok(verdict)
 }
