@@ -611,3 +611,44 @@ fn every_single_number_poisoned_gives_ok_or_a_named_error() {
         }
     }
 }
+
+/// A chain of `n` revolute joints, each link 1 kg, as URDF text; with `wide`, `n` fixed
+/// links hang off the base instead.
+fn generated(n: usize, wide: bool) -> String {
+    let link = |name: String| format!(r#"<link name="{name}"><inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>"#);
+    let mut text = String::from(r#"<robot name="generated">"#);
+    text += &link("l0".into());
+    for i in 1..=n {
+        text += &link(format!("l{i}"));
+        let (parent, kind, limit) = if wide { ("l0".to_string(), "fixed", "") } else { (format!("l{}", i - 1), "revolute", r#"<limit lower="-1" upper="1" effort="10" velocity="1"/>"#) };
+        text += &format!(r#"<joint name="j{i}" type="{kind}"><parent link="{parent}"/><child link="l{i}"/><axis xyz="0 0 1"/>{limit}</joint>"#);
+    }
+    text + "</robot>"
+}
+
+/// Deep input is refused with the limit named, before any recursion can overflow the stack
+/// (30,000 nested elements aborted the process; a 30,000-joint chain took 16 s and 2.4 GB).
+#[test]
+fn deep_xml_and_deep_trees_are_refused_with_their_limits() {
+    let nested = format!("<robot name=\"r\">{}{}</robot>", "<a>".repeat(30_000), "</a>".repeat(30_000));
+    let e = assert_error(&nested, UrdfErrorKind::TooDeep, &["nest 65 deep", "at most 64"]);
+    assert!(!e.to_string().contains("panicked"));
+    // Comments, CDATA and self-closing elements do not count as nesting.
+    let flat = format!("<robot name=\"r\"><!-- {} --><![CDATA[{}]]>{}</robot>", "<a>".repeat(100), "<b>".repeat(100), "<c/>".repeat(100));
+    assert!(!matches!(load(&flat), Err(UrdfError { kind: UrdfErrorKind::TooDeep, .. })));
+    assert_error(&generated(300, false), UrdfErrorKind::TooDeep, &["joint 'j257' is 257 joints from the root link", "at most 256"]);
+    // At the limit, the chain loads.
+    let model = load(&generated(255, false)).unwrap();
+    assert_eq!(model.nv, 6 + 255);
+}
+
+/// A wide tree (fixed links merged into the base) loads with every link as a frame; frame
+/// names are checked for uniqueness by a hash, not by a scan of the frames so far.
+#[test]
+fn wide_trees_load_with_every_link_a_frame() {
+    let model = load(&generated(5_000, true)).unwrap();
+    assert_eq!(model.nv, 6);
+    assert!(model.frame_id("l4999").is_ok());
+    let mass: f64 = model.inertias.iter().map(|i| i.mass).sum();
+    assert!((mass - 5_001.0).abs() < 1e-6, "{mass}");
+}

@@ -131,7 +131,7 @@ pub struct Joint {
 }
 
 /// What a frame marks.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum FrameKind {
     /// The frame of a joint.
     Joint,
@@ -220,6 +220,9 @@ pub struct Model {
     /// For each velocity index `k`, the previous velocity index on the path to the root
     /// (`usize::MAX` at the root): the sparsity pattern of `M` (Featherstone 2008, §6.5).
     pub dof_parent: Vec<usize>,
+    /// The frames' (name, kind) pairs, for [`Model::add_frame`]'s uniqueness test in constant
+    /// time (a URDF with 200,000 links must not take a quadratic scan).
+    frame_keys: std::collections::HashSet<(String, FrameKind)>,
 }
 
 /// Standard gravity, m/s^2.
@@ -255,6 +258,7 @@ impl Model {
             nv_subtree: vec![0],
             joint_of_dof: Vec::new(),
             dof_parent: Vec::new(),
+            frame_keys: [("universe".to_string(), FrameKind::Joint)].into_iter().collect(),
         }
     }
 
@@ -325,8 +329,9 @@ impl Model {
         self.nv += nv;
         self.joints.push(joint);
         self.inertias.push(Inertia::zero());
+        self.frame_keys.insert((name.clone(), FrameKind::Joint));
         self.frames.push(Frame { name, kind: FrameKind::Joint, parent_joint: n, placement: SE3::identity() });
-        self.refresh_topology();
+        self.extend_topology(n);
         Ok(n)
     }
 
@@ -335,13 +340,15 @@ impl Model {
     /// body and a body frame named `name` is added.
     pub fn append_body(&mut self, joint: usize, name: impl Into<String>, inertia: Inertia, placement: SE3) -> usize {
         self.inertias[joint] = self.inertias[joint] + inertia.transformed(&placement);
-        self.frames.push(Frame { name: name.into(), kind: FrameKind::Body, parent_joint: joint, placement });
+        let name = name.into();
+        self.frame_keys.insert((name.clone(), FrameKind::Body));
+        self.frames.push(Frame { name, kind: FrameKind::Body, parent_joint: joint, placement });
         self.frames.len() - 1
     }
 
     /// Adds a named frame; names are unique.
     pub fn add_frame(&mut self, frame: Frame) -> Result<usize, ModelError> {
-        if self.frames.iter().any(|f| f.name == frame.name && f.kind == frame.kind) {
+        if !self.frame_keys.insert((frame.name.clone(), frame.kind)) {
             return Err(ModelError::DuplicateFrame(frame.name));
         }
         self.frames.push(frame);
@@ -359,31 +366,28 @@ impl Model {
         Ok(())
     }
 
-    fn refresh_topology(&mut self) {
-        let n = self.joints.len();
-        self.last_subtree_joint = (0..n).collect();
-        self.nv_subtree = self.joints.iter().map(|j| j.nv).collect();
-        for i in (1..n).rev() {
-            let p = self.joints[i].parent;
-            if i > 0 && p != i {
-                self.last_subtree_joint[p] = self.last_subtree_joint[p].max(self.last_subtree_joint[i]);
-                self.nv_subtree[p] += self.nv_subtree[i];
+    /// Extends the topology by joint `n`, just added as the last joint in depth-first order:
+    /// its own subtree is itself, and every ancestor's subtree (the universe's included) now
+    /// ends at `n` and holds its velocities. O(depth), so building a model is linear in its
+    /// size for a bounded depth.
+    fn extend_topology(&mut self, n: usize) {
+        let joint = &self.joints[n];
+        let (nv, idx_v, parent) = (joint.nv, joint.idx_v, joint.parent);
+        self.last_subtree_joint.push(n);
+        self.nv_subtree.push(nv);
+        let mut a = parent;
+        loop {
+            self.last_subtree_joint[a] = n;
+            self.nv_subtree[a] += nv;
+            if a == 0 {
+                break;
             }
+            a = self.joints[a].parent;
         }
-        self.joint_of_dof = vec![0; self.nv];
-        self.dof_parent = vec![usize::MAX; self.nv];
-        for (i, j) in self.joints.iter().enumerate().skip(1) {
-            for k in 0..j.nv {
-                self.joint_of_dof[j.idx_v + k] = i;
-                self.dof_parent[j.idx_v + k] = if k > 0 {
-                    j.idx_v + k - 1
-                } else if j.parent > 0 {
-                    let p = &self.joints[j.parent];
-                    p.idx_v + p.nv - 1
-                } else {
-                    usize::MAX
-                };
-            }
+        let parent_last_dof = if parent > 0 { Some(self.joints[parent].idx_v + self.joints[parent].nv - 1) } else { None };
+        for k in 0..nv {
+            self.joint_of_dof.push(n);
+            self.dof_parent.push(if k > 0 { idx_v + k - 1 } else { parent_last_dof.unwrap_or(usize::MAX) });
         }
     }
 

@@ -98,6 +98,9 @@ pub enum UrdfErrorKind {
     BadLimits,
     /// A problem in an SRDF file.
     Srdf,
+    /// The XML nests deeper than [`MAX_XML_DEPTH`] or the kinematic tree is deeper than
+    /// [`MAX_TREE_DEPTH`] joints.
+    TooDeep,
     /// The model builder refused a joint or frame (e.g. a joint named `root_joint`).
     Model,
 }
@@ -171,10 +174,14 @@ fn srdf_candidates(path: &Path) -> Vec<PathBuf> {
 pub fn from_str(xml: &str, source: &str, root: RootJoint) -> Result<Model, UrdfError> {
     let dom = parse_dom(xml, source, "robot")?;
     let scan = prescan(&dom, source)?;
+    // urdf-rs builds its own DOM: free this one first (a 50 MB URDF's DOM takes a GB), and
+    // parse it again only to say where urdf-rs failed.
+    drop(dom);
     let robot = match urdf_rs::read_from_string(xml) {
         Ok(r) => r,
         Err(e) => {
             // urdf-rs reports the first value it cannot parse without saying where; find it.
+            let dom = parse_dom(xml, source, "robot")?;
             return Err(diagnose(&dom, source).unwrap_or_else(|| {
                 UrdfError::new(source, UrdfErrorKind::Xml, format!("not a valid URDF: {e}"))
             }));
@@ -189,6 +196,9 @@ pub fn from_str(xml: &str, source: &str, root: RootJoint) -> Result<Model, UrdfE
 
 /// Parses `text` into a DOM whose root element must be `<expected_root>`.
 fn parse_dom(text: &str, file: &str, expected_root: &str) -> Result<xml::Element, UrdfError> {
+    if let Some(depth) = xml_nesting_beyond(text, MAX_XML_DEPTH) {
+        return Err(UrdfError::new(file, UrdfErrorKind::TooDeep, format!("elements nest {depth} deep; a URDF nests about 6 deep, and legwork reads at most {MAX_XML_DEPTH}")));
+    }
     let dom: xml::Element = text.parse().map_err(|e: xml::BuilderError| {
         let detail = match e {
             xml::BuilderError::Parser(p) => p.to_string(),
@@ -204,6 +214,48 @@ fn parse_dom(text: &str, file: &str, expected_root: &str) -> Result<xml::Element
         ));
     }
     Ok(dom)
+}
+
+/// The first element nesting depth past `limit` in `text`, by a linear scan of its tags
+/// (comments, processing instructions, declarations and CDATA skipped), before any parser
+/// that recurses on nesting sees it. Malformed text is left to the parser.
+fn xml_nesting_beyond(text: &str, limit: usize) -> Option<usize> {
+    let bytes = text.as_bytes();
+    let mut depth = 0usize;
+    let mut i = 0;
+    while let Some(offset) = bytes[i..].iter().position(|&b| b == b'<') {
+        let start = i + offset;
+        let rest = &text[start..];
+        // Markup that is not an element: skip to its end.
+        let skip_to = |end: &str| rest.find(end).map(|e| start + e + end.len());
+        let next = if rest.starts_with("<!--") {
+            skip_to("-->")
+        } else if rest.starts_with("<![CDATA[") {
+            skip_to("]]>")
+        } else if rest.starts_with("<?") {
+            skip_to("?>")
+        } else if rest.starts_with("<!") {
+            skip_to(">")
+        } else {
+            let end = rest.find('>').map(|e| start + e);
+            if let Some(end) = end {
+                if rest.starts_with("</") {
+                    depth = depth.saturating_sub(1);
+                } else if bytes[end - 1] != b'/' {
+                    depth += 1;
+                    if depth > limit {
+                        return Some(depth);
+                    }
+                }
+            }
+            end.map(|e| e + 1)
+        };
+        match next {
+            Some(n) => i = n,
+            None => return None,
+        }
+    }
+    None
 }
 
 /// Says where the elements of `text` stop nesting properly (a closing tag that does not
@@ -468,7 +520,18 @@ struct Pending {
     joint: usize,
     parent_joint: usize,
     parent_placement: SE3,
+    /// Joints (fixed ones included) from the root link to this joint's child.
+    depth: usize,
 }
+
+/// The deepest kinematic tree legwork imports, in joints from the root link (fixed joints
+/// included). A quadruped's legs are 3-7 joints deep, a humanoid's fingers about 15;
+/// the dynamics keep each joint's path to the root, so depth costs memory and time.
+pub const MAX_TREE_DEPTH: usize = 256;
+
+/// The deepest XML nesting legwork reads. A URDF nests about 6 deep
+/// (`robot/link/visual/geometry/mesh`); the XML parser recurses on nesting.
+pub const MAX_XML_DEPTH: usize = 64;
 
 impl Builder<'_> {
     fn err(&self, kind: UrdfErrorKind, message: impl Into<String>) -> UrdfError {
@@ -552,10 +615,16 @@ impl Builder<'_> {
         let mut stack: Vec<Pending> = children[root_link]
             .iter()
             .rev()
-            .map(|&k| Pending { joint: k, parent_joint: root_joint, parent_placement: SE3::identity() })
+            .map(|&k| Pending { joint: k, parent_joint: root_joint, parent_placement: SE3::identity(), depth: 1 })
             .collect();
-        while let Some(Pending { joint: k, parent_joint, parent_placement }) = stack.pop() {
+        while let Some(Pending { joint: k, parent_joint, parent_placement, depth }) = stack.pop() {
             let j = &joints[k];
+            if depth > MAX_TREE_DEPTH {
+                return Err(self.err(
+                    UrdfErrorKind::TooDeep,
+                    format!("joint '{}' is {depth} joints from the root link; legwork imports trees at most {MAX_TREE_DEPTH} joints deep", j.name),
+                ));
+            }
             let child = link_index[j.child.link.as_str()];
             visited += 1;
             let origin = self.pose(&j.origin, &format!("joint '{}': <origin>", j.name))?;
@@ -590,7 +659,7 @@ impl Builder<'_> {
                 }
             };
             for &c in children[child].iter().rev() {
-                stack.push(Pending { joint: c, parent_joint: carrier, parent_placement: child_placement });
+                stack.push(Pending { joint: c, parent_joint: carrier, parent_placement: child_placement, depth: depth + 1 });
             }
         }
         if visited < links.len() {
