@@ -169,9 +169,9 @@ fn cpu_name() -> String {
 /// The exit code's verdict: met when every row of the table meets its targets.
 pub fn run(cmd: BenchCommand) -> Result<Verdict> {
     match cmd {
-        BenchCommand::Jumps { json, repeats, knots, trials, jumps: names, barrier_contact_timing, barrier_full_body, barrier_curvature, threads } => jumps(json, repeats, knots, trials, &names, [barrier_contact_timing, barrier_full_body, barrier_curvature], threads),
-        BenchCommand::Slq { json, threads, iterations, check } => slq(json, threads, iterations, check.is_some()),
-        BenchCommand::Terrain { trials, json, threads, scenarios } => terrain(trials, json, threads, &scenarios),
+        BenchCommand::Jumps { json, repeats, knots, trials, jumps: names, barrier_contact_timing, barrier_full_body, barrier_curvature, threads } => jumps(json, repeats, knots, trials, &names, [barrier_contact_timing, barrier_full_body, barrier_curvature], super::capped_threads(threads)),
+        BenchCommand::Slq { json, threads, iterations, check } => slq(json, super::capped_threads(threads), iterations, check.is_some()),
+        BenchCommand::Terrain { trials, json, threads, scenarios } => terrain(trials, json, super::capped_threads(threads), &scenarios),
     }
 }
 

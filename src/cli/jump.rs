@@ -93,7 +93,7 @@ pub fn run(args: JumpArgs) -> Result<ExitCode> {
     bar.set_style(ProgressStyle::with_template("{spinner} {msg} ({elapsed})").expect("static template"));
     bar.enable_steady_tick(Duration::from_millis(120));
     let mut options = PipelineOptions { contact_timing: settings.clone(), trials: args.trials, ..PipelineOptions::of(&jump) };
-    let report = with_threads(args.threads, &mut options, |options| {
+    let report = with_threads(super::capped_threads(args.threads), &mut options, |options| {
         Ok(pipeline::run(&jump, &model, options, |stage, done| {
             if done {
                 bar.println(format!("  done: {}", stage_name(stage)));

@@ -29,6 +29,7 @@ mod control;
 mod export;
 mod jump;
 pub mod outcome;
+mod resources;
 mod robot;
 mod simulate;
 mod solve;
@@ -44,6 +45,29 @@ use std::process::ExitCode;
 pub struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Allow `--threads` above this machine's cores (capped at them otherwise, with a
+    /// warning: more threads than cores only slow the work down).
+    #[arg(long, global = true)]
+    force_threads: bool,
+    /// The memory a solve or a simulation may need (GB), estimated before it starts; a run
+    /// that would need more is refused. Default: half of this machine's memory.
+    #[arg(long, global = true, value_name = "GB", value_parser = resources::parse_gigabytes)]
+    memory_limit: Option<f64>,
+}
+
+/// Set once from `--force-threads` before a command runs.
+static FORCE_THREADS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+
+/// The thread count a `--threads` option asked for, capped at the machine's cores unless
+/// `--force-threads` was given (0 stays 0: one per core).
+pub(crate) fn capped_threads(requested: usize) -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if requested > cores && !FORCE_THREADS.get().copied().unwrap_or(false) {
+        eprintln!("warning: --threads {requested}: capped at {cores}, this machine's cores (--force-threads to use more)");
+        cores
+    } else {
+        requested
+    }
 }
 
 /// The exit-code convention of every command ([`outcome`]).
@@ -95,6 +119,8 @@ enum Command {
 /// Parses the command line, runs the command, prints an error with its causes on failure.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
+    let _ = FORCE_THREADS.set(cli.force_threads);
+    let _ = resources::MEMORY_LIMIT_GB.set(cli.memory_limit);
     let result = match cli.command {
         Command::Jump(args) => return finish(jump::run(args)),
         Command::Solve(args) => return finish(solve::run(args).map(ExitCode::from)),

@@ -64,16 +64,56 @@ pub struct SimulateArgs {
     /// Control rate (Hz), a whole divisor of the physics rate.
     #[arg(long, default_value_t = 1000.0)]
     control_rate: f64,
+    /// Recording rate (Hz), a whole divisor of the physics rate; default: the control rate.
+    /// Long runs record less often to fit in memory (about 1 KB per recorded knot).
+    #[arg(long)]
+    record_rate: Option<f64>,
     /// Output folder (created).
     #[arg(long, default_value = "out/simulate")]
     out: PathBuf,
 }
 
+/// The highest `--drop-height` (m).
+const MAX_DROP_HEIGHT: f64 = 10.0;
+/// The memory of a simulation (bytes): the model, the simulator, the replay; and per
+/// recorded knot. Measured as `legwork simulate`'s peak resident size on HyQ: 18 MB for 10 s,
+/// 48 MB for 40 s at 1 kHz (1.0 KB per knot; 2026-12-03).
+const RUN_MEMORY_BYTES: f64 = 16e6;
+const KNOT_MEMORY_BYTES: f64 = 1.2e3;
+/// trajectory.json and trajectory.csv per recorded knot (bytes): 111 MB for 40,000 knots.
+const KNOT_FILE_BYTES: f64 = 2.8e3;
+/// Physics steps past which a run is long enough to say how long (about a minute).
+const LONG_RUN_STEPS: f64 = 2e7;
+
 pub fn run(args: SimulateArgs) -> Result<()> {
-    for (flag, rate) in [("--physics-rate", args.physics_rate), ("--control-rate", args.control_rate)] {
+    let record_rate = args.record_rate.unwrap_or(args.control_rate);
+    for (flag, rate) in [("--physics-rate", args.physics_rate), ("--control-rate", args.control_rate), ("--record-rate", record_rate)] {
         if !(rate.is_finite() && rate > 0.0) {
             bail!("{flag}: expected a positive rate in Hz, got {rate}");
         }
+    }
+    if !(0.0..=MAX_DROP_HEIGHT).contains(&args.drop_height) {
+        bail!("--drop-height: expected 0-{MAX_DROP_HEIGHT} m (from 10 m a robot lands at 14 m/s, past any legged robot's drop test), got {}", args.drop_height);
+    }
+    if args.drop_height > 1.0 {
+        eprintln!("warning: --drop-height {} m: the feet land at {:.1} m/s, faster than the drops legged robots are tested with (up to about 1 m, 4.4 m/s)", args.drop_height, (2.0 * 9.81 * args.drop_height).sqrt());
+    }
+    // Resources, before any work: the recording's memory, and the time the physics takes.
+    let knots = args.duration * record_rate;
+    super::resources::check_memory(
+        &format!("simulating {} s recorded at {record_rate} Hz ({knots:.0} knots)", args.duration),
+        RUN_MEMORY_BYTES + KNOT_MEMORY_BYTES * knots,
+        "record less often with --record-rate or shorten --duration",
+    )?;
+    let steps = args.duration * args.physics_rate;
+    if steps > LONG_RUN_STEPS {
+        eprintln!(
+            "warning: {steps:.1e} physics steps ({} s at {} Hz): about {:.0} min at the simulator's ~300,000 steps/s on one core, and about {:.1} GB of trajectory.json and .csv",
+            args.duration,
+            args.physics_rate,
+            steps / 3e5 / 60.0,
+            knots * KNOT_FILE_BYTES / 1e9
+        );
     }
     let (model, _) = super::robot::load(&args.robot)?;
     let terrain: Box<dyn Terrain> = match &args.terrain {
@@ -84,7 +124,7 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     let config = SimConfig {
         physics_dt: 1.0 / args.physics_rate,
         control_dt: 1.0 / args.control_rate,
-        record_dt: 1.0 / args.control_rate,
+        record_dt: 1.0 / record_rate,
         integrator: match args.integrator {
             IntegratorKind::Euler => Integrator::SemiImplicitEuler,
             IntegratorKind::Rk4 => Integrator::Rk4,

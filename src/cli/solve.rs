@@ -79,6 +79,11 @@ pub fn run(args: SolveArgs) -> Result<Verdict> {
     let robot = args.robot.clone().unwrap_or_else(|| spec.robot.clone());
     let (model, _) = super::robot::load(&robot)?;
     let target = spec.target(&model, &origin)?;
+    super::resources::check_memory(
+        &format!("{origin}: {} knots ({} s at dt {} s)", spec.knots(), spec.duration, spec.dt),
+        spec.estimated_memory_bytes(),
+        "shorten the task's duration or lengthen its dt",
+    )?;
     let terrain = Plane::flat(0.0);
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&spec.name));
     // A missing MuJoCo environment is reported before the solve, not after it.
@@ -88,7 +93,7 @@ pub fn run(args: SolveArgs) -> Result<Verdict> {
     };
     say!("Solving {} ({}) for {}: {} s, {} knots of {} s", spec.name, spec.summary, model.name, spec.duration, spec.knots(), spec.dt);
     let started = Instant::now();
-    let options = SolveOptions { threads: args.threads, max_iterations: args.iterations };
+    let options = SolveOptions { threads: super::capped_threads(args.threads), max_iterations: args.iterations };
     let run = solve_task(&spec, &model, &terrain, &origin, &options, |progress| {
         let log = progress.log;
         let t = &log.timing;
@@ -112,6 +117,10 @@ pub fn run(args: SolveArgs) -> Result<Verdict> {
     .map_err(|e| match e {
         // The task's own numbers, found wanting once the robot is known: its input.
         SolveError::Task(_) | SolveError::IterationBudget { .. } => anyhow::Error::new(e),
+        SolveError::Slq(legwork::slq::SlqError::InitialRolloutDiverged { .. }) => anyhow::Error::new(e).context(format!(
+            "{origin}: the robot falls before the optimization starts: with the task's dt = {} s the standing PD, its input held over each knot interval, does not keep it up; try a shorter dt (the embedded tasks use 0.002 s)",
+            spec.dt
+        )),
         e => anyhow::Error::new(super::outcome::CouldNotFinish(e.into())),
     })?;
     let sol = &run.solution;

@@ -123,6 +123,11 @@ pub enum TrajectoryError {
     Invalid { origin: String, field: String, problem: String },
 }
 
+/// How far from the origin a trajectory's base may be (m). At 10 km a double still resolves
+/// 2e-12 m; the bound is there to refuse numbers that are not a motion (1e300), not to
+/// limit one.
+pub const MAX_BASE_DISTANCE: f64 = 1e4;
+
 impl Trajectory {
     /// An empty trajectory for `model` (joint and foot names taken from it).
     pub fn new(model: &Model, scenario: impl Into<String>, dt: f64, terrain: TerrainSpec) -> Self {
@@ -228,6 +233,9 @@ impl Trajectory {
                 if let Some(i) = values.iter().position(|x| !x.is_finite()) {
                     return bad(format!("{}[{i}]", field(name)), format!("expected a finite number, got {}", values[i]));
                 }
+            }
+            if let Some(i) = (0..3).find(|&i| knot.q[i].abs() > MAX_BASE_DISTANCE) {
+                return bad(format!("{}[{i}]", field("q")), format!("expected a base position within {MAX_BASE_DISTANCE} m of the origin (a legged robot's motion; farther, the dynamics lose their precision), got {:.3e}", knot.q[i]));
             }
             let quat_norm = knot.q[3..7].iter().map(|x| x * x).sum::<f64>().sqrt();
             if (quat_norm - 1.0).abs() > 1e-6 {

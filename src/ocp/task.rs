@@ -198,6 +198,9 @@ pub enum TaskError {
     UnknownTask { name: String, known: String },
 }
 
+/// The longest knot interval a task may ask for (s).
+pub const MAX_DT: f64 = 0.02;
+
 /// The embedded tasks (Neunert 2017, sec. V), as `(name, TOML text)`.
 pub const EMBEDDED_TASKS: &[(&str, &str)] = &[
     ("gallop", include_str!("../../tasks/gallop.toml")),
@@ -246,6 +249,14 @@ impl TaskSpec {
         (self.duration / self.dt).round() as usize
     }
 
+    /// The memory a solve of this task needs, estimated (bytes): 12 MB plus 64 KB per knot
+    /// (the SLQ linearizations, gains and rollouts, the re-runs). Measured as the peak
+    /// resident size of `legwork solve` on HyQ: 35 MB at 500 knots, 116 MB at 2000, 226 MB at
+    /// 4000 (55 KB per knot), the gallop's 1500 knots with its continuation 106 MB (2026-12-03).
+    pub fn estimated_memory_bytes(&self) -> f64 {
+        12e6 + 64e3 * (self.duration / self.dt)
+    }
+
     fn check_numbers(&self, origin: &str) -> Result<(), TaskError> {
         let bad = |field: String, problem: String| Err(TaskError::Invalid { origin: origin.into(), field, problem });
         if !(self.duration.is_finite() && self.duration > 0.0) {
@@ -253,6 +264,12 @@ impl TaskSpec {
         }
         if !(self.dt.is_finite() && self.dt > 0.0 && self.dt <= self.duration) {
             return bad("dt".into(), format!("expected a positive time step no longer than the duration, got {}", self.dt));
+        }
+        // SLQ holds the input over a knot interval; through contact, the standing PD that
+        // starts the optimization diverges for holds from about 10-30 ms on HyQ, and Neunert
+        // 2017's tasks use 1-4 ms.
+        if self.dt > MAX_DT {
+            return bad("dt".into(), format!("expected at most {MAX_DT} s (the input is held over dt; legwork's tasks use 0.002 s, and from about 0.01 s the standing PD that starts the optimization no longer keeps the robot up), got {}", self.dt));
         }
         if self.substeps == Some(0) {
             return bad("substeps".into(), "expected at least 1".into());
