@@ -176,3 +176,45 @@ fn solve_exit_codes_tell_met_missed_bad_input_and_could_not_finish() {
     assert!(err.contains("cannot create the output folder"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Runs that would not fit or make no physical sense are refused before any work, with the
+/// estimate or the range and the way out (issue 18), exit code 2.
+#[test]
+fn absurd_runs_are_refused_before_they_start() {
+    let dir = out_dir("absurd");
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("out");
+    let out = out.to_str().unwrap();
+    let refused = |args: &[&str], needles: &[&str]| {
+        let o = legwork(args);
+        let err = text(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        for n in needles {
+            assert!(err.contains(n), "{args:?}: '{err}' does not say '{n}'");
+        }
+    };
+    refused(&["simulate", "--duration", "1e9", "--out", out], &["would need about", "GB of memory", "--record-rate", "--memory-limit"]);
+    refused(&["--memory-limit", "0.001", "simulate", "--duration", "10", "--out", out], &["over the limit of 0.0 GB (--memory-limit 0.001)"]);
+    refused(&["simulate", "--drop-height", "1e6", "--out", out], &["--drop-height", "0-10 m"]);
+    let long = dir.join("long.toml");
+    std::fs::write(&long, SHIFT_TASK.replace("duration = 0.6", "duration = 2000.0")).unwrap();
+    refused(&["solve", long.to_str().unwrap(), "--out", out], &["long.toml", "1000000 knots", "would need about 64.0 GB"]);
+    let coarse = dir.join("coarse.toml");
+    std::fs::write(&coarse, SHIFT_TASK.replace("dt = 0.002", "dt = 0.05")).unwrap();
+    refused(&["solve", coarse.to_str().unwrap(), "--out", out], &["coarse.toml", "field `dt`", "at most 0.02 s", "got 0.05"]);
+    // A trajectory whose base is 1e300 m away is not a motion.
+    let o = legwork(&["simulate", "--robot", "a1", "--duration", "0.05", "--out", dir.join("sim").to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let mut traj = Trajectory::load_file(dir.join("sim").join("trajectory.json")).unwrap();
+    traj.knots[1].q[0] = 1e300;
+    let far = dir.join("far.json");
+    std::fs::write(&far, serde_json::to_string(&traj).unwrap()).unwrap();
+    refused(&["simulate", "--robot", "a1", "--controller", "track", "--reference", far.to_str().unwrap(), "--out", out], &["far.json", "knots[1].q[0]", "within 10000 m", "1.000e300"]);
+    // More threads than cores: capped, with a warning, and the run goes on.
+    let o = legwork(&["bench", "terrain", "--trials", "1", "--threads", "100000", "--scenarios", "flat", "--json"]);
+    let err = text(&o.stderr);
+    assert!(err.contains("warning: --threads 100000: capped at") && err.contains("--force-threads"), "{err}");
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("not JSON ({e}): {err}"));
+    assert_eq!(report["threads"].as_u64(), std::thread::available_parallelism().ok().map(|n| n.get() as u64));
+    std::fs::remove_dir_all(&dir).ok();
+}
