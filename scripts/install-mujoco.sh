@@ -36,9 +36,9 @@ if ! "$PYTHON" -c "import venv, ensurepip" >/dev/null 2>&1; then
         SUDO=()
         if [ "$(id -u)" -ne 0 ]; then SUDO=(sudo); fi
         echo "install-mujoco: $PYTHON has no venv module; installing python3-venv with apt-get"
-        "${SUDO[@]}" apt-get -o DPkg::Lock::Timeout=300 update -q
-        DEBIAN_FRONTEND=noninteractive "${SUDO[@]}" apt-get -o DPkg::Lock::Timeout=300 \
-            install -y -q --no-install-recommends python3-venv
+        source scripts/apt-wait.sh
+        apt_get update -q
+        apt_get install -y -q --no-install-recommends python3-venv
     else
         echo "install-mujoco: $PYTHON has no venv module and apt-get is not available" >&2
         exit 1

@@ -3,7 +3,7 @@
 # browser test of the HTML replay (tests/replay_browser.rs), and the MuJoCo checker's
 # Python environment (scripts/install-mujoco.sh, for tests/mujoco_check.rs). Idempotent:
 # does nothing for what is already there. Uses sudo only when not root; apt-get waits (up
-# to 5 minutes) for another apt-get's lock instead of failing. Prints what it did.
+# to 5 minutes, scripts/apt-wait.sh) for another package manager's locks instead of failing. Prints what it did.
 set -euo pipefail
 
 bash "$(dirname "$0")/install-mujoco.sh"
@@ -30,6 +30,7 @@ if [ "$(id -u)" -ne 0 ]; then
 fi
 
 echo "install-test-deps: chromium not found; installing Debian's chromium with apt-get"
-"${SUDO[@]}" apt-get -o DPkg::Lock::Timeout=300 update -q
-DEBIAN_FRONTEND=noninteractive "${SUDO[@]}" apt-get -o DPkg::Lock::Timeout=300 install -y -q --no-install-recommends chromium
+source "$(dirname "$0")/apt-wait.sh"
+apt_get update -q
+apt_get install -y -q --no-install-recommends chromium
 echo "install-test-deps: installed $(chromium --version 2>/dev/null || echo chromium)"
