@@ -193,12 +193,14 @@ fn absurd_runs_are_refused_before_they_start() {
             assert!(err.contains(n), "{args:?}: '{err}' does not say '{n}'");
         }
     };
-    refused(&["simulate", "--duration", "1e9", "--out", out], &["would need about", "GB of memory", "--record-rate", "--memory-limit"]);
+    refused(&["simulate", "--duration", "1e9", "--out", out], &["--duration", "at most 86400 s"]);
+    // The limit given, so that the test does not depend on this machine's memory.
+    refused(&["--memory-limit", "16", "simulate", "--duration", "86400", "--record-rate", "2000", "--out", out], &["would need about 207.4 GB of memory", "--record-rate", "--memory-limit"]);
     refused(&["--memory-limit", "0.001", "simulate", "--duration", "10", "--out", out], &["over the limit of 0.0 GB (--memory-limit 0.001)"]);
     refused(&["simulate", "--drop-height", "1e6", "--out", out], &["--drop-height", "0-10 m"]);
     let long = dir.join("long.toml");
     std::fs::write(&long, SHIFT_TASK.replace("duration = 0.6", "duration = 2000.0")).unwrap();
-    refused(&["solve", long.to_str().unwrap(), "--out", out], &["long.toml", "1000000 knots", "would need about 64.0 GB"]);
+    refused(&["--memory-limit", "16", "solve", long.to_str().unwrap(), "--out", out], &["long.toml", "1000000 knots", "would need about 64.0 GB", "limit of 16.0 GB (--memory-limit 16)"]);
     let coarse = dir.join("coarse.toml");
     std::fs::write(&coarse, SHIFT_TASK.replace("dt = 0.002", "dt = 0.05")).unwrap();
     refused(&["solve", coarse.to_str().unwrap(), "--out", out], &["coarse.toml", "field `dt`", "at most 0.02 s", "got 0.05"]);

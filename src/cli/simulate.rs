@@ -64,8 +64,9 @@ pub struct SimulateArgs {
     /// Control rate (Hz), a whole divisor of the physics rate.
     #[arg(long, default_value_t = 1000.0)]
     control_rate: f64,
-    /// Recording rate (Hz), a whole divisor of the physics rate; default: the control rate.
-    /// Long runs record less often to fit in memory (about 1 KB per recorded knot).
+    /// Recording rate (Hz), a whole divisor of the physics rate; default: the control rate,
+    /// or for runs that would record more than a million knots (about 1.2 KB each in
+    /// memory) the rate that records a million, with a warning.
     #[arg(long)]
     record_rate: Option<f64>,
     /// Output folder (created).
@@ -73,6 +74,8 @@ pub struct SimulateArgs {
     out: PathBuf,
 }
 
+/// The longest `--duration` (s): a day.
+const MAX_DURATION: f64 = 86_400.0;
 /// The highest `--drop-height` (m).
 const MAX_DROP_HEIGHT: f64 = 10.0;
 /// The memory of a simulation (bytes): the model, the simulator, the replay; and per
@@ -82,11 +85,32 @@ const RUN_MEMORY_BYTES: f64 = 16e6;
 const KNOT_MEMORY_BYTES: f64 = 1.2e3;
 /// trajectory.json and trajectory.csv per recorded knot (bytes): 111 MB for 40,000 knots.
 const KNOT_FILE_BYTES: f64 = 2.8e3;
+/// The most knots a run records unless `--record-rate` says otherwise (about 1.2 GB in
+/// memory, 2.8 GB of files).
+const MAX_DEFAULT_KNOTS: f64 = 1e6;
 /// Physics steps past which a run is long enough to say how long (about a minute).
 const LONG_RUN_STEPS: f64 = 2e7;
 
 pub fn run(args: SimulateArgs) -> Result<()> {
-    let record_rate = args.record_rate.unwrap_or(args.control_rate);
+    if args.duration > MAX_DURATION {
+        bail!("--duration: expected at most {MAX_DURATION} s (a day of robot time, about 10 min of simulation at 2 kHz), got {}", args.duration);
+    }
+    // Long runs record less often by default: at most MAX_DEFAULT_KNOTS knots, at a rate
+    // that divides the physics rate, said in a warning.
+    let record_rate = match args.record_rate {
+        Some(rate) => rate,
+        None if args.duration * args.control_rate > MAX_DEFAULT_KNOTS && args.physics_rate.is_finite() && args.physics_rate > 0.0 => {
+            let every = (args.duration * args.physics_rate / MAX_DEFAULT_KNOTS).ceil();
+            let rate = args.physics_rate / every;
+            eprintln!(
+                "warning: {} s at the control rate would record {:.1e} knots; recording at {rate:.4} Hz instead (at most {MAX_DEFAULT_KNOTS:.0e} knots; --record-rate sets it)",
+                args.duration,
+                args.duration * args.control_rate
+            );
+            rate
+        }
+        None => args.control_rate,
+    };
     for (flag, rate) in [("--physics-rate", args.physics_rate), ("--control-rate", args.control_rate), ("--record-rate", record_rate)] {
         if !(rate.is_finite() && rate > 0.0) {
             bail!("{flag}: expected a positive rate in Hz, got {rate}");
