@@ -2,8 +2,8 @@
 //!
 //! A task's costs say what the optimizer pulls towards; its targets say what a user accepts.
 //! `legwork solve` checks them on the plan (and, at twice the tolerances, on the closed-loop
-//! re-runs and the MuJoCo check, issue 4's convention) and exits with
-//! [`crate::cli`'s](../../cli) "target missed" code when the plan misses one.
+//! re-runs and the MuJoCo check, issue 4's convention) and exits with the command line's
+//! "ran but missed its target" code, 1, when the plan misses one.
 //!
 //! ```toml
 //! [[target]]
@@ -210,7 +210,7 @@ impl Target {
                 min_flight_time = Some(t);
             }
             if checks.is_empty() && spec.liftoffs_per_foot.is_none() && spec.min_flight_time.is_none() {
-                return Err(bad("", "checks nothing: give base_position, base_rpy_deg, feet, feet_down, feet_up, liftoffs_per_foot or min_flight_time".into()));
+                return Err(TaskError::Invalid { origin: origin.into(), field: format!("target[{i}]"), problem: "checks nothing: give base_position, base_rpy_deg, feet, feet_down, feet_up, liftoffs_per_foot or min_flight_time".into() });
             }
             if !checks.is_empty() {
                 entries.push((at, checks));
