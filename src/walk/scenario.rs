@@ -168,6 +168,20 @@ impl ScenarioSpec {
                 return Err(bad(format!("world.size[{i}]"), format!("expected at least two cells ({} m), got {s}", 2.0 * w.resolution)));
             }
         }
+        // The height and cost maps hold every cell: bounded before they are allocated.
+        let cells = (w.size[0] / w.resolution + 1.0).round() * (w.size[1] / w.resolution + 1.0).round();
+        if cells > crate::terrain::MAX_CELLS as f64 {
+            return Err(bad(
+                "world.size".into(),
+                format!(
+                    "expected at most {} map cells at the resolution of {} m (the height and cost maps hold each), got {cells:.3e} for [{}, {}] m",
+                    crate::terrain::MAX_CELLS,
+                    w.resolution,
+                    w.size[0],
+                    w.size[1]
+                ),
+            ));
+        }
         // The robot (about 1 m x 0.7 m around its base) must fit inside the world at start
         // and goal.
         let margin = 0.6;
@@ -310,6 +324,9 @@ mod tests {
             (good.replace("x = [1.0, 2.2]", "x = [2.2, 1.0]"), "world.block[0].x"),
             (good.replace("goal = [3.0, 0.0, 0.0]", "goal = [30.0, 0.0, 0.0]"), "goal"),
             (good.replace("resolution = 0.02", "resolution = -1.0"), "world.resolution"),
+            // 1e7 m squared would be 2.5e17 cells: refused before any map is allocated (it
+            // aborted on the allocation).
+            (good.replace("size = [5.0, 3.0]", "size = [1e7, 1e7]"), "at most 25000000 map cells"),
         ];
         for (text, field) in cases {
             let e = ScenarioSpec::from_toml(&text, "pallet.toml").unwrap_err().to_string();
