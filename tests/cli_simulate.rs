@@ -52,7 +52,7 @@ fn simulate_writes_the_trajectory_and_prints_a_summary() {
 fn bad_simulate_input_is_refused_with_a_named_error() {
     let cases: [(&[&str], &str); 6] = [
         (&["simulate", "--push", "1,2@3"], "X,Y,Z@T:DUR"),
-        (&["simulate", "--duration", "-1"], "`duration`"),
+        (&["simulate", "--duration", "-1"], "--duration"),
         (&["simulate", "--physics-rate", "0"], "--physics-rate"),
         (&["simulate", "--terrain", "/no/such/map.toml"], "/no/such/map.toml"),
         (&["simulate", "--controller", "track"], "--reference"),
@@ -198,6 +198,8 @@ fn absurd_runs_are_refused_before_they_start() {
     refused(&["--memory-limit", "16", "simulate", "--duration", "86400", "--record-rate", "2000", "--out", out], &["would need about 207.4 GB of memory", "--record-rate", "--memory-limit"]);
     refused(&["--memory-limit", "0.001", "simulate", "--duration", "10", "--out", out], &["over the limit of 0.0 GB (--memory-limit 0.001)"]);
     refused(&["simulate", "--drop-height", "1e6", "--out", out], &["--drop-height", "0-10 m"]);
+    refused(&["simulate", "--physics-rate", "1e12", "--out", out], &["--physics-rate", "at most 100000 Hz"]);
+    refused(&["simulate", "--duration", "nan", "--out", out], &["--duration", "positive"]);
     let long = dir.join("long.toml");
     std::fs::write(&long, SHIFT_TASK.replace("duration = 0.6", "duration = 2000.0")).unwrap();
     refused(&["--memory-limit", "16", "solve", long.to_str().unwrap(), "--out", out], &["long.toml", "1000000 knots", "would need about 64.0 GB", "limit of 16.0 GB (--memory-limit 16)"]);

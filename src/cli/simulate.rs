@@ -74,6 +74,8 @@ pub struct SimulateArgs {
     out: PathBuf,
 }
 
+/// The highest `--physics-rate` (Hz).
+const MAX_PHYSICS_RATE: f64 = 1e5;
 /// The longest `--duration` (s): a day.
 const MAX_DURATION: f64 = 86_400.0;
 /// The highest `--drop-height` (m).
@@ -92,8 +94,8 @@ const MAX_DEFAULT_KNOTS: f64 = 1e6;
 const LONG_RUN_STEPS: f64 = 2e7;
 
 pub fn run(args: SimulateArgs) -> Result<()> {
-    if args.duration > MAX_DURATION {
-        bail!("--duration: expected at most {MAX_DURATION} s (a day of robot time, about 10 min of simulation at 2 kHz), got {}", args.duration);
+    if !(args.duration > 0.0 && args.duration <= MAX_DURATION) {
+        bail!("--duration: expected a positive time of at most {MAX_DURATION} s (a day of robot time, about 10 min of simulation at 2 kHz), got {}", args.duration);
     }
     // Long runs record less often by default: at most MAX_DEFAULT_KNOTS knots, at a rate
     // that divides the physics rate, said in a warning.
@@ -115,6 +117,9 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         if !(rate.is_finite() && rate > 0.0) {
             bail!("{flag}: expected a positive rate in Hz, got {rate}");
         }
+    }
+    if args.physics_rate > MAX_PHYSICS_RATE {
+        bail!("--physics-rate: expected at most {MAX_PHYSICS_RATE} Hz (the contact model needs steps of at most 1 ms; 100 kHz is a hundred times finer), got {}", args.physics_rate);
     }
     if !(0.0..=MAX_DROP_HEIGHT).contains(&args.drop_height) {
         bail!("--drop-height: expected 0-{MAX_DROP_HEIGHT} m (from 10 m a robot lands at 14 m/s, past any legged robot's drop test), got {}", args.drop_height);

@@ -79,6 +79,9 @@ pub fn run(args: SolveArgs) -> Result<Verdict> {
     let robot = args.robot.clone().unwrap_or_else(|| spec.robot.clone());
     let (model, _) = super::robot::load(&robot)?;
     let target = spec.target(&model, &origin)?;
+    if args.iterations == Some(0) {
+        anyhow::bail!("--iterations: expected at least 1 SLQ iteration, got 0");
+    }
     super::resources::check_memory(
         &format!("{origin}: {} knots ({} s at dt {} s)", spec.knots(), spec.duration, spec.dt),
         spec.estimated_memory_bytes(),

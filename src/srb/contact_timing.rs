@@ -166,7 +166,9 @@ impl ContactTimingSettings {
     /// Checks the ranges the formulation needs.
     pub fn validate(&self) -> Result<(), ContactTimingError> {
         let check = |field, value: f64, ok: bool, expected| if ok { Ok(()) } else { Err(ContactTimingError::Setting { field, value, expected }) };
-        check("knots_per_phase", self.knots_per_phase as f64, self.knots_per_phase >= 1, ">= 1")?;
+        // The paper's N_i is 30; a thousand per phase already takes minutes, more would not
+        // fit in memory before the solve could refuse them.
+        check("knots_per_phase", self.knots_per_phase as f64, (1..=MAX_KNOTS_PER_PHASE).contains(&self.knots_per_phase), "between 1 and 1000")?;
         check("mu", self.mu, self.mu > 0.0, "> 0")?;
         check("f_min", self.f_min, self.f_min.is_finite() && self.f_min <= self.f_max, "finite and <= f_max")?;
         check("f_max", self.f_max, self.f_max.is_finite(), "finite")?;
@@ -181,6 +183,9 @@ impl ContactTimingSettings {
         Ok(())
     }
 }
+
+/// The most knots per phase the contact timing accepts (the paper uses 30).
+pub const MAX_KNOTS_PER_PHASE: usize = 1000;
 
 /// `exp(hat(axis * angle))`.
 fn rotation(axis: &Vector3<f64>, angle: f64) -> Matrix3<f64> {
