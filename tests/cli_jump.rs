@@ -109,6 +109,9 @@ fn bad_jumps_are_refused_with_exit_code_2() {
     assert_eq!(out.status.code(), Some(2));
     let e = text(&out.stderr);
     assert!(e.contains("bad.toml: field `target`: expected exactly one of `angle_deg` and `turns`"), "{e}");
+    let out = legwork(&["jump", "lateral", "--trials", "1000000"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("--trials: expected at most 1000"), "{}", text(&out.stderr));
     // 0 knots, and a billion (which aborted on its allocation): refused with the range.
     for knots in ["0", "1000000000"] {
         let out = legwork(&["jump", "lateral", "--knots", knots]);

@@ -136,6 +136,24 @@ def cases():
     add("trajectory: not JSON", track, "{not json", {2})
     add("trajectory: wrong shape", track, '{"metadata": {}, "knots": []}', {2})
     add("trajectory: view of garbage", ["view", "{file}", "--out", "{out}"], "\x00" * 100, {2})
+    # More files and commands.
+    add("task: dt 1e-9 (3e8 knots)", ["--memory-limit", "16"] + solve, shift.replace("dt = 0.002", "dt = 1e-9"), {2})
+    add("task: waypoint after the end", solve, shift + "\n[[waypoint]]\ntime = 5.0\nrho = 100.0\nweights = { base_position = [0.0, 0.0, 1.0] }\n", {2})
+    add("task: negative weight", solve, shift.replace("weight = 1e-4", "weight = -1.0"), {2})
+    add("task: --robot moon", ["solve", "{file}", "--robot", "moon", "--out", "{out}"], shift, {2})
+    add("task: a folder for a file", ["solve", "{out}"], None, {2})
+    add("walk: 2,000 blocks", walk, scenario + "".join(f'\n[[world.block]]\nname = "b{i}"\nx = [{-0.9 + 0.002 * i:.4f}, {-0.899 + 0.002 * i:.4f}]\ny = [1.2, 1.3]\ntop = 0.01\n' for i in range(2000)), {0, 1, 2})
+    add("walk: resolution 1e-9", walk, scenario.replace("size = [5.0, 3.0]", "size = [5.0, 3.0]\nresolution = 1e-9"), {2})
+    add("walk: --seed 2^64-1", ["walk", "flat", "--seed", "18446744073709551615", "--out", "{out}"], None, {0, 1})
+    add("jump: box 1e6 m high", jmp, jump + "\n[[box]]\nx = [-0.5, 0.5]\ny = [-0.5, 0.5]\ntop = 1e6\n", {2})
+    add("jump: --trials 1000000", ["jump", "lateral", "--trials", "1000000", "--out", "{out}"], None, {2})
+    add("export: mjcf of a bad robot", ["export", "mjcf", "{file}", "--out", "{out}.xml"], "<robot name='x'></robot>", {2})
+    add("export: mjcf of an unknown task", ["export", "mjcf", "hyq", "--task", "moonwalk", "--out", "{out}.xml"], None, {2})
+    add("check: mujoco on a missing folder", ["check", "mujoco", "/no/such/folder"], None, {2, 3})
+    add("control: serve a missing reference", ["control", "serve", "--reference", "/no/such/trajectory.json"], None, {2})
+    add("simulate: --integrator euler2", sim + ["--integrator", "euler2"], None, {2})
+    add("simulate: a garbage height map", sim + ["--terrain", "{file}", "--duration", "0.1"], "cells = [[nan]]", {2})
+    add("bench: slq --iterations 0", ["bench", "slq", "--iterations", "0"], None, {2})
     # Commands that need nothing.
     add("usage: no command", [], None, {2})
     add("usage: unknown command", ["fly"], None, {2})
@@ -178,7 +196,8 @@ def run(legwork, out_dir, case, index):
     if "panicked" in stderr:
         problems.append("panicked")
     # A bad file must be named; an error about a command-line option names the option.
-    if code == 2 and path is not None and os.path.basename(path) not in stderr and not stderr.startswith("error: --"):
+    named_elsewhere = stderr.startswith("error: --") or any(f"'{a}'" in stderr for a in argv[1:])
+    if code == 2 and path is not None and os.path.basename(path) not in stderr and not named_elsewhere:
         problems.append("the error does not name the file")
     first = next((l for l in stderr.splitlines() if l.startswith("error") or l.startswith("warning")), "")
     return {"case": name, "exit_code": code, "expected": sorted(codes), "wall_s": round(wall, 2), "problems": problems, "message": first[:200]}, usage.ru_maxrss

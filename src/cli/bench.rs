@@ -92,6 +92,7 @@ fn jumps(as_json: bool, repeats: usize, knots: Option<usize>, trials: usize, nam
     if repeats == 0 {
         bail!("--repeats: expected at least one solve per jump, got 0");
     }
+    super::check_trials(trials)?;
     let jumps = if names.is_empty() { legwork::jump::embedded_jumps()? } else { names.iter().map(|n| legwork::jump::Jump::load(n.trim())).collect::<Result<Vec<_>, _>>()? };
     let bar = indicatif::ProgressBar::with_draw_target(Some(jumps.len() as u64), indicatif::ProgressDrawTarget::stderr());
     bar.set_style(indicatif::ProgressStyle::with_template("{msg:30} [{bar:30}] {pos}/{len} jumps ({elapsed})").expect("static template"));
@@ -189,6 +190,7 @@ fn terrain(trials: usize, as_json: bool, threads: usize, names: &[String]) -> Re
     if trials == 0 {
         bail!("--trials: expected at least one trial per terrain, got 0");
     }
+    super::check_trials(trials)?;
     let scenarios = terrain_scenarios(names)?;
     let robots: Vec<&str> = scenarios.iter().map(|s| s.robot.as_str()).collect();
     if let Some(other) = robots.iter().find(|r| **r != robots[0]) {
@@ -306,6 +308,9 @@ fn linear_fit(x: &[f64], y: &[f64]) -> (f64, f64, f64) {
 }
 
 fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> Result<Verdict> {
+    if !(1..=1000).contains(&iterations) {
+        bail!("--iterations: expected 1-1000 timed iterations per horizon, got {iterations}");
+    }
     // A missing MuJoCo environment is reported before the benchmark, not after it.
     let mujoco = if check_mujoco { Some(MujocoCheck::locate().or_could_not_finish()?) } else { None };
     let model = embedded::load("hyq")?;

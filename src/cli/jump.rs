@@ -73,6 +73,7 @@ pub fn list() -> Result<()> {
 }
 
 pub fn run(args: JumpArgs) -> Result<ExitCode> {
+    super::check_trials(args.trials)?;
     let jump = Jump::load(&args.jump)?;
     let (model, _) = super::robot::load(&jump.robot)?;
     let settings = settings_of(&jump, args.knots)?;

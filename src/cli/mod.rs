@@ -55,6 +55,18 @@ pub struct Cli {
     memory_limit: Option<f64>,
 }
 
+/// The most randomized trials a command runs (`--trials`): the papers use 10-20; a thousand
+/// jump trials take minutes on two cores.
+pub(crate) const MAX_TRIALS: usize = 1000;
+
+/// Refuses a `--trials` count past [`MAX_TRIALS`].
+pub(crate) fn check_trials(trials: usize) -> anyhow::Result<()> {
+    if trials > MAX_TRIALS {
+        anyhow::bail!("--trials: expected at most {MAX_TRIALS} (the papers run 10-20; a thousand take minutes), got {trials}");
+    }
+    Ok(())
+}
+
 /// Set once from `--force-threads` before a command runs.
 static FORCE_THREADS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
 
