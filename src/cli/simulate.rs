@@ -97,6 +97,9 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     if !(args.duration > 0.0 && args.duration <= MAX_DURATION) {
         bail!("--duration: expected a positive time of at most {MAX_DURATION} s (a day of robot time, about 10 min of simulation at 2 kHz), got {}", args.duration);
     }
+    if args.physics_rate > MAX_PHYSICS_RATE {
+        bail!("--physics-rate: expected at most {MAX_PHYSICS_RATE} Hz (the contact model needs steps of at most 1 ms; 100 kHz is a hundred times finer), got {}", args.physics_rate);
+    }
     // Long runs record less often by default: at most MAX_DEFAULT_KNOTS knots, at a rate
     // that divides the physics rate, said in a warning.
     let record_rate = match args.record_rate {
@@ -117,9 +120,6 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         if !(rate.is_finite() && rate > 0.0) {
             bail!("{flag}: expected a positive rate in Hz, got {rate}");
         }
-    }
-    if args.physics_rate > MAX_PHYSICS_RATE {
-        bail!("--physics-rate: expected at most {MAX_PHYSICS_RATE} Hz (the contact model needs steps of at most 1 ms; 100 kHz is a hundred times finer), got {}", args.physics_rate);
     }
     if !(0.0..=MAX_DROP_HEIGHT).contains(&args.drop_height) {
         bail!("--drop-height: expected 0-{MAX_DROP_HEIGHT} m (from 10 m a robot lands at 14 m/s, past any legged robot's drop test), got {}", args.drop_height);
