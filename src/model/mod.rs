@@ -25,6 +25,7 @@ pub mod description;
 pub mod embedded;
 pub mod info;
 pub mod urdf;
+mod urdf_dom;
 
 use crate::contact::ContactParams;
 use crate::spatial::{Inertia, Motion, SE3};

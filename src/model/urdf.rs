@@ -174,8 +174,13 @@ fn srdf_candidates(path: &Path) -> Vec<PathBuf> {
 pub fn from_str(xml: &str, source: &str, root: RootJoint) -> Result<Model, UrdfError> {
     let dom = parse_dom(xml, source, "robot")?;
     let scan = prescan(&dom, source)?;
-    // urdf-rs builds its own DOM: free this one first (a 50 MB URDF's DOM takes a GB), and
-    // parse it again only to say where urdf-rs failed.
+    // The plain URDF 1.0 most files are is read from this DOM; anything else goes to urdf-rs,
+    // which builds its own DOM: this one is freed first (a 50 MB URDF's DOM takes a GB) and
+    // parsed again only to say where urdf-rs failed.
+    if let Some(robot) = super::urdf_dom::robot(&dom) {
+        drop(dom);
+        return Builder { file: source, robot: &robot, scan: &scan }.build(root);
+    }
     drop(dom);
     let robot = match urdf_rs::read_from_string(xml) {
         Ok(r) => r,
