@@ -9,6 +9,10 @@ use legwork::model::{description, embedded};
 use legwork::ocp::TaskSpec;
 use legwork::terrain::{Plane, Terrain};
 use proptest::prelude::*;
+
+#[path = "support/number_spans.rs"]
+mod number_spans;
+use number_spans::number_spans;
 use std::sync::mpsc;
 use std::time::Duration;
 
@@ -99,28 +103,6 @@ fn must_answer(format: Format, text: String) -> Result<(), TestCaseError> {
     }
     let _ = worker.join();
     Ok(())
-}
-
-/// Byte spans of the numbers in `text` (a digit run with its sign, point and exponent).
-fn number_spans(text: &str) -> Vec<(usize, usize)> {
-    let b = text.as_bytes();
-    let mut spans = Vec::new();
-    let mut i = 0;
-    while i < b.len() {
-        let starts = b[i].is_ascii_digit() || (b[i] == b'-' && i + 1 < b.len() && b[i + 1].is_ascii_digit());
-        let inside_word = i > 0 && (b[i - 1].is_ascii_alphanumeric() || b[i - 1] == b'_');
-        if starts && !inside_word {
-            let start = i;
-            i += 1;
-            while i < b.len() && (b[i].is_ascii_digit() || matches!(b[i], b'.' | b'e' | b'E' | b'-' | b'+')) {
-                i += 1;
-            }
-            spans.push((start, i));
-        } else {
-            i += 1;
-        }
-    }
-    spans
 }
 
 const POISON: [&str; 10] = ["nan", "-1", "0", "inf", "-inf", "1e308", "-1e300", "1e9", "\"x\"", ""];

@@ -6,6 +6,10 @@ use legwork::model::urdf::{self, RootJoint, UrdfError, UrdfErrorKind};
 use legwork::model::{FrameKind, JointKind, Model};
 use proptest::prelude::*;
 
+#[path = "support/number_spans.rs"]
+mod number_spans;
+use number_spans::number_spans;
+
 fn shared(rel: &str) -> String {
     format!("{}/../shared/{rel}", env!("CARGO_MANIFEST_DIR"))
 }
@@ -517,27 +521,6 @@ fn foot_prefixes_give_the_lf_rf_lh_rh_order() {
 // ---------------------------------------------------------------------------------------
 // Robustness: mutated URDFs never panic
 // ---------------------------------------------------------------------------------------
-
-/// Byte ranges of the numbers in `s`.
-fn number_spans(s: &str) -> Vec<(usize, usize)> {
-    let b = s.as_bytes();
-    let mut spans = Vec::new();
-    let mut i = 0;
-    while i < b.len() {
-        let starts = b[i].is_ascii_digit() || (b[i] == b'-' && i + 1 < b.len() && (b[i + 1].is_ascii_digit() || b[i + 1] == b'.'));
-        if starts && (i == 0 || !b[i - 1].is_ascii_alphanumeric() && b[i - 1] != b'_') {
-            let mut j = i + 1;
-            while j < b.len() && (b[j].is_ascii_digit() || b"eE.-+".contains(&b[j])) {
-                j += 1;
-            }
-            spans.push((i, j));
-            i = j;
-        } else {
-            i += 1;
-        }
-    }
-    spans
-}
 
 fn a1_urdf() -> &'static str {
     static A1: std::sync::OnceLock<String> = std::sync::OnceLock::new();
