@@ -310,7 +310,7 @@ fn nesting_problem(text: &str) -> String {
     }
 }
 
-fn child_elements<'a>(e: &'a xml::Element) -> impl Iterator<Item = &'a xml::Element> + 'a {
+pub(super) fn child_elements<'a>(e: &'a xml::Element) -> impl Iterator<Item = &'a xml::Element> + 'a {
     e.children.iter().filter_map(|c| match c {
         xml::Xml::ElementNode(el) => Some(el),
         _ => None,
@@ -321,7 +321,7 @@ fn first_child<'a>(e: &'a xml::Element, name: &str) -> Option<&'a xml::Element> 
     child_elements(e).find(|c| c.name == name)
 }
 
-fn attr<'a>(e: &'a xml::Element, name: &str) -> Option<&'a str> {
+pub(super) fn attr<'a>(e: &'a xml::Element, name: &str) -> Option<&'a str> {
     e.get_attribute(name, None)
 }
 

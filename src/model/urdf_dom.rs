@@ -7,6 +7,7 @@
 //! materials, `<mimic>`, `<calibration>`, `<safety_controller>`, a repeated or missing
 //! element, an attribute in another form. The importer then lets urdf-rs read the text.
 
+use super::urdf::{attr, child_elements as elements};
 use urdf_rs::{Axis, Collision, Dynamics, Geometry, Inertia, Inertial, Joint, JointLimit, JointType, Link, LinkName, Mass, Pose, Robot, Vec3, Visual};
 
 /// The robot, or `None` for urdf-rs to read.
@@ -28,17 +29,6 @@ pub(super) fn robot(dom: &xml::Element) -> Option<Robot> {
         }
     }
     Some(Robot { name: attr(dom, "name").unwrap_or_default().to_string(), version: None, links, joints, materials: Vec::new() })
-}
-
-fn elements(e: &xml::Element) -> impl Iterator<Item = &xml::Element> {
-    e.children.iter().filter_map(|c| match c {
-        xml::Xml::ElementNode(el) => Some(el),
-        _ => None,
-    })
-}
-
-fn attr<'a>(e: &'a xml::Element, name: &str) -> Option<&'a str> {
-    e.get_attribute(name, None)
 }
 
 /// `Some(())` if every element and attribute name below `e` is a plain XML name: the XML
