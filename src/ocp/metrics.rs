@@ -2,7 +2,7 @@
 //! ended, how high it went, when feet were off the ground, which feet moved together.
 
 use crate::dynamics::{base_orientation, forward_kinematics, frame_position, Data};
-use crate::io::Trajectory;
+use crate::io::{Knot, Trajectory};
 use crate::model::Model;
 use crate::sim::JointStops;
 use nalgebra::DVector;
@@ -216,6 +216,22 @@ impl Snapshot {
     }
 }
 
+/// Whether `foot`, in contact at `before`, is off the ground at `after` (the next knot).
+fn lifts_off(before: &Knot, after: &Knot, foot: usize) -> bool {
+    before.in_contact[foot] && !after.in_contact[foot]
+}
+
+/// Lift-offs of every foot over `knots`.
+pub(super) fn liftoffs(knots: &[Knot]) -> Vec<usize> {
+    let feet = knots.first().map_or(0, |k| k.in_contact.len());
+    (0..feet).map(|f| knots.windows(2).filter(|pair| lifts_off(&pair[0], &pair[1], f)).count()).collect()
+}
+
+/// Time with every foot off the ground: the knot intervals that start with no foot down.
+pub(super) fn flight_time(knots: &[Knot]) -> f64 {
+    knots.windows(2).filter(|pair| pair[0].in_contact.iter().all(|&c| !c)).map(|pair| pair[1].t - pair[0].t).sum()
+}
+
 /// Pearson correlation of two 0/1 sequences.
 fn correlation(a: &[f64], b: &[f64]) -> Option<f64> {
     let n = a.len() as f64;
@@ -249,24 +265,15 @@ impl MotionMetrics {
         let last = knots.last().expect("a trajectory has knots (validated)");
         let apex = knots.iter().max_by(|a, b| a.q[2].total_cmp(&b.q[2])).unwrap_or(last);
         let nfeet = traj.metadata.foot_names.len();
-        let mut liftoffs = vec![0; nfeet];
         let mut in_contact = vec![0usize; nfeet];
-        let mut flight_time = 0.0;
         let mut all_down_knots = 0usize;
-        let mut first_liftoff_time = None;
-        for (k, knot) in knots.iter().enumerate() {
-            for f in 0..nfeet {
-                in_contact[f] += knot.in_contact[f] as usize;
-                if k > 0 && knots[k - 1].in_contact[f] && !knot.in_contact[f] {
-                    liftoffs[f] += 1;
-                    first_liftoff_time.get_or_insert(knot.t);
-                }
+        for knot in knots {
+            for (count, &down) in in_contact.iter_mut().zip(&knot.in_contact) {
+                *count += down as usize;
             }
             all_down_knots += knot.in_contact.iter().all(|&c| c) as usize;
-            if k + 1 < knots.len() && knot.in_contact.iter().all(|c| !c) {
-                flight_time += knots[k + 1].t - knot.t;
-            }
         }
+        let first_liftoff_time = knots.windows(2).find(|pair| (0..nfeet).any(|f| lifts_off(&pair[0], &pair[1], f))).map(|pair| pair[1].t);
         // Net slide per loaded phase.
         let feet = foot_positions(model, traj);
         let loaded_force = 0.1 * model.total_mass() * 9.81 / nfeet.max(1) as f64;
@@ -298,8 +305,8 @@ impl MotionMetrics {
             apex_time: apex.t,
             apex_pitch_deg: rpy(&apex.q)[1],
             apex_in_contact: apex.in_contact.clone(),
-            flight_time,
-            liftoffs,
+            flight_time: flight_time(knots),
+            liftoffs: liftoffs(knots),
             off_ground_final_2s,
             duty_factor: in_contact.iter().map(|&c| c as f64 / knots.len() as f64).collect(),
             all_feet_down: all_down_knots as f64 / knots.len() as f64,

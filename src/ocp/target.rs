@@ -21,7 +21,7 @@
 //!
 //! There are no default tolerances: a target names its own.
 
-use super::metrics::Snapshot;
+use super::metrics::{flight_time, liftoffs, Snapshot};
 use super::task::TaskError;
 use crate::io::Trajectory;
 use crate::model::Model;
@@ -274,7 +274,7 @@ impl Target {
             }
         }
         if let Some(n) = self.liftoffs_per_foot {
-            let counts = liftoffs(traj);
+            let counts = liftoffs(&traj.knots);
             let least = counts.iter().copied().min().unwrap_or(0);
             results.push(TargetResult {
                 what: "lift-offs per foot".into(),
@@ -284,30 +284,11 @@ impl Target {
             });
         }
         if let Some(t) = self.min_flight_time {
-            let flight = flight_time(traj);
+            let flight = flight_time(&traj.knots);
             results.push(TargetResult { what: "flight time (all feet up)".into(), value: format!("{flight:.3} s"), required: format!(">= {t:.3} s"), met: flight >= t });
         }
         results
     }
-}
-
-/// Time with every foot off the ground: the knot intervals that start with no foot down.
-fn flight_time(traj: &Trajectory) -> f64 {
-    traj.knots.windows(2).filter(|pair| pair[0].in_contact.iter().all(|&c| !c)).map(|pair| pair[1].t - pair[0].t).sum()
-}
-
-/// Lift-offs of every foot: knots where a foot in contact at the knot before is not.
-fn liftoffs(traj: &Trajectory) -> Vec<usize> {
-    let feet = traj.knots.first().map_or(0, |k| k.in_contact.len());
-    let mut counts = vec![0; feet];
-    for pair in traj.knots.windows(2) {
-        for (f, count) in counts.iter_mut().enumerate() {
-            if pair[0].in_contact[f] && !pair[1].in_contact[f] {
-                *count += 1;
-            }
-        }
-    }
-    counts
 }
 
 /// True if every result is met (and there is at least one).
