@@ -246,7 +246,10 @@ pub struct Slq<'p, P: Problem> {
     terminal_hessian: DMatrix<f64>,
     riccati: RiccatiScratch,
     regularization: f64,
-    pool: rayon::ThreadPool,
+    /// The solver's threads; `None` with one thread: the work runs on the calling thread
+    /// (exploration runs one-thread solvers side by side on its own pool, and a pool per
+    /// start would give every start a new thread, and the allocator a new arena).
+    pool: Option<rayon::ThreadPool>,
     /// The input box of every knot ([`Problem::input_bounds`]), and whether it has a finite side.
     lower: Vec<DVector<f64>>,
     upper: Vec<DVector<f64>>,
@@ -267,6 +270,19 @@ struct Trial<S> {
 /// search that tries them one at a time.
 fn divided(alpha: f64, divisor: f64, times: usize) -> f64 {
     (0..times).fold(alpha, |a, _| a / divisor)
+}
+
+/// `f` on every job: on `pool`'s threads, or one after another on this thread without one.
+fn for_each_job<I, F>(pool: Option<&rayon::ThreadPool>, jobs: I, f: F)
+where
+    I: Iterator + Send,
+    I::Item: Send,
+    F: Fn(I::Item) + Sync + Send,
+{
+    match pool {
+        Some(pool) => pool.install(|| jobs.par_bridge().for_each(f)),
+        None => jobs.for_each(f),
+    }
 }
 
 /// Sets its flag if dropped while its thread panics.
@@ -441,10 +457,11 @@ impl<'p, P: Problem> Slq<'p, P> {
             return Err(SlqError::Settings { field: "horizon", problem: "the problem has no knots".into() });
         }
         let threads = if settings.threads == 0 { rayon::current_num_threads() } else { settings.threads };
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(|e| SlqError::Settings { field: "threads", problem: e.to_string() })?;
+        let pool = if threads == 1 {
+            None
+        } else {
+            Some(rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| SlqError::Settings { field: "threads", problem: e.to_string() })?)
+        };
         let x0 = problem.initial_state();
         let (mut lower, mut upper) = (vec![DVector::zeros(nu); n], vec![DVector::zeros(nu); n]);
         for k in 0..n {
@@ -524,13 +541,11 @@ impl<'p, P: Problem> Slq<'p, P> {
         let states = &self.states;
         let inputs = &self.inputs;
         let jobs = self.derivatives.chunks_mut(chunk).zip(self.workspaces.iter_mut().zip(self.scratch_states.iter_mut())).enumerate();
-        self.pool.install(|| {
-            jobs.par_bridge().for_each(|(c, (derivs, (ws, scratch)))| {
-                for (i, d) in derivs.iter_mut().enumerate() {
-                    let k = c * chunk + i;
-                    problem.step_with_derivatives(ws, k, &states[k], &inputs[k], scratch, knot_mut(d));
-                }
-            });
+        for_each_job(self.pool.as_ref(), jobs, |(c, (derivs, (ws, scratch)))| {
+            for (i, d) in derivs.iter_mut().enumerate() {
+                let k = c * chunk + i;
+                problem.step_with_derivatives(ws, k, &states[k], &inputs[k], scratch, knot_mut(d));
+            }
         });
         let ws = &mut self.workspaces[0];
         problem.terminal_cost_derivatives(ws, &self.states[n], &mut self.terminal_gradient, &mut self.terminal_hessian);
@@ -547,7 +562,7 @@ impl<'p, P: Problem> Slq<'p, P> {
     /// each (overlapped: the pass's own per-knot time, the rest as linearization).
     fn linearize_and_backward_pass(&mut self, timing: &mut IterationTiming) -> bool {
         let started = Instant::now();
-        if self.workspaces.len() < 2 || !self.settings.overlap_backward_pass || self.regularization > self.settings.max_regularization {
+        if self.pool.is_none() || self.workspaces.len() < 2 || !self.settings.overlap_backward_pass || self.regularization > self.settings.max_regularization {
             self.linearize();
             timing.linearization = started.elapsed().as_secs_f64();
             let t = Instant::now();
@@ -582,7 +597,7 @@ impl<'p, P: Problem> Slq<'p, P> {
         let (own_workspace, own_scratch) = (&mut own_workspace[0], &mut own_scratch[0]);
         let mut backward_time = 0.0;
         let mut ok = true;
-        pool.install(|| {
+        let mut overlapped = || {
             rayon::scope(|s| {
                 for (ws, scratch) in helper_workspaces.iter_mut().zip(helper_scratch.iter_mut()) {
                     s.spawn(move |_| while claim(ws, scratch) {});
@@ -616,7 +631,13 @@ impl<'p, P: Problem> Slq<'p, P> {
                 // A pass that has to restart needs every knot: finish the linearization.
                 while claim(own_workspace, own_scratch) {}
             });
-        });
+        };
+        // Two or more threads here, so there is a pool (without, the scope would take the
+        // caller's).
+        match pool.as_ref() {
+            Some(pool) => pool.install(overlapped),
+            None => overlapped(),
+        }
         timing.linearization = started.elapsed().as_secs_f64() - backward_time;
         timing.backward_pass = backward_time;
         if ok {
@@ -672,11 +693,9 @@ impl<'p, P: Problem> Slq<'p, P> {
         while remaining > 0 {
             let round = remaining.min(self.trials.len());
             let jobs = self.trials[..round].iter_mut().zip(self.workspaces.iter_mut()).enumerate();
-            self.pool.install(|| {
-                jobs.par_bridge().for_each(|(j, (trial, ws))| {
-                    let step = divided(alpha, divisor, j);
-                    trial.cost = Self::trial_rollout(problem, ws, states, inputs, feedforward, gains, bounds, step, trial);
-                });
+            for_each_job(self.pool.as_ref(), jobs, |(j, (trial, ws))| {
+                let step = divided(alpha, divisor, j);
+                trial.cost = Self::trial_rollout(problem, ws, states, inputs, feedforward, gains, bounds, step, trial);
             });
             for j in 0..round {
                 if let Some(trial_cost) = self.trials[j].cost.filter(|&c| c < cost) {
