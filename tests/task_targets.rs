@@ -69,6 +69,10 @@ fn bad_targets_are_named() {
         ("[[target]]\nat = \"end\"", vec!["target[0]", "checks nothing"]),
         ("[[target]]\nposition_tolerance = 0.1\nfeet_up = [\"lf_foot\"]", vec!["target[0].position_tolerance", "without base_position or feet"]),
         ("[[target]]\nliftoffs_per_foot = 1\n[[target]]\nliftoffs_per_foot = 2", vec!["target[1].liftoffs_per_foot", "give it once"]),
+        ("[[target]]\nmin_diagonal_correlation = 1.5", vec!["target[0].min_diagonal_correlation", "[-1, 1]", "1.5"]),
+        ("[[target]]\nmax_lateral_correlation = 0.0\n[[target]]\nmax_lateral_correlation = 0.1", vec!["target[1].max_lateral_correlation", "give it once"]),
+        ("[[target]]\nfeet_up_from = 0.5", vec!["target[0].feet_up_from", "without feet_up"]),
+        ("[[target]]\nfeet_up = [\"lf_foot\"]\nfeet_up_from = 3.0", vec!["target[0].feet_up_from", "0-1 s"]),
     ] {
         let message = error_of(targets, &model);
         for part in expected {
@@ -128,6 +132,46 @@ feet_down = ["rf_foot", "lh_foot", "rh_foot"]
     // "start" is the first knot's value: y stays where it started.
     let y = by_what(&target.check(&model, &motion(&model, 0.3, 45.0), 1.0), "base y at the end").clone();
     assert!(y.met, "{y:?}");
+}
+
+/// `motion` with its contact flags replaced: foot `f` is down at knot `k` if `down(f, k)`.
+fn with_contacts(model: &Model, down: impl Fn(usize, usize) -> bool) -> Trajectory {
+    let mut traj = motion(model, 0.0, 0.0);
+    for (k, knot) in traj.knots.iter_mut().enumerate() {
+        knot.in_contact = (0..4).map(|f| down(f, k)).collect();
+    }
+    traj
+}
+
+#[test]
+fn gait_targets_tell_a_trot_from_a_pronk_and_a_stand() {
+    let model = embedded::load("hyq").unwrap();
+    let spec = task("[[target]]\nmin_diagonal_correlation = 0.8\nmax_lateral_correlation = 0.0\nliftoffs_per_foot = 4").unwrap();
+    let target = spec.target(&model, "shift.toml").unwrap();
+    // Feet LF, RF, LH, RH; a 10-knot cycle. Trot: LF+RH down in the first half, RF+LH in the second.
+    let trot = with_contacts(&model, |f, k| (k % 10 < 5) == (f == 0 || f == 3));
+    let results = target.check(&model, &trot, 1.0);
+    assert!(all_met(&results), "{results:#?}");
+    assert_eq!(by_what(&results, "diagonal contact correlation (LF-RH / RF-LH)").value, "1.00 / 1.00");
+    assert_eq!(by_what(&results, "lateral contact correlation (LF-RF / LH-RH)").value, "-1.00 / -1.00");
+    // Pronk: all four together; diagonal 1 but lateral 1 too.
+    let pronk = with_contacts(&model, |_, k| k % 10 < 5);
+    let results = target.check(&model, &pronk, 1.0);
+    assert!(by_what(&results, "diagonal contact correlation (LF-RH / RF-LH)").met);
+    assert!(!by_what(&results, "lateral contact correlation (LF-RF / LH-RH)").met);
+    // Standing: no foot changes, no correlation at all: missed.
+    let results = target.check(&model, &with_contacts(&model, |_, _| true), 1.0);
+    let diagonal = by_what(&results, "diagonal contact correlation (LF-RH / RF-LH)");
+    assert!(!diagonal.met && diagonal.value == "none / none", "{diagonal:?}");
+
+    // The front feet up from 0.5 s to the end, checked at every knot.
+    let spec = task("[[target]]\nfeet_up = [\"lf_foot\", \"rf_foot\"]\nfeet_up_from = 0.5").unwrap();
+    let target = spec.target(&model, "shift.toml").unwrap();
+    let rear = |last_touch: usize| with_contacts(&model, move |f, k| f >= 2 || k < 50 || k == last_touch);
+    assert!(all_met(&target.check(&model, &rear(0), 1.0)));
+    let results = target.check(&model, &rear(90), 1.0);
+    let lf = by_what(&results, "lf_foot off the ground from 0.5 s");
+    assert!(!lf.met && lf.value == "98 % of knots", "{lf:?}");
 }
 
 #[test]

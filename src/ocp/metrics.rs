@@ -232,6 +232,17 @@ pub(super) fn flight_time(knots: &[Knot]) -> f64 {
     knots.windows(2).filter(|pair| pair[0].in_contact.iter().all(|&c| !c)).map(|pair| pair[1].t - pair[0].t).sum()
 }
 
+/// Contact-flag correlations of a four-footed motion (feet in LF, RF, LH, RH order): the
+/// diagonal pairs (LF-RH, RF-LH) and the lateral pairs (LF-RF, LH-RH); `None` for a pair
+/// with a foot that never changes, and for other numbers of feet.
+pub(super) fn pair_correlations(knots: &[Knot]) -> ([Option<f64>; 2], [Option<f64>; 2]) {
+    if knots.first().map_or(0, |k| k.in_contact.len()) != 4 {
+        return ([None, None], [None, None]);
+    }
+    let flags = |f: usize| -> Vec<f64> { knots.iter().map(|k| k.in_contact[f] as u8 as f64).collect() };
+    ([correlation(&flags(0), &flags(3)), correlation(&flags(1), &flags(2))], [correlation(&flags(0), &flags(1)), correlation(&flags(2), &flags(3))])
+}
+
 /// Pearson correlation of two 0/1 sequences.
 fn correlation(a: &[f64], b: &[f64]) -> Option<f64> {
     let n = a.len() as f64;
@@ -295,9 +306,7 @@ impl MotionMetrics {
         }
         let final_window: Vec<_> = knots.iter().filter(|k| k.t >= last.t - FINAL_WINDOW).collect();
         let off_ground_final_2s = (0..nfeet).map(|f| final_window.iter().filter(|k| !k.in_contact[f]).count() as f64 / final_window.len() as f64).collect();
-        let flags = |f: usize| -> Vec<f64> { knots.iter().map(|k| k.in_contact[f] as u8 as f64).collect() };
-        let diagonal_correlation = if nfeet == 4 { [correlation(&flags(0), &flags(3)), correlation(&flags(1), &flags(2))] } else { [None, None] };
-        let lateral_correlation = if nfeet == 4 { [correlation(&flags(0), &flags(1)), correlation(&flags(2), &flags(3))] } else { [None, None] };
+        let (diagonal_correlation, lateral_correlation) = pair_correlations(knots);
         Self {
             final_base_position: [last.q[0], last.q[1], last.q[2]],
             final_base_rpy_deg: rpy(&last.q),

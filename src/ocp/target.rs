@@ -15,13 +15,16 @@
 //! feet = { lf_foot = [0.65, "start", 0.2] }  # foot-sphere centres, m, world
 //! feet_down = ["lh_foot", "rh_foot"]   # in contact at `at`
 //! feet_up = ["lf_foot", "rf_foot"]     # off the ground at `at`
+//! feet_up_from = 1.0                   # s: the `feet_up` feet stay up from this time to the end (not only at `at`)
 //! liftoffs_per_foot = 5                # every foot leaves the ground at least this often (whole motion)
 //! min_flight_time = 0.1                # s with all feet off the ground (whole motion)
+//! min_diagonal_correlation = 0.8       # contact flags of LF-RH and RF-LH, each at least this (whole motion; four feet)
+//! max_lateral_correlation = 0.0        # contact flags of LF-RF and LH-RH, each at most this (whole motion; four feet)
 //! ```
 //!
 //! There are no default tolerances: a target names its own.
 
-use super::metrics::{flight_time, liftoffs, Snapshot};
+use super::metrics::{flight_time, liftoffs, pair_correlations, Snapshot};
 use super::task::TaskError;
 use crate::io::Trajectory;
 use crate::model::Model;
@@ -65,8 +68,11 @@ pub struct TargetSpec {
     pub angle_tolerance_deg: Option<f64>,
     pub feet_down: Option<Vec<String>>,
     pub feet_up: Option<Vec<String>>,
+    pub feet_up_from: Option<f64>,
     pub liftoffs_per_foot: Option<usize>,
     pub min_flight_time: Option<f64>,
+    pub min_diagonal_correlation: Option<f64>,
+    pub max_lateral_correlation: Option<f64>,
 }
 
 /// When a resolved target is checked.
@@ -91,6 +97,8 @@ enum Check {
     BaseAngle { axis: usize, goal: Goal, tolerance_deg: f64 },
     FootPosition { foot: usize, axis: usize, goal: Goal, tolerance: f64 },
     FootDown { foot: usize, down: bool },
+    /// Up at every knot from `from` s to the end.
+    FootUpFrom { foot: usize, from: f64 },
 }
 
 /// A task's targets, resolved against its robot: what [`Target::check`] measures.
@@ -99,6 +107,8 @@ pub struct Target {
     entries: Vec<(CheckTime, Vec<Check>)>,
     liftoffs_per_foot: Option<usize>,
     min_flight_time: Option<f64>,
+    min_diagonal_correlation: Option<f64>,
+    max_lateral_correlation: Option<f64>,
     foot_names: Vec<String>,
 }
 
@@ -124,6 +134,7 @@ impl Target {
         let mut entries = Vec::new();
         let mut liftoffs_per_foot = None;
         let mut min_flight_time = None;
+        let (mut min_diagonal_correlation, mut max_lateral_correlation) = (None, None);
         for (i, spec) in specs.iter().enumerate() {
             let field = |name: &str| format!("target[{i}].{name}");
             let bad = |name: &str, problem: String| TaskError::Invalid { origin: origin.into(), field: field(name), problem };
@@ -183,9 +194,21 @@ impl Target {
                     }
                 }
             }
+            if let Some(from) = spec.feet_up_from {
+                if !(from.is_finite() && (0.0..=duration).contains(&from)) {
+                    return Err(bad("feet_up_from", format!("expected a time within the task's 0-{duration} s, got {from}")));
+                }
+                if spec.feet_up.as_ref().is_none_or(|f| f.is_empty()) {
+                    return Err(bad("feet_up_from", "given without feet_up to apply to".into()));
+                }
+            }
             for (list, down, name) in [(&spec.feet_down, true, "feet_down"), (&spec.feet_up, false, "feet_up")] {
                 for foot in list.iter().flatten() {
-                    checks.push(Check::FootDown { foot: foot_index(foot, name)?, down });
+                    let foot = foot_index(foot, name)?;
+                    checks.push(match spec.feet_up_from {
+                        Some(from) if !down => Check::FootUpFrom { foot, from },
+                        _ => Check::FootDown { foot, down },
+                    });
                 }
             }
             if spec.position_tolerance.is_some() && spec.base_position.is_none() && spec.feet.is_none() {
@@ -209,19 +232,34 @@ impl Target {
                 }
                 min_flight_time = Some(t);
             }
-            if checks.is_empty() && spec.liftoffs_per_foot.is_none() && spec.min_flight_time.is_none() {
-                return Err(TaskError::Invalid { origin: origin.into(), field: format!("target[{i}]"), problem: "checks nothing: give base_position, base_rpy_deg, feet, feet_down, feet_up, liftoffs_per_foot or min_flight_time".into() });
+            for (value, slot, name) in [(spec.min_diagonal_correlation, &mut min_diagonal_correlation, "min_diagonal_correlation"), (spec.max_lateral_correlation, &mut max_lateral_correlation, "max_lateral_correlation")] {
+                if let Some(c) = value {
+                    if !(-1.0..=1.0).contains(&c) {
+                        return Err(bad(name, format!("expected a correlation in [-1, 1], got {c}")));
+                    }
+                    if model.feet.len() != 4 {
+                        return Err(bad(name, format!("pairs of feet need a four-footed robot; {} has {} feet", model.name, model.feet.len())));
+                    }
+                    if slot.is_some() {
+                        return Err(bad(name, "given in two targets; it counts over the whole motion, give it once".into()));
+                    }
+                    *slot = Some(c);
+                }
+            }
+            let whole_motion = [spec.liftoffs_per_foot.is_some(), spec.min_flight_time.is_some(), spec.min_diagonal_correlation.is_some(), spec.max_lateral_correlation.is_some()];
+            if checks.is_empty() && !whole_motion.contains(&true) {
+                return Err(TaskError::Invalid { origin: origin.into(), field: format!("target[{i}]"), problem: "checks nothing: give base_position, base_rpy_deg, feet, feet_down, feet_up, liftoffs_per_foot, min_flight_time, min_diagonal_correlation or max_lateral_correlation".into() });
             }
             if !checks.is_empty() {
                 entries.push((at, checks));
             }
         }
-        Ok(Self { entries, liftoffs_per_foot, min_flight_time, foot_names: model.feet.iter().map(|f| f.name.clone()).collect() })
+        Ok(Self { entries, liftoffs_per_foot, min_flight_time, min_diagonal_correlation, max_lateral_correlation, foot_names: model.feet.iter().map(|f| f.name.clone()).collect() })
     }
 
     /// True if the task declares no target.
     pub fn is_empty(&self) -> bool {
-        self.entries.is_empty() && self.liftoffs_per_foot.is_none() && self.min_flight_time.is_none()
+        self.entries.is_empty() && self.liftoffs_per_foot.is_none() && self.min_flight_time.is_none() && self.min_diagonal_correlation.is_none() && self.max_lateral_correlation.is_none()
     }
 
     /// Checks `traj` (a motion of `model`, at least one knot) with every tolerance multiplied
@@ -269,6 +307,11 @@ impl Target {
                         let is_down = snapshot.in_contact.get(foot).copied().unwrap_or(false);
                         TargetResult { what: format!("{} {when}", self.foot_names[foot]), value: state(is_down).into(), required: state(down).into(), met: is_down == down }
                     }
+                    Check::FootUpFrom { foot, from } => {
+                        let window: Vec<bool> = traj.knots.iter().filter(|k| k.t >= from - 1e-9).map(|k| k.in_contact.get(foot).copied().unwrap_or(false)).collect();
+                        let up = window.iter().filter(|&&down| !down).count() as f64 / window.len().max(1) as f64;
+                        TargetResult { what: format!("{} off the ground from {from} s", self.foot_names[foot]), value: format!("{:.0} % of knots", 100.0 * up), required: "100 %".into(), met: !window.is_empty() && up == 1.0 }
+                    }
                 };
                 results.push(result);
             }
@@ -282,6 +325,15 @@ impl Target {
                 required: format!("each >= {n}"),
                 met: least >= n,
             });
+        }
+        let (diagonal, lateral) = pair_correlations(&traj.knots);
+        let shown = |c: &[Option<f64>; 2]| c.iter().map(|c| c.map_or("none".to_string(), |c| format!("{c:.2}"))).collect::<Vec<_>>().join(" / ");
+        if let Some(least) = self.min_diagonal_correlation {
+            // A pair with a foot that never lifts has no correlation: not a gait, so missed.
+            results.push(TargetResult { what: "diagonal contact correlation (LF-RH / RF-LH)".into(), value: shown(&diagonal), required: format!("each >= {least:.2}"), met: diagonal.iter().all(|c| c.is_some_and(|c| c >= least)) });
+        }
+        if let Some(most) = self.max_lateral_correlation {
+            results.push(TargetResult { what: "lateral contact correlation (LF-RF / LH-RH)".into(), value: shown(&lateral), required: format!("each <= {most:.2}"), met: lateral.iter().all(|c| c.is_some_and(|c| c <= most)) });
         }
         if let Some(t) = self.min_flight_time {
             let flight = flight_time(&traj.knots);
