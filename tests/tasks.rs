@@ -1,5 +1,6 @@
 //! Task files (parsing, named errors) and the embedded tasks' targets (Neunert 2017,
-//! sec. V), solved in full: each embedded task solves in 4-10 s, the trot in 25-35 s. Each
+//! sec. V), solved in full: each embedded task solves in 4-10 s, the trot and the humanoid
+//! walk (with their exploration) in 35-75 s. Each
 //! plan's feasibility (issue 16) is asserted as far as it meets the targets; the tasks that
 //! miss their own target under the robot's calibrated contact and the feasibility
 //! constraints are ignored with the measured figure (`cargo test -- --ignored` runs them).
@@ -121,7 +122,7 @@ fn squat_jump_reaches_its_apex_with_a_flight_phase() {
     let spec = TaskSpec::embedded("squat_jump").unwrap();
     let model = embedded::load("hyq").unwrap();
     let ground = Plane::flat(0.0);
-    let run = solve_task(&spec, &model, &ground, "squat_jump", &SolveOptions { threads: 2, max_iterations: None }, |_| ()).unwrap();
+    let run = solve_task(&spec, &model, &ground, "squat_jump", &SolveOptions { threads: 2, ..SolveOptions::default() }, |_| ()).unwrap();
     let plan = &run.plan_metrics;
     assert_feasible("squat_jump", plan, Feasible::default());
     eprintln!(
@@ -154,7 +155,7 @@ fn squat_jump_reaches_its_apex_with_a_flight_phase() {
 fn solve(name: &str) -> (TaskSpec, TaskRun) {
     let spec = TaskSpec::embedded(name).unwrap();
     let model = embedded::load(&spec.robot).unwrap();
-    let run = solve_task(&spec, &model, &Plane::flat(0.0), name, &SolveOptions { threads: 2, max_iterations: None }, |_| ()).unwrap();
+    let run = solve_task(&spec, &model, &Plane::flat(0.0), name, &SolveOptions { threads: 2, ..SolveOptions::default() }, |_| ()).unwrap();
     (spec, run)
 }
 
@@ -345,65 +346,42 @@ fn gallop_reaches_two_metres_lifting_every_foot_five_times() {
     assert!(excess < 10.0, "tracking {:?}", tracking.joint_limit_excess);
 }
 
-/// The full trot (4000 knots in 1 ms substeps, about 15-25 s of solving). Checks that it
-/// reaches its goal with contacts emerging on every foot and that both re-runs follow; not
-/// yet the issue's trot (diagonal contact-flag correlation >= 0.8: it is 0.14 / 0.14, the
-/// feet slide), see tasks/trot.toml.
-#[test]
-#[ignore = "x 0.965 m (its own target 1.00 +- 0.05) under the robot's calibrated contact and the feasibility constraints; not a trot (another issue's)"]
-fn trot_reaches_one_metre_lifting_every_foot() {
-    let (_, run) = solve("trot");
-    let plan = &run.plan_metrics;
-    let policy = run.policy_rerun.metrics().unwrap_or_else(|| panic!("SLQ policy re-run failed"));
-    let tracking = tracking_metrics(&run);
-    eprintln!(
-        "trot: {} iterations, x {:.3} m (policy {:.3}, tracking {:.3}), lift-offs {:?}, diagonal correlation {:?}",
-        run.iterations(),
-        plan.final_base_position[0],
-        policy.final_base_position[0],
-        tracking.final_base_position[0],
-        plan.liftoffs,
-        plan.diagonal_correlation
-    );
-    assert!(run.iterations() <= 60, "40 and the feasibility polish's 20");
-    assert!((plan.final_base_position[0] - 1.0).abs() <= 0.05, "plan x {}", plan.final_base_position[0]);
-    assert!((policy.final_base_position[0] - plan.final_base_position[0]).abs() < 1e-3);
-    assert!((tracking.final_base_position[0] - 1.0).abs() <= 0.10, "tracking x {}", tracking.final_base_position[0]);
-    assert!(plan.final_base_position[1].abs() < 0.05 && plan.final_base_rpy_deg[2].abs() < 5.0);
-    assert!(plan.liftoffs.iter().all(|&n| n >= 3), "{:?}", plan.liftoffs);
-    // The joint-limit cost keeps every joint within 15 deg of its range (46 deg without it).
-    let excess = plan.joint_limit_excess.as_ref().map_or(0.0, |e| e.excess_deg);
-    assert!(excess < 15.0, "{:?}", plan.joint_limit_excess);
+/// The task's own targets on the plan, and at twice the tolerances on both re-runs.
+fn assert_targets_met(name: &str, spec: &TaskSpec, run: &TaskRun) {
+    let model = embedded::load(&spec.robot).unwrap();
+    let target = spec.target(&model, name).unwrap();
+    let plan = target.check(&model, &run.plan, 1.0);
+    let reruns: Vec<_> = [&run.policy_rerun, &run.tracking_rerun]
+        .into_iter()
+        .map(|r| match r {
+            Rerun::Completed { trajectory, .. } => target.check(&model, trajectory, 2.0),
+            Rerun::Failed { reason } => panic!("{name}: a re-run failed: {reason}"),
+        })
+        .collect();
+    for (what, results) in std::iter::once(("plan", &plan)).chain(["SLQ policy", "tracking"].into_iter().zip(&reruns)) {
+        for r in results.iter().filter(|r| !r.met) {
+            eprintln!("{name}, {what}: {} {} (required {})", r.what, r.value, r.required);
+        }
+    }
+    assert!(legwork::ocp::all_met(&plan) && reruns.iter().all(|r| legwork::ocp::all_met(r)), "{name} misses its target");
 }
 
-/// The full humanoid walk (1500 knots, about 5 s of solving). Not yet the issue's target
-/// (both front feet off the ground for the whole final 2 s, x = 0.3 m, see
-/// tasks/humanoid_walk.toml): checks what it does reach, that HyQ pitches up onto its hind
-/// feet and keeps both front feet off the ground for most of the final 2 s, moving forward,
-/// that the SLQ policy re-run reproduces it and that the tracking re-run stays up with the
-/// front feet off for most of the final 2 s too.
+/// The full trot with its exploration (issue 19; 4000 knots in 1 ms substeps, about 75 s
+/// of solving): issue 19's trot (diagonal pairs together, correlation >= 0.8; lateral
+/// pairs apart, <= 0; at least four lift-offs per foot; 1 m ahead), its `[[target]]`.
 #[test]
-#[ignore = "x 0.104 m, pitch -16 deg, the front feet down at the end under the robot's calibrated contact and the feasibility constraints (another issue's)"]
-fn humanoid_walk_lifts_the_front_feet_for_most_of_the_final_two_seconds() {
-    let (_, run) = solve("humanoid_walk");
-    let plan = &run.plan_metrics;
-    let policy = run.policy_rerun.metrics().unwrap_or_else(|| panic!("SLQ policy re-run failed"));
-    eprintln!(
-        "humanoid_walk: {} iterations, x {:.3} m, pitch {:.1} deg, off ground in the final 2 s {:?}",
-        run.iterations(),
-        plan.final_base_position[0],
-        plan.final_base_rpy_deg[1],
-        plan.off_ground_final_2s
-    );
-    assert!(run.iterations() <= 60, "40 and the feasibility polish's 20");
-    let off = &plan.off_ground_final_2s;
-    assert!(off[0] > 0.6 && off[1] > 0.6, "front feet off {off:?}");
-    assert!(off[2] < 0.5 && off[3] < 0.5, "hind feet off {off:?}");
-    assert!(plan.final_base_rpy_deg[1] < -15.0, "pitch {}", plan.final_base_rpy_deg[1]);
-    assert!(plan.final_base_position[0] > 0.15, "x {}", plan.final_base_position[0]);
-    assert!((policy.final_base_position[0] - plan.final_base_position[0]).abs() < 1e-3);
-    let tracking = tracking_metrics(&run);
-    let off = &tracking.off_ground_final_2s;
-    assert!(off[0] > 0.5 && off[1] > 0.5, "tracking: front feet off {off:?}");
-    assert!(tracking.final_base_position[2] > 0.4 && tracking.final_base_rpy_deg[0].abs() < 45.0, "tracking fell: z {}, roll {}", tracking.final_base_position[2], tracking.final_base_rpy_deg[0]);
+#[ignore = "not a trot: diagonal correlation 0.13 / 0.11 (x 0.999 m, lift-offs 10/22/17/44; 2026-12-03): the cheapest motion the exploration finds (task cost 22.7) is not a trot, docs/experiments/gait-exploration.md"]
+fn trot_is_a_trot() {
+    let (spec, run) = solve("trot");
+    assert_targets_met("trot", &spec, &run);
+}
+
+/// The full humanoid walk, the paper's three waypoints, with its exploration (1500 knots,
+/// about 35 s of solving): the front feet off the ground from 1 s to the end, 0.3 m ahead
+/// on the hind feet, pitched up beyond -60 deg, its `[[target]]`.
+#[test]
+#[ignore = "HyQ does not stand up: x 0.189 m, pitch -29.8 deg, front feet off 22 / 18 % of the last 2 s (2026-12-03), docs/experiments/gait-exploration.md"]
+fn humanoid_walk_stands_and_walks() {
+    let (spec, run) = solve("humanoid_walk");
+    assert_targets_met("humanoid_walk", &spec, &run);
 }

@@ -351,7 +351,7 @@ fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> 
         let spec = TaskSpec::embedded(name)?;
         let task_model = embedded::load(&spec.robot)?;
         let target = spec.target(&task_model, name)?;
-        let run = solve_task(&spec, &task_model, &ground, name, &SolveOptions { threads, max_iterations: None }, |_| ()).or_could_not_finish()?;
+        let run = solve_task(&spec, &task_model, &ground, name, &SolveOptions { threads, ..SolveOptions::default() }, |_| ()).or_could_not_finish()?;
         let sol = &run.solution;
         // The task's target on the plan, and at twice its tolerances in MuJoCo (as `solve`).
         let mut target_met = all_met(&target.check(&task_model, &run.plan, 1.0));

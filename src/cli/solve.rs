@@ -26,6 +26,14 @@ pub struct SolveArgs {
     /// Overrides the task's iteration limit.
     #[arg(long)]
     iterations: Option<usize>,
+    /// Explore: solve from this many initial control laws (the standing PD and perturbed
+    /// ones) and keep the best; overrides the task's `[exploration] starts` (1: no
+    /// exploration).
+    #[arg(long)]
+    starts: Option<usize>,
+    /// Seed of the exploration's perturbations; overrides the task's `[exploration] seed`.
+    #[arg(long)]
+    seed: Option<u64>,
     /// After the solve and legwork's re-runs, check the plan in another simulator:
     /// `mujoco` replays it in MuJoCo with the tracking controller and with the exported
     /// feedback policy (needs `scripts/install-mujoco.sh`), two more columns.
@@ -82,10 +90,13 @@ pub fn run(args: SolveArgs) -> Result<Verdict> {
     if args.iterations == Some(0) {
         anyhow::bail!("--iterations: expected at least 1 SLQ iteration, got 0");
     }
+    let exploration = exploration_override(&spec, args.starts, args.seed)?;
+    let threads = super::capped_threads(args.threads);
+    let explored = exploration.as_ref().or(spec.exploration.as_ref());
     super::resources::check_memory(
-        &format!("{origin}: {} knots ({} s at dt {} s)", spec.knots(), spec.duration, spec.dt),
-        spec.estimated_memory_bytes(),
-        "shorten the task's duration or lengthen its dt",
+        &format!("{origin}: {} knots ({} s at dt {} s){}", spec.knots(), spec.duration, spec.dt, explored.filter(|e| e.starts > 1).map_or(String::new(), |e| format!(", {} starts", e.starts))),
+        spec.estimated_memory_bytes_exploring(explored, if threads == 0 { rayon::current_num_threads() } else { threads }),
+        "shorten the task's duration, lengthen its dt, or explore from fewer starts",
     )?;
     let terrain = Plane::flat(0.0);
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&spec.name));
@@ -96,7 +107,7 @@ pub fn run(args: SolveArgs) -> Result<Verdict> {
     };
     say!("Solving {} ({}) for {}: {} s, {} knots of {} s", spec.name, spec.summary, model.name, spec.duration, spec.knots(), spec.dt);
     let started = Instant::now();
-    let options = SolveOptions { threads: super::capped_threads(args.threads), max_iterations: args.iterations };
+    let options = SolveOptions { threads, max_iterations: args.iterations, exploration };
     let run = solve_task(&spec, &model, &terrain, &origin, &options, |progress| {
         let log = progress.log;
         let t = &log.timing;
@@ -169,7 +180,9 @@ pub fn run(args: SolveArgs) -> Result<Verdict> {
         "termination": format!("{:?}", sol.termination),
         "continuation_stages": run.stages.iter().map(|s| json!({ "horizon_s": s.horizon, "iterations": s.iterations, "termination": format!("{:?}", s.termination), "initial_cost": s.initial_cost, "final_cost": s.final_cost, "solve_time_s": s.time })).collect::<Vec<_>>(),
         "augmented_lagrangian_rounds": run.rounds.iter().map(|s| json!({ "iterations": s.iterations, "termination": format!("{:?}", s.termination), "initial_cost": s.initial_cost, "final_cost": s.final_cost, "solve_time_s": s.time })).collect::<Vec<_>>(),
+        "exploration": run.exploration.as_ref().map(exploration_json),
         "constraint_violation": run.violation,
+        "task_cost": run.task_cost,
         "initial_cost": sol.cost_history[0],
         "final_cost": sol.cost_history.last(),
         "solve_time_s": solve_time,
@@ -196,6 +209,26 @@ pub fn run(args: SolveArgs) -> Result<Verdict> {
     let plots = legwork::viz::write_plots(&traj, out.join("plots")).or_could_not_finish()?;
     legwork::viz::write_cost_plot(&sol.cost_history, &format!("{}: normalized cost per SLQ iteration", spec.name), out.join("plots").join("cost.svg")).or_could_not_finish()?;
 
+    if let Some(e) = &run.exploration {
+        let rounds = if e.spec.rounds > 1 { format!("{} rounds of {} SLQ iterations, the cheaper half going on each round", e.spec.rounds, e.spec.screen_iterations) } else { format!("{} SLQ iterations each", e.spec.screen_iterations) };
+        say!("exploration: {} starts (seed {}), {rounds}, {} iterations in all, {:.2} s; kept start {} (cost {:.4e})", e.starts.len(), e.spec.seed, e.iterations, e.time, e.best, e.starts[e.best].cost);
+        for s in &e.starts {
+            let how = match &s.outcome {
+                Ok(t) => format!("{t:?}"),
+                Err(err) => format!("could not start: {err}"),
+            };
+            let met = match s.met {
+                Some(true) => "target met",
+                Some(false) => "target missed",
+                None => "",
+            };
+            let sampled = s.sampled_cost.map_or(String::new(), |c| format!(" (sampled, rollout cost {c:.4e})"));
+            say!("  start {:3}{sampled}: cost {:11.4e} -> {:11.4e} in {:3} iterations ({} round(s)), {:6.2} s, {how} {met}", s.index, s.initial_cost, s.cost, s.iterations, s.rounds, s.time);
+        }
+    }
+    if let Some(f) = run.exploration.as_ref().and_then(|e| e.single_start.as_ref()) {
+        say!("kept start and single start solved to the end side by side in {:.2} s: task cost {:.4e} (kept start) vs {:.4e} (single start); the {} plan is returned", f.time, f.explored_task_cost, f.single_task_cost, if f.kept_single { "single start's" } else { "kept start's" });
+    }
     for (i, stage) in run.stages.iter().enumerate() {
         say!("continuation stage {} on {} s: {:?} after {} iterations in {:.2} s (cost {:.4e} -> {:.4e})", i + 1, stage.horizon, stage.termination, stage.iterations, stage.time, stage.initial_cost, stage.final_cost);
     }
@@ -206,7 +239,7 @@ pub fn run(args: SolveArgs) -> Result<Verdict> {
         say!("largest constraint violations: friction {:.3} m g, penetration {:.3} p_max, joint limit {:.4} rad, joint speed {:.3} v_max, foot speed {:.3}", v.friction, v.penetration, v.joint_limit, v.joint_speed, v.foot_speed);
     }
     let stages_note = if run.stages.is_empty() && run.rounds.is_empty() { String::new() } else { format!(" ({} in the last round on the full horizon)", sol.iterations.len()) };
-    say!("{:?} after {} iterations{stages_note} in {:.2} s (cost {:.4e} -> {:.4e})", sol.termination, run.iterations(), solve_time, sol.cost_history[0], sol.cost_history.last().unwrap_or(&f64::NAN));
+    say!("{:?} after {} iterations{stages_note} in {:.2} s (cost {:.4e} -> {:.4e}; the task's own terms, without the feasibility constraints': {:.4e})", sol.termination, run.iterations(), solve_time, sol.cost_history[0], sol.cost_history.last().unwrap_or(&f64::NAN), run.task_cost);
     let mut columns = vec![
         Column::completed("plan", plan, &traj),
         Column::of("SLQ policy", &run.policy_rerun),
@@ -231,16 +264,13 @@ fn print_target(target: &Target, checked: &[(&str, Option<Vec<TargetResult>>)], 
     let plan = checked[0].1.as_deref().unwrap_or_default();
     say!("Target (the plan; the runs at twice the tolerances):");
     let what = plan.iter().map(|r| r.what.len() + r.required.len() + 3).max().unwrap_or(0);
-    let header: String = checked.iter().map(|(name, _)| format!("{name:<16}")).collect();
+    let cell = |results: &Option<Vec<TargetResult>>, i: usize| results.as_ref().map_or("failed".to_string(), |rs| format!("{} {}", rs[i].value, if rs[i].met { "ok" } else { "MISSED" }));
+    // Columns as wide as their widest cell, at least 16 characters, two spaces apart.
+    let width = checked.iter().flat_map(|(name, results)| std::iter::once(name.len()).chain((0..plan.len()).map(|i| cell(results, i).len()))).max().unwrap_or(0).max(14) + 2;
+    let header: String = checked.iter().map(|(name, _)| format!("{name:<width$}")).collect();
     say!("  {:<what$} {}", "", header.trim_end());
     for (i, r) in plan.iter().enumerate() {
-        let cells: String = checked
-            .iter()
-            .map(|(_, results)| {
-                let cell = results.as_ref().map_or("failed".to_string(), |rs| format!("{} {}", rs[i].value, if rs[i].met { "ok" } else { "MISSED" }));
-                format!("{cell:<16}")
-            })
-            .collect();
+        let cells: String = checked.iter().map(|(_, results)| format!("{:<width$}", cell(results, i))).collect();
         say!("  {:<what$} {}", format!("{} ({})", r.what, r.required), cells.trim_end());
     }
     let whose = if mujoco { "the plan and both MuJoCo runs" } else { "the plan" };
@@ -326,4 +356,55 @@ pub(super) fn print_figures(model: &legwork::model::Model, waypoints: &[f64], co
             say!("  {} failed: {reason}", c.name);
         }
     }
+}
+
+/// The task's `[exploration]` with `--starts` / `--seed` over it (the defaults if the task
+/// has none); `None` when neither asks for one.
+fn exploration_override(spec: &legwork::ocp::TaskSpec, starts: Option<usize>, seed: Option<u64>) -> Result<Option<legwork::ocp::ExplorationSpec>> {
+    if starts.is_none() && seed.is_none() {
+        return Ok(None);
+    }
+    let mut e = match (&spec.exploration, &spec.continuation) {
+        (Some(e), _) => e.clone(),
+        // The first continuation stage is the explored problem: its iterations are the
+        // screening's budget.
+        (None, Some(c)) => {
+            let e = legwork::ocp::ExplorationSpec { screen_iterations: c.iterations, ..Default::default() };
+            say!("exploring the first continuation stage: {} SLQ iterations per start (the stage's)", e.screen_iterations);
+            e
+        }
+        (None, None) => legwork::ocp::ExplorationSpec::default(),
+    };
+    e.starts = starts.unwrap_or(e.starts);
+    e.seed = seed.unwrap_or(e.seed);
+    e.validate().map_err(|(field, problem)| anyhow::anyhow!("--{}: {problem}", if field == "starts" { "starts" } else { field }))?;
+    Ok(Some(e))
+}
+
+fn exploration_json(e: &legwork::ocp::ExplorationReport) -> serde_json::Value {
+    json!({
+        "starts": e.starts.len(),
+        "seed": e.spec.seed,
+        "screen_iterations": e.spec.screen_iterations,
+        "rounds": e.spec.rounds,
+        "sampling": e.spec.sampling.as_ref().map(|s| json!({ "population": s.population, "elite": s.elite, "iterations": s.iterations, "knot_interval_s": s.knot_interval, "setpoint_std_rad": s.setpoint_std, "torque_std": s.torque_std, "starts": s.starts })),
+        "kept_start": e.best,
+        "screening_continued": e.screening_continued,
+        "single_start_final": e.single_start.as_ref().map(|f| json!({ "kept_start_task_cost": f.explored_task_cost, "single_start_task_cost": f.single_task_cost, "returned": if f.kept_single { "single start" } else { "kept start" }, "time_s": f.time })),
+        "iterations": e.iterations,
+        "time_s": e.time,
+        "per_start": e.starts.iter().map(|s| json!({
+            "index": s.index,
+            "seed": s.seed,
+            "sampled_rollout_cost": s.sampled_cost,
+            "initial_cost": s.initial_cost,
+            "cost": s.cost,
+            "iterations": s.iterations,
+            "rounds": s.rounds,
+            "outcome": match &s.outcome { Ok(t) => format!("{t:?}"), Err(e) => e.to_string() },
+            "time_s": s.time,
+            "finished_at_s": s.finished_at,
+            "target_met": s.met,
+        })).collect::<Vec<_>>(),
+    })
 }

@@ -22,6 +22,7 @@
 mod constraints;
 mod continuation;
 mod deviation;
+mod exploration;
 mod limit_cost;
 mod metrics;
 mod physical_gains;
@@ -32,10 +33,11 @@ mod task;
 pub use constraints::{relaxed_barrier, tangential_demand, FeasibilityConstraints, FeasibilitySettings, FrictionForm, FeasibilitySettingsError, KnotContacts, Violation};
 pub use continuation::ContinuationSpec;
 pub use deviation::StateDeviation;
+pub use exploration::{explore, start_seed, survivors, Exploration, ExplorationSpec, PerturbedStanding, SamplingSpec, StartReport, MAX_STARTS};
 pub use limit_cost::{JointLimitCost, JointLimitCostSpec};
 pub use metrics::{joint_limit_excess, Feasibility, LimitExcess, MotionMetrics, Snapshot, FRICTION_MARGIN, SLIDE_SPEED};
 pub use physical_gains::{physical_gain, PhysicalGainWorkspace};
-pub use run::{solution_trajectory, solve_task, Rerun, SlqPolicyController, SolveError, SolveOptions, TaskRun};
+pub use run::{solution_trajectory, solve_task, ExplorationReport, Rerun, SingleStartFinal, SlqPolicyController, SolveError, SolveOptions, TaskRun};
 pub use target::{all_met, CheckTime, Target, TargetCoordinate, TargetResult, TargetSpec, TargetTime};
 pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, TaskError, TaskSpec, WaypointSpec, WeightSpec, EMBEDDED_TASKS};
 

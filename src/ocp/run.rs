@@ -69,6 +69,43 @@ pub struct TaskRun {
     pub rounds: Vec<StageReport>,
     /// The largest violation of each feasibility constraint by the plan.
     pub violation: Option<super::Violation>,
+    /// The plan's cost under the task's own terms (eq. 4: running, waypoint and final
+    /// costs), without the feasibility constraints' augmented-Lagrangian terms, whose
+    /// multipliers differ from solve to solve: the figure to compare two solves by.
+    pub task_cost: f64,
+    /// The exploration's starts and the kept one, if the solve explored.
+    pub exploration: Option<ExplorationReport>,
+}
+
+/// What [`super::explore`] did in a solve: every start, which one was kept, the wall time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExplorationReport {
+    pub spec: super::ExplorationSpec,
+    pub starts: Vec<super::StartReport>,
+    pub best: usize,
+    /// Wall time of the exploration, s (all starts; part of [`TaskRun::solve_time`]).
+    pub time: f64,
+    /// SLQ iterations of all starts together.
+    pub iterations: usize,
+    /// If the kept start was not the single start: both solves to the end, and which won.
+    pub single_start: Option<SingleStartFinal>,
+    /// Whether the returned plan continues the kept start's screening (false when start 0
+    /// was kept, or the single start won the final: the plan is then the single start's own
+    /// solve, and the screening's iterations are not among [`TaskRun::iterations`]).
+    pub screening_continued: bool,
+}
+
+/// The final of an exploration whose kept start is not the single start
+/// ([`super::ExplorationSpec::keep_single_start`]): both solved to the end, side by side.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SingleStartFinal {
+    /// [`TaskRun::task_cost`] of the kept start's plan and of the single start's.
+    pub explored_task_cost: f64,
+    pub single_task_cost: f64,
+    /// True if the single start's plan is the one returned (its task cost no higher).
+    pub kept_single: bool,
+    /// Wall time of the two solves side by side, s.
+    pub time: f64,
 }
 
 impl StageReport {
@@ -85,14 +122,26 @@ impl StageReport {
 }
 
 impl TaskRun {
-    /// SLQ iterations in all: the stages' and the full horizon's.
+    /// SLQ iterations of the kept start in all: the exploration's screening of it, the
+    /// stages' and the full horizon's.
     pub fn iterations(&self) -> usize {
-        self.stages.iter().chain(&self.rounds).map(|s| s.iterations).sum::<usize>() + self.solution.iterations.len()
+        // With a continuation the first stage's report already counts them.
+        let screened = match &self.exploration {
+            Some(e) if e.screening_continued && self.stages.is_empty() => e.starts[e.best].iterations,
+            _ => 0,
+        };
+        screened + self.stages.iter().chain(&self.rounds).map(|s| s.iterations).sum::<usize>() + self.solution.iterations.len()
     }
 
-    /// Seconds of optimization in all: the stages' and the full horizon's.
+    /// Seconds of optimization in all (wall time): the exploration's, the stages' and the
+    /// full horizon's.
     pub fn solve_time(&self) -> f64 {
-        self.stages.iter().chain(&self.rounds).map(|s| s.time).sum::<f64>() + self.solution.total_time
+        let exploring = self.exploration.as_ref().map_or(0.0, |e| e.time);
+        match self.exploration.as_ref().and_then(|e| e.single_start.as_ref()) {
+            // Two solves side by side: their wall time.
+            Some(final_) => exploring + final_.time,
+            None => exploring + self.stages.iter().chain(&self.rounds).map(|s| s.time).sum::<f64>() + self.solution.total_time,
+        }
     }
 }
 
@@ -198,6 +247,8 @@ pub struct SolveOptions {
     pub threads: usize,
     /// Overrides the task's iteration limit.
     pub max_iterations: Option<usize>,
+    /// Overrides the task's `[exploration]` (`Some` with one start: none).
+    pub exploration: Option<super::ExplorationSpec>,
 }
 
 /// SLQ on `problem` from `warm`'s policy (the standing PD after its knots), or from the
@@ -210,14 +261,45 @@ fn solve_from<'a>(problem: &WholeBodyProblem<'a>, settings: SlqSettings, warm: O
     }
 }
 
-/// Solves `spec` for `model` on `terrain` (by horizon continuation if the task asks for
-/// it) and re-runs it in closed loop; `on_iteration` sees each SLQ iteration.
-pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin: &str, options: &SolveOptions, mut on_iteration: impl FnMut(SolveProgress)) -> Result<TaskRun, SolveError> {
-    let initial = settled_stance(model, terrain, 1.0).map_err(SolveError::Settle)?;
-    let pd = JointPd::standing(model, spec.dt)?;
-    let standing = PdPolicy(&pd);
-    let limit = options.max_iterations.or(spec.iterations).unwrap_or(SlqSettings::default().max_iterations);
-    let settings = |max_iterations: usize, normalized_cost_tolerance: f64| SlqSettings { threads: options.threads, max_iterations, normalized_cost_tolerance, ..SlqSettings::default() };
+/// A task's optimization: its continuation's stages, augmented-Lagrangian rounds and polish.
+struct Optimized<'a> {
+    problem: WholeBodyProblem<'a>,
+    solution: SlqSolution<RobotState>,
+    stages: Vec<StageReport>,
+    rounds: Vec<StageReport>,
+    violation: Option<super::Violation>,
+    task_cost: f64,
+}
+
+/// What [`optimize`] needs besides the task: the robot, world and start, and its budget.
+struct Pipeline<'s, 'a> {
+    spec: &'s TaskSpec,
+    model: &'a Model,
+    terrain: &'a dyn Terrain,
+    origin: &'s str,
+    initial: &'s RobotState,
+    pd: &'s JointPd,
+    limit: usize,
+}
+
+impl Pipeline<'_, '_> {
+    /// The first problem a solve meets: the continuation's first stage, or the full horizon.
+    fn first_problem(&self) -> Result<WholeBodyProblem<'_>, SolveError> {
+        let (spec, initial) = (self.spec, self.initial);
+        Ok(match &spec.continuation {
+            Some(c) => spec.continuation_stage(c.horizons[0], c.progress_exponent, [initial.q[0], initial.q[1], initial.q[2]]).problem(self.model, self.terrain, initial.clone(), self.origin)?,
+            None => spec.problem(self.model, self.terrain, initial.clone(), self.origin)?,
+        })
+    }
+}
+
+/// The task's optimization on `threads` threads, from the standing PD or, if `first` is
+/// given, from that solution of [`Pipeline::first_problem`] (an exploration's kept start,
+/// whose iterations count as that problem's first).
+fn optimize<'a>(p: &Pipeline<'_, 'a>, threads: usize, mut first: Option<SlqSolution<RobotState>>, on_iteration: &mut dyn FnMut(SolveProgress)) -> Result<Optimized<'a>, SolveError> {
+    let Pipeline { spec, model, terrain, origin, initial, pd, limit } = *p;
+    let standing = PdPolicy(pd);
+    let settings = |max_iterations: usize, normalized_cost_tolerance: f64| SlqSettings { threads, max_iterations, normalized_cost_tolerance, ..SlqSettings::default() };
 
     // The continuation's stages, each from the last one's policy (the first from standing).
     let mut stages = Vec::new();
@@ -237,8 +319,34 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
             let mut problem = stage_spec.problem(model, terrain, initial.clone(), origin)?;
             carry_multipliers(&mut problem, multipliers.as_ref());
             let report = |log: &IterationLog| on_iteration(SolveProgress { stage: Some((index, horizon)), log });
-            let solution = solve_from(&problem, settings(c.iterations, 0.0), warm.as_ref(), &standing, report)?;
-            stages.push(StageReport::of(horizon, &solution));
+            let solution = match first.take() {
+                // The kept start's screening is this stage's first iterations; it finishes
+                // the rest (its report counts both, its time only the rest: the
+                // exploration's time is counted apart).
+                Some(kept) => {
+                    let screened = StageReport::of(horizon, &kept);
+                    let (solution, rest) = if kept.iterations.len() < c.iterations {
+                        let solution = solve_from(&problem, settings(c.iterations - kept.iterations.len(), 0.0), Some(&kept), &standing, report)?;
+                        let rest = StageReport::of(horizon, &solution);
+                        (solution, Some(rest))
+                    } else {
+                        (kept, None)
+                    };
+                    stages.push(StageReport {
+                        iterations: screened.iterations + rest.as_ref().map_or(0, |r| r.iterations),
+                        termination: rest.as_ref().map_or(screened.termination.clone(), |r| r.termination.clone()),
+                        final_cost: rest.as_ref().map_or(screened.final_cost, |r| r.final_cost),
+                        time: rest.as_ref().map_or(0.0, |r| r.time),
+                        ..screened
+                    });
+                    solution
+                }
+                None => {
+                    let solution = solve_from(&problem, settings(c.iterations, 0.0), warm.as_ref(), &standing, report)?;
+                    stages.push(StageReport::of(horizon, &solution));
+                    solution
+                }
+            };
             problem.update_multipliers(&solution.states);
             multipliers = problem.feasibility.take();
             warm = Some(solution);
@@ -247,6 +355,10 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
 
     let mut problem = spec.problem(model, terrain, initial.clone(), origin)?;
     carry_multipliers(&mut problem, multipliers.as_ref());
+    if let Some(kept) = first.take() {
+        limit_left = limit_left.saturating_sub(kept.iterations.len()).max(1);
+        warm = Some(kept);
+    }
     let flat_cost_tolerance = spec.flat_cost_tolerance.unwrap_or(SlqSettings::default().normalized_cost_tolerance);
     // The full horizon in augmented-Lagrangian rounds, the iterations left split among them:
     // each round from the last one's policy, its multipliers updated after it.
@@ -305,6 +417,82 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
         }
     }
     let violation = problem.constraint_violation(&solution.states);
+    // The plan's cost under the task's own terms, without the feasibility constraints'
+    // (whose multipliers differ from solve to solve): comparable between solves.
+    let task_cost = {
+        let mut plain = spec.problem(model, terrain, initial.clone(), origin)?;
+        plain.feasibility = None;
+        trajectory_cost(&plain, &solution.states, &solution.inputs)
+    };
+    Ok(Optimized { problem, solution, stages, rounds, violation, task_cost })
+}
+
+/// Solves `spec` for `model` on `terrain` (by horizon continuation if the task asks for
+/// it; from an exploration's kept start if it asks for one) and re-runs it in closed loop;
+/// `on_iteration` sees each SLQ iteration (of the kept start's solve, when two run).
+pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin: &str, options: &SolveOptions, mut on_iteration: impl FnMut(SolveProgress) + Send) -> Result<TaskRun, SolveError> {
+    let initial = settled_stance(model, terrain, 1.0).map_err(SolveError::Settle)?;
+    let pd = JointPd::standing(model, spec.dt)?;
+    let limit = options.max_iterations.or(spec.iterations).unwrap_or(SlqSettings::default().max_iterations);
+    let threads = if options.threads == 0 { rayon::current_num_threads() } else { options.threads };
+    let pipeline = Pipeline { spec, model, terrain, origin, initial: &initial, pd: &pd, limit };
+
+    // Exploration (issue 19) on the first problem solved: the continuation's first stage,
+    // or the full horizon. The kept start's solution is that problem's first solve.
+    let exploration_spec = options.exploration.clone().or_else(|| spec.exploration.clone()).filter(|e| e.starts > 1 || e.sampling.is_some());
+    let mut exploration: Option<ExplorationReport> = None;
+    let mut kept: Option<SlqSolution<RobotState>> = None;
+    if let Some(e) = &exploration_spec {
+        // The kept start's screening is part of the first problem's iterations.
+        let screening = e.screen_iterations * e.rounds;
+        if let Some(c) = &spec.continuation {
+            if screening > c.iterations {
+                return Err(SolveError::IterationBudget { limit, stages: c.stage_iterations() - c.iterations + screening });
+            }
+        } else if screening >= limit {
+            return Err(SolveError::IterationBudget { limit, stages: screening });
+        }
+        let problem = pipeline.first_problem()?;
+        let target = spec.target(model, origin)?;
+        let scenario = format!("exploration of {}", spec.name);
+        // Each start's plan judged against the task's targets (reported, not used to choose).
+        let judge = |solution: &SlqSolution<RobotState>| !target.is_empty() && super::all_met(&target.check(model, &solution_trajectory(&problem, solution, &scenario), 1.0));
+        let settings = SlqSettings { threads, ..SlqSettings::default() };
+        let found = super::explore(&problem, &pd, e, &settings, threads, &judge)?;
+        let iterations = found.starts.iter().map(|s| s.iterations).sum();
+        exploration = Some(ExplorationReport { spec: e.clone(), starts: found.starts, best: found.best, time: found.time, iterations, single_start: None, screening_continued: true });
+        kept = Some(found.solution);
+    }
+    let optimized = match (kept, &mut exploration) {
+        // A perturbed or sampled start was kept: it and the single start (the standing PD's
+        // own solve) are both taken to the end, side by side, and the lower task cost wins.
+        (Some(kept), Some(report)) if report.best != 0 && report.spec.keep_single_start => {
+            let started = std::time::Instant::now();
+            let progress = std::sync::Mutex::new(&mut on_iteration);
+            let explored_run = || optimize(&pipeline, threads.div_ceil(2), Some(kept), &mut |p| (progress.lock().unwrap_or_else(|e| e.into_inner()))(p));
+            let single_run = || optimize(&pipeline, (threads / 2).max(1), None, &mut |_| ());
+            let (explored, single) = if threads > 1 { rayon::join(explored_run, single_run) } else { (explored_run(), single_run()) };
+            let (explored, single) = (explored?, single?);
+            let single_wins = single.task_cost <= explored.task_cost;
+            report.single_start = Some(SingleStartFinal { explored_task_cost: explored.task_cost, single_task_cost: single.task_cost, kept_single: single_wins, time: started.elapsed().as_secs_f64() });
+            if single_wins {
+                single
+            } else {
+                explored
+            }
+        }
+        // Start 0 kept: the single start's own solve, as without exploration (its
+        // screening is not continued: a warm restart ends elsewhere than the plain solve).
+        (Some(_), Some(report)) if report.best == 0 => {
+            report.screening_continued = false;
+            optimize(&pipeline, threads, None, &mut on_iteration)?
+        }
+        (kept, _) => optimize(&pipeline, threads, kept, &mut on_iteration)?,
+    };
+    if let Some(report) = exploration.as_mut().filter(|r| r.single_start.as_ref().is_some_and(|f| f.kept_single)) {
+        report.screening_continued = false;
+    }
+    let Optimized { problem, solution, stages, rounds, violation, task_cost } = optimized;
     let plan = solution_trajectory(&problem, &solution, &format!("solve {}", spec.name));
 
     // Closed loop, both from the optimizer's initial state, contact anchors (spring
@@ -336,7 +524,15 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     let mut tracking = TrackingController::with_default_gains(model, &plan, config.control_dt)?;
     let tracking_rerun = rerun(&mut tracking, "tracking-controller re-run", config)?;
     let plan_metrics = MotionMetrics::of(model, &plan, model.contact.friction);
-    Ok(TaskRun { plan, plan_metrics, policy_rerun, tracking_rerun, solution, stages, rounds, violation })
+    Ok(TaskRun { plan, plan_metrics, policy_rerun, tracking_rerun, solution, stages, rounds, violation, task_cost, exploration })
+}
+
+/// `h(x_N) + sum_k l_k(x_k, u_k)` along a solution's own states and inputs.
+fn trajectory_cost<P: Problem>(problem: &P, states: &[P::State], inputs: &[DVector<f64>]) -> f64 {
+    let mut ws = problem.workspace();
+    let mut next = problem.initial_state();
+    let running: f64 = inputs.iter().enumerate().map(|(k, u)| problem.step(&mut ws, k, &states[k], u, &mut next)).sum();
+    running + states.last().map_or(0.0, |x| problem.terminal_cost(&mut ws, x))
 }
 
 /// Gives `problem` the multipliers of the last stage's constraints, knot for knot.
