@@ -257,7 +257,7 @@ fn robots_stand_in_mujoco_after_a_drop() {
     }
 }
 
-/// Every embedded task in a shortened form (0.3 s, 2 SLQ iterations, no continuation,
+/// Every embedded task in a shortened form (0.3 s, 2 SLQ iterations, no continuation, no exploration,
 /// the waypoints within the horizon) solved, then checked in MuJoCo with both controllers:
 /// both runs come back as trajectories of the whole horizon with finite figures (not that
 /// they meet the tasks' targets: the full tasks are `legwork bench slq --check mujoco`).
@@ -270,6 +270,7 @@ fn every_embedded_task_shortened_checked_in_mujoco() {
         spec.duration = 0.3;
         spec.iterations = Some(2);
         spec.continuation = None;
+        spec.exploration = None;
         spec.waypoints.retain(|w| w.time <= spec.duration);
         let model = embedded::load(&spec.robot).unwrap();
         let run = solve_task(&spec, &model, &ground, name, &SolveOptions::default(), |_| {}).unwrap();

@@ -93,6 +93,10 @@ pub fn run(args: SolveArgs) -> Result<Verdict> {
     let exploration = exploration_override(&spec, args.starts, args.seed)?;
     let threads = super::capped_threads(args.threads);
     let explored = exploration.as_ref().or(spec.exploration.as_ref());
+    if let Some(e) = explored.filter(|e| e.starts > 1 || e.sampling.is_some()) {
+        let limit = args.iterations.or(spec.iterations).unwrap_or(legwork::slq::SlqSettings::default().max_iterations);
+        spec.exploration_budget(e, limit).map_err(|budget| anyhow::anyhow!("{origin}: the exploration's screening ({} x {} SLQ iterations) does not fit in {budget}; raise --iterations or lower [exploration] screen_iterations or rounds", e.screen_iterations, e.rounds))?;
+    }
     super::resources::check_memory(
         &format!("{origin}: {} knots ({} s at dt {} s){}", spec.knots(), spec.duration, spec.dt, explored.filter(|e| e.starts > 1).map_or(String::new(), |e| format!(", {} starts", e.starts))),
         spec.estimated_memory_bytes_exploring(explored, if threads == 0 { rayon::current_num_threads() } else { threads }),

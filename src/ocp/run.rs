@@ -30,6 +30,8 @@ pub enum SolveError {
     Control(#[from] ControlError),
     #[error("an iteration limit of {limit} leaves none for the full horizon after the continuation's {stages} stage iterations")]
     IterationBudget { limit: usize, stages: usize },
+    #[error("the exploration's screening ({screening} SLQ iterations: screen_iterations x rounds) does not fit in {budget}; lower [exploration] screen_iterations or rounds, or raise the iteration limit")]
+    ExplorationBudget { screening: usize, budget: String },
 }
 
 /// A closed-loop re-run: its trajectory and figures, or how it failed (a divergence is a
@@ -445,13 +447,7 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     if let Some(e) = &exploration_spec {
         // The kept start's screening is part of the first problem's iterations.
         let screening = e.screen_iterations * e.rounds;
-        if let Some(c) = &spec.continuation {
-            if screening > c.iterations {
-                return Err(SolveError::IterationBudget { limit, stages: c.stage_iterations() - c.iterations + screening });
-            }
-        } else if screening >= limit {
-            return Err(SolveError::IterationBudget { limit, stages: screening });
-        }
+        spec.exploration_budget(e, limit).map_err(|budget| SolveError::ExplorationBudget { screening, budget })?;
         let problem = pipeline.first_problem()?;
         let target = spec.target(model, origin)?;
         let scenario = format!("exploration of {}", spec.name);

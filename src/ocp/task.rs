@@ -267,6 +267,18 @@ impl TaskSpec {
         12e6 + 64e3 * (self.duration / self.dt)
     }
 
+    /// `Err(what the screening does not fit in)` if `exploration`'s screening (the kept
+    /// start's `screen_iterations x rounds`) leaves no iteration of `limit` after it: it must
+    /// fit in the first continuation stage's iterations, or be fewer than `limit`.
+    pub fn exploration_budget(&self, exploration: &super::ExplorationSpec, limit: usize) -> Result<(), String> {
+        let screening = exploration.screen_iterations * exploration.rounds;
+        match &self.continuation {
+            Some(c) if screening > c.iterations => Err(format!("the first continuation stage's {} iterations", c.iterations)),
+            None if screening >= limit => Err(format!("fewer than the iteration limit of {limit}")),
+            _ => Ok(()),
+        }
+    }
+
     /// As [`Self::estimated_memory_bytes`] for a solve that explores with `exploration` on
     /// `threads` threads: 12 MB plus, per knot, 72 KB for each of `1 + threads` solvers (the
     /// starts side by side, then the kept and the single start's final) and 8 KB for each
@@ -323,11 +335,8 @@ impl TaskSpec {
         if let Some(e) = &self.exploration {
             e.validate().map_err(|(field, problem)| TaskError::Invalid { origin: origin.into(), field: format!("exploration.{field}"), problem })?;
             let limit = self.iterations.unwrap_or(crate::slq::SlqSettings::default().max_iterations);
-            let screening = e.screen_iterations * e.rounds;
-            match &self.continuation {
-                None if screening >= limit => return bad("exploration.screen_iterations".into(), format!("expected screen_iterations x rounds below the task's {limit} iterations, got {} x {}", e.screen_iterations, e.rounds)),
-                Some(c) if screening > c.iterations => return bad("exploration.screen_iterations".into(), format!("expected screen_iterations x rounds within the first continuation stage's {} iterations, got {} x {}", c.iterations, e.screen_iterations, e.rounds)),
-                _ => {}
+            if let Err(budget) = self.exploration_budget(e, limit) {
+                return bad("exploration.screen_iterations".into(), format!("expected screen_iterations x rounds to fit in {budget}, got {} x {}", e.screen_iterations, e.rounds));
             }
         }
         if let Some(c) = &self.continuation {
