@@ -120,8 +120,8 @@ impl ExplorationSpec {
 
 /// Start `index`'s seed: SplitMix64's finalizer over `seed` and the index, so neighbouring
 /// starts get unrelated streams.
-pub fn start_seed(seed: u64, index: usize) -> u64 {
-    let mut z = seed.wrapping_add((index as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+pub fn start_seed(seed: u64, index: u64) -> u64 {
+    let mut z = seed.wrapping_add(index.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15));
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
@@ -171,7 +171,7 @@ impl<'a> PerturbedStanding<'a> {
         if index == 0 {
             return Self::splines(pd, vec![vec![0.0; nu]; knots], vec![vec![0.0; nu]; knots], spec.torque_knot_interval);
         }
-        let mut rng = Xoshiro256PlusPlus::seed_from_u64(start_seed(spec.seed, index));
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(start_seed(spec.seed, index as u64));
         let mut uniform = |lo: f64, hi: f64| lo + (hi - lo) * unit(&mut rng);
         let offset: Vec<f64> = (0..nu).map(|_| uniform(-spec.setpoint_noise, spec.setpoint_noise)).collect();
         let amplitude = (0..nu).map(|_| uniform(0.0, spec.oscillation_amplitude)).collect();
@@ -316,7 +316,7 @@ fn sample_starts<'a, 'p>(problem: &WholeBodyProblem<'p>, pd: &'a JointPd, spec: 
     let mut best: Vec<(f64, Vec<f64>)> = Vec::new();
     for iteration in 0..sampling.iterations {
         // Its own stream per iteration, apart from the random starts' (index >= 2^32).
-        let mut rng = Xoshiro256PlusPlus::seed_from_u64(start_seed(spec.seed, (1 << 32) + iteration));
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(start_seed(spec.seed, (1u64 << 32) + iteration as u64));
         let samples: Vec<Vec<f64>> = (0..sampling.population).map(|i| if i == 0 { mean.clone() } else { mean.iter().zip(&std).map(|(m, s)| m + s * normal(&mut rng)).collect() }).collect();
         let costs: Vec<f64> = pool.install(|| {
             samples
@@ -452,7 +452,7 @@ pub fn explore(
     }
     let sampling_time = started.elapsed().as_secs_f64();
     let mut reports: Vec<StartReport> = (0..policies.len())
-        .map(|index| StartReport { index, seed: if index == 0 || index >= spec.starts { 0 } else { start_seed(spec.seed, index) }, sampled_cost: sampled_costs[index], initial_cost: f64::INFINITY, cost: f64::INFINITY, iterations: 0, rounds: 0, outcome: Ok(Termination::MaxIterations), time: 0.0, finished_at: sampling_time, met: None })
+        .map(|index| StartReport { index, seed: if index == 0 || index >= spec.starts { 0 } else { start_seed(spec.seed, index as u64) }, sampled_cost: sampled_costs[index], initial_cost: f64::INFINITY, cost: f64::INFINITY, iterations: 0, rounds: 0, outcome: Ok(Termination::MaxIterations), time: 0.0, finished_at: sampling_time, met: None })
         .collect();
     let mut first_error: Option<(usize, SlqError)> = None;
     // Round r's starts and the solutions they continue from (none in round 0).

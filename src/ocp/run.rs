@@ -249,7 +249,8 @@ pub struct SolveOptions {
     pub threads: usize,
     /// Overrides the task's iteration limit.
     pub max_iterations: Option<usize>,
-    /// Overrides the task's `[exploration]` (`Some` with one start: none).
+    /// Overrides the task's `[exploration]` (`Some` with one start and no sampling stage:
+    /// no exploration).
     pub exploration: Option<super::ExplorationSpec>,
 }
 

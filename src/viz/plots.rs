@@ -243,29 +243,38 @@ fn draw_gait(path: &Path, traj: &Trajectory, phases: &[Vec<(f64, f64)>]) -> Resu
     root.present().map_err(|e| err(&e))
 }
 
-/// The convergence figure of Neunert 2017 (Fig. 12): the cost after each optimizer
-/// iteration divided by the initial cost (`costs[0]`, the initial rollout), against the
-/// iteration number, into the SVG file `path`.
+/// The SLQ cost per iteration over the initial cost (Neunert 2017, Fig. 12) into an SVG:
+/// the normalized cost on a log scale (a converged solve falls by orders of magnitude, which
+/// a linear axis flattens to zero after the first iterations), the iterations in whole
+/// numbers. Costs that are not positive (an augmented-Lagrangian round's cost can be) have no
+/// place on a log axis: they are left out and the caption says how many.
 pub fn write_cost_plot(costs: &[f64], title: &str, path: impl AsRef<Path>) -> Result<(), VizError> {
     let path = path.as_ref();
     let err = |e: &dyn std::fmt::Display| plot_error(path, e);
     let first = costs.first().copied().filter(|c| c.is_finite() && *c > 0.0).unwrap_or(1.0);
-    let normalized: Vec<(f64, f64)> = costs.iter().enumerate().map(|(i, c)| (i as f64, c / first)).collect();
+    let normalized: Vec<(u32, f64)> = costs.iter().enumerate().map(|(i, c)| (i as u32, c / first)).filter(|(_, c)| c.is_finite() && *c > 0.0).collect();
+    let left_out = costs.len() - normalized.len();
+    let (lo, hi) = normalized.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &(_, c)| (lo.min(c), hi.max(c)));
+    // Whole decades around the data (at least one).
+    let (lo, hi) = if lo.is_finite() { (10f64.powf(lo.log10().floor()), 10f64.powf(hi.log10().ceil().max(lo.log10().floor() + 1.0))) } else { (0.1, 1.0) };
     let root = SVGBackend::new(path, (WIDTH, 2 * PANEL_HEIGHT)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
-    let last = (costs.len().max(2) - 1) as f64;
+    let last = (costs.len().max(2) - 1) as u32;
+    let caption = if left_out > 0 { format!("{title} ({left_out} iterations with cost <= 0 not drawn)") } else { title.to_string() };
     let mut chart = ChartBuilder::on(&root)
-        .caption(title, (FONT, 20))
+        .caption(caption, (FONT, 20))
         .margin(8)
         .margin_right(20)
         .x_label_area_size(38)
         .y_label_area_size(70)
-        .build_cartesian_2d(0.0..last, 0.0..1.05)
+        .build_cartesian_2d(0..last, (lo..hi).log_scale())
         .map_err(|e| err(&e))?;
     chart
         .configure_mesh()
         .x_desc("iteration")
-        .y_desc("cost / initial cost")
+        .y_desc("cost / initial cost (log)")
+        .x_labels((last as usize + 1).min(12))
+        .y_label_formatter(&|v| format!("{v:.0e}"))
         .label_style((FONT, 14))
         .axis_desc_style((FONT, 15))
         .light_line_style(RGBColor(238, 240, 243))
@@ -293,9 +302,21 @@ mod tests {
     #[test]
     fn cost_plot_is_written_normalized() {
         let path = std::env::temp_dir().join(format!("legwork-cost-{}.svg", std::process::id()));
-        write_cost_plot(&[200.0, 50.0, 10.0, 9.0], "squat_jump: normalized cost", &path).unwrap();
+        write_cost_plot(&[200.0, 50.0, 10.0, 9.0, 2.0, 0.02], "squat_jump: normalized cost", &path).unwrap();
         let svg = std::fs::read_to_string(&path).unwrap();
-        assert!(svg.contains("squat_jump: normalized cost") && svg.contains("cost / initial cost") && svg.contains("<circle"));
+        assert!(svg.contains("squat_jump: normalized cost") && svg.contains("cost / initial cost (log)"));
+        assert_eq!(svg.matches("<circle").count(), 6);
+        // The texts of the SVG: decades as y labels, whole-number iterations as x labels.
+        let texts: Vec<&str> = svg.split("</text>").filter_map(|t| t.rsplit('>').next()).map(str::trim).collect();
+        let decades: Vec<&&str> = texts.iter().filter(|t| t.starts_with("1e")).collect();
+        assert!(decades.len() >= 3 && texts.contains(&"1e0"), "{texts:?}");
+        let iterations: Vec<&&str> = texts.iter().filter(|t| !t.starts_with("1e") && t.parse::<f64>().is_ok()).collect();
+        assert!(iterations.iter().all(|t| t.parse::<u32>().is_ok()) && texts.contains(&"5"), "{texts:?}");
+        // A cost <= 0 is left out and said so.
+        write_cost_plot(&[200.0, 50.0, -10.0, 9.0], "al round", &path).unwrap();
+        let svg = std::fs::read_to_string(&path).unwrap();
+        assert!(svg.contains("1 iterations with cost &lt;= 0 not drawn") || svg.contains("1 iterations with cost <= 0 not drawn"), "{svg}");
+        assert_eq!(svg.matches("<circle").count(), 3);
         std::fs::remove_file(&path).ok();
     }
 }
