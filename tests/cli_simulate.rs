@@ -37,6 +37,7 @@ fn simulate_writes_the_trajectory_and_prints_a_summary() {
     let replay = std::fs::read_to_string(dir.join("replay.html")).unwrap();
     assert!(replay.len() > 10_000 && !replay.contains("https://"));
     assert!(dir.join("plots").join("gait.svg").exists() && dir.join("plots").join("base_pose.svg").exists());
+    assert!(dir.join("plots").join("torque_limits.svg").exists() && dir.join("plots").join("ground_forces.svg").exists());
     let csv = std::fs::read_to_string(dir.join("trajectory.csv")).unwrap();
     assert_eq!(csv.lines().count(), 602);
 

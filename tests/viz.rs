@@ -146,6 +146,34 @@ fn plots_are_nonempty_svg_files() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+#[test]
+fn limit_plots_draw_torques_and_friction_against_the_robots_limits() {
+    let (model, traj) = common::hyq_trot(1.5);
+    let dir = temp_dir("limit-plots");
+    let files = viz::write_limit_plots(&model, &traj, &dir).unwrap();
+    let names: Vec<String> = files.iter().map(|f| f.file_name().unwrap().to_string_lossy().into_owned()).collect();
+    assert_eq!(names, ["torque_limits.svg", "ground_forces.svg"]);
+    let torques = std::fs::read_to_string(&files[0]).unwrap();
+    let texts: Vec<&str> = torques.split("</text>").filter_map(|t| t.rsplit('>').next()).map(str::trim).collect();
+    assert!(texts.contains(&"lf: |torque| / limit") && texts.contains(&"limit"), "no limit line: {texts:?}");
+    let forces = std::fs::read_to_string(&files[1]).unwrap();
+    let mu = format!("mu = {}", model.contact.friction);
+    assert!(forces.contains("friction use |F_t| / F_n") && forces.contains(&mu), "no friction cone '{mu}'");
+    // A long recording is drawn at most MAX_POINTS knots per curve.
+    let mut long = traj.clone();
+    let last = long.knots.last().unwrap().clone();
+    for k in 1..=20_000 {
+        let mut knot = last.clone();
+        knot.t += 1e-3 * k as f64;
+        long.knots.push(knot);
+    }
+    let files = viz::write_limit_plots(&model, &long, &dir).unwrap();
+    let svg = std::fs::read_to_string(&files[0]).unwrap();
+    let most_points = svg.split("<polyline").skip(1).map(|p| p.split("points=\"").nth(1).map_or(0, |pts| pts.split('"').next().unwrap_or("").split(' ').count())).max().unwrap_or(0);
+    assert!(most_points <= 4001, "{most_points} points in a curve");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 fn legwork(args: &[&str], dir: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_legwork")).args(args).current_dir(dir).output().unwrap()
 }

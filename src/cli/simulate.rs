@@ -259,7 +259,8 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     traj.save_csv(&csv_path).or_could_not_finish()?;
     let replay_path = args.out.join("replay.html");
     legwork::viz::write_replay(&model, &traj, &replay_path).or_could_not_finish()?;
-    let plots = legwork::viz::write_plots(&traj, args.out.join("plots")).or_could_not_finish()?;
+    let mut plots = legwork::viz::write_plots(&traj, args.out.join("plots")).or_could_not_finish()?;
+    plots.extend(legwork::viz::write_limit_plots(&model, &traj, args.out.join("plots")).or_could_not_finish()?);
 
     say!("Simulated {} for {} s with the {} controller ({} physics steps).", model.name, args.duration, controller.name(), stats.steps);
     say!("  final base height     {:.4} m (standing height {:.4} m, difference {:+.1} mm)", final_height, standing_height, (final_height - standing_height) * 1e3);

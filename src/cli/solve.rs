@@ -210,7 +210,8 @@ pub fn run(args: SolveArgs) -> Result<Verdict> {
         }
     }
     legwork::viz::write_replay(&model, &traj, out.join("replay.html")).or_could_not_finish()?;
-    let plots = legwork::viz::write_plots(&traj, out.join("plots")).or_could_not_finish()?;
+    let mut plots = legwork::viz::write_plots(&traj, out.join("plots")).or_could_not_finish()?;
+    plots.extend(legwork::viz::write_limit_plots(&model, &traj, out.join("plots")).or_could_not_finish()?);
     legwork::viz::write_cost_plot(&sol.cost_history, &format!("{}: normalized cost per SLQ iteration", spec.name), out.join("plots").join("cost.svg")).or_could_not_finish()?;
 
     if let Some(e) = &run.exploration {

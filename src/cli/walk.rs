@@ -112,6 +112,7 @@ pub fn run(args: WalkArgs) -> Result<Verdict> {
     let overlay = legwork::viz::walk::plan_overlay(&outcome.plans, &world, end_time);
     legwork::viz::write_replay_with_overlay(&model, &traj, Some(&overlay), out.join("replay.html")).or_could_not_finish()?;
     let mut plots = legwork::viz::write_plots(&traj, out.join("plots")).or_could_not_finish()?;
+    plots.extend(legwork::viz::write_limit_plots(&model, &traj, out.join("plots")).or_could_not_finish()?);
     plots.extend(legwork::viz::walk::write_walk_plots(&model, &outcome.plans, &traj, out.join("plots"))?);
     let summary_path = out.join("summary.json");
     let text = serde_json::to_string_pretty(&json!({ "scenario_summary": spec.summary, "robot": model.name, "trial": report })).or_could_not_finish()?;

@@ -88,16 +88,23 @@ pub fn write_srb_pose(path: &Path, knots: &[SrbKnot]) -> Result<(), VizError> {
     draw_panels(path, &t, &panels, &[])
 }
 
+/// The knots a figure draws: at most [`super::plots::MAX_POINTS`], spread over the motion
+/// (a long recording would make an SVG of millions of points).
+fn drawn_knots(traj: &Trajectory) -> Vec<&crate::io::Knot> {
+    super::signals::decimate(traj, super::plots::MAX_POINTS).into_iter().map(|k| &traj.knots[k]).collect()
+}
+
 /// Each joint's `|tau| / tau_max` (the model's effort limit), one panel per leg, with the
 /// limit at 1.
 pub fn write_torque_limits(path: &Path, model: &Model, traj: &Trajectory) -> Result<(), VizError> {
-    let t: Vec<f64> = traj.knots.iter().map(|k| k.t).collect();
+    let knots = drawn_knots(traj);
+    let t: Vec<f64> = knots.iter().map(|k| k.t).collect();
     let limits: Vec<f64> = model.actuated_joints().map(|j| j.limits.effort[0]).collect();
     let mut panels = Vec::new();
     for (leg, joints) in joint_groups(&traj.metadata.joint_names) {
         let mut series: Vec<Series> = joints
             .iter()
-            .map(|&j| Series { name: traj.metadata.joint_names[j].clone(), values: traj.knots.iter().map(|k| k.tau[j].abs() / limits.get(j).copied().unwrap_or(f64::INFINITY)).collect() })
+            .map(|&j| Series { name: traj.metadata.joint_names[j].clone(), values: knots.iter().map(|k| k.tau[j].abs() / limits.get(j).copied().unwrap_or(f64::INFINITY)).collect() })
             .collect();
         series.push(Series { name: "limit".into(), values: vec![1.0; t.len()] });
         panels.push(Panel { title: format!("{leg}: |torque| / limit"), unit: "-".into(), series });
@@ -109,15 +116,16 @@ pub fn write_torque_limits(path: &Path, model: &Model, traj: &Trajectory) -> Res
 /// against the cone's `mu`, and its normal force against the minimum `f_min` a stance
 /// foot must push with (world z as the normal: flat ground and box tops).
 pub fn write_trajectory_forces(path: &Path, traj: &Trajectory, mu: f64, f_min: f64) -> Result<(), VizError> {
-    let t: Vec<f64> = traj.knots.iter().map(|k| k.t).collect();
+    let knots = drawn_knots(traj);
+    let t: Vec<f64> = knots.iter().map(|k| k.t).collect();
     let feet = &traj.metadata.foot_names;
     let ratio = |k: &crate::io::Knot, f: usize| {
         let [x, y, z] = k.contact_force[f];
         if k.in_contact[f] && z > 1e-9 { x.hypot(y) / z } else { 0.0 }
     };
-    let mut friction: Vec<Series> = feet.iter().enumerate().map(|(f, name)| Series { name: name.clone(), values: traj.knots.iter().map(|k| ratio(k, f)).collect() }).collect();
+    let mut friction: Vec<Series> = feet.iter().enumerate().map(|(f, name)| Series { name: name.clone(), values: knots.iter().map(|k| ratio(k, f)).collect() }).collect();
     friction.push(Series { name: format!("mu = {mu}"), values: vec![mu; t.len()] });
-    let mut normal: Vec<Series> = feet.iter().enumerate().map(|(f, name)| Series { name: name.clone(), values: traj.knots.iter().map(|k| k.contact_force[f][2]).collect() }).collect();
+    let mut normal: Vec<Series> = feet.iter().enumerate().map(|(f, name)| Series { name: name.clone(), values: knots.iter().map(|k| k.contact_force[f][2]).collect() }).collect();
     normal.push(Series { name: format!("minimum in contact = {f_min} N"), values: vec![f_min; t.len()] });
     let panels = [
         Panel { title: format!("{}: friction use |F_t| / F_n against the cone", traj.metadata.scenario), unit: "-".into(), series: friction },

@@ -27,7 +27,7 @@ pub mod replay;
 mod signals;
 pub mod walk;
 
-pub use plots::{write_cost_plot, write_plots};
+pub use plots::{write_cost_plot, write_limit_plots, write_plots};
 pub use replay::{replay_html, replay_html_with_overlay, write_replay, write_replay_with_overlay, OverlayFoothold, OverlayPath, OverlaySupport, ReplayOverlay};
 
 use crate::io::TrajectoryError;

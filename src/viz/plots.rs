@@ -98,6 +98,21 @@ pub fn write_plots(traj: &Trajectory, dir: impl AsRef<Path>) -> Result<Vec<PathB
     Ok(written)
 }
 
+/// The figures that need the robot, into `dir` (created if needed): each joint's
+/// `|torque| / effort limit` with the limit at 1 (`torque_limits.svg`), and each foot's
+/// friction use `|F_t| / F_n` against the robot's friction coefficient with its normal
+/// force (`ground_forces.svg`). Returns the files written.
+pub fn write_limit_plots(model: &crate::model::Model, traj: &Trajectory, dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, VizError> {
+    traj.validate("trajectory")?;
+    let dir = dir.as_ref();
+    std::fs::create_dir_all(dir).map_err(|e| VizError::io(dir, e))?;
+    let torques = dir.join("torque_limits.svg");
+    super::jump::write_torque_limits(&torques, model, traj)?;
+    let forces = dir.join("ground_forces.svg");
+    super::jump::write_trajectory_forces(&forces, traj, model.contact.friction, 0.0)?;
+    Ok(vec![torques, forces])
+}
+
 /// The intervals `[start, end)` during which foot `foot` is in contact: each knot in
 /// contact covers the time up to the next knot.
 fn contact_phases(traj: &Trajectory, foot: usize) -> Vec<(f64, f64)> {
