@@ -31,6 +31,11 @@ fn find_chromium() -> Option<PathBuf> {
 /// Runs chromium headless on `page` with `extra` arguments; stdout and stderr go to files
 /// (a dumped DOM is larger than a pipe's buffer). Returns (stdout, stderr).
 fn run_chromium(chromium: &Path, dir: &Path, tag: &str, page: &Path, extra: &[String]) -> (String, String) {
+    run_chromium_sized(chromium, dir, tag, page, extra, (WIDTH, HEIGHT))
+}
+
+/// [`run_chromium`] in a window of `size` (width, height) pixels.
+fn run_chromium_sized(chromium: &Path, dir: &Path, tag: &str, page: &Path, extra: &[String], size: (u32, u32)) -> (String, String) {
     let out = dir.join(format!("{tag}.stdout"));
     let err = dir.join(format!("{tag}.stderr"));
     let profile = dir.join(format!("{tag}-profile"));
@@ -44,7 +49,7 @@ fn run_chromium(chromium: &Path, dir: &Path, tag: &str, page: &Path, extra: &[St
             "--enable-logging=stderr",
             "--v=0",
             &format!("--user-data-dir={}", profile.display()),
-            &format!("--window-size={WIDTH},{HEIGHT}"),
+            &format!("--window-size={},{}", size.0, size.1),
             "--virtual-time-budget=2500",
         ])
         .args(extra)
@@ -236,6 +241,64 @@ fn replay_draws_a_plan_overlay() {
     eprintln!("overlay: {purple} CoG (purple), {green} ZMP (green), {red} LF foothold (red), {cyan} RH foothold (cyan) pixels");
     assert!(purple > 100 && green > 100, "the paths are not visible ({purple} purple, {green} green pixels)");
     assert!(red > 40 && cyan > 40, "the footholds are not visible ({red} red, {cyan} cyan pixels)");
+    if !keep {
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
+
+/// A solve's replay as a new user opens it, at 1400 x 900: the verdict and the target checks
+/// side by side as a table (met and missed marked), the raw summary behind a disclosure, the
+/// 3D view at least half the window, no sideways scrolling. The layout is measured by the
+/// page itself (`<body data-layout=...>`); the screenshot is kept in the test's target
+/// folder (`target/tmp/replay-layout.png`).
+#[test]
+fn replay_header_is_a_target_table_and_leaves_the_view_half_the_window() {
+    let Some(chromium) = chromium_or_skip() else { return };
+    let (dir, keep) = work_dir("layout");
+    let (model, mut traj) = common::hyq_trot(3.0);
+    // A summary as `legwork solve` writes one, with a long tail of numbers (the gallop's
+    // continuation stages) that used to fill the header.
+    let check = |what: &str, value: &str, required: &str, met: bool| serde_json::json!({ "what": what, "value": value, "required": required, "met": met });
+    let plan = vec![check("base x at the end", "1.838 m", "2.000 +- 0.050 m", false), check("lift-offs per foot", "6/8/8/6", "each >= 5", true)];
+    let rerun = vec![check("base x at the end", "1.835 m", "2.000 +- 0.100 m", false), check("lift-offs per foot", "5/7/10/8", "each >= 5", true)];
+    traj.summary.insert("task".into(), "gallop".into());
+    traj.summary.insert("verdict".into(), "missed".into());
+    traj.summary.insert("target".into(), serde_json::json!({ "plan": plan, "SLQ policy": rerun, "tracking ctrl": rerun, "MuJoCo track": "failed", "MuJoCo policy": rerun }));
+    let stages: Vec<serde_json::Value> = (0..40).map(|i| serde_json::json!({ "horizon_s": 0.5 * i as f64, "initial_cost": 13812.123456789012 / (i + 1) as f64, "final_cost": 96.94212345678901, "solve_time_s": 0.123456789012345 })).collect();
+    traj.summary.insert("continuation_stages".into(), serde_json::Value::Array(stages));
+    traj.summary.insert("a_very_long_key_without_spaces".into(), "x".repeat(3000).into());
+    let page = dir.join("replay.html");
+    legwork::viz::write_replay(&model, &traj, &page).unwrap();
+
+    let size = (1400, 900);
+    let (dom, log_dom) = run_chromium_sized(&chromium, &dir, "dom", &page, &["--dump-dom".into()], size);
+    let shot = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("replay-layout.png");
+    let (_, log_shot) = run_chromium_sized(&chromium, &dir, "screenshot", &page, &[format!("--screenshot={}", shot.display())], size);
+    let errors: Vec<&str> = console_errors(&log_dom).into_iter().chain(console_errors(&log_shot)).collect();
+    assert!(errors.is_empty(), "console errors:\n{}", errors.join("\n"));
+    assert_no_error_box(&dom);
+
+    // The table: a header row with the runs, a row per check, cells marked met or missed.
+    for needle in ["<th>MuJoCo policy</th>", "<td>base x at the end</td>", "class=\"value missed\">1.838 m</td>", "class=\"value met\">6/8/8/6</td>", ">failed</td>", "target missed"] {
+        assert!(dom.contains(needle), "the page lacks {needle}");
+    }
+    // The raw summary is there, but closed.
+    assert!(dom.contains("<details id=\"raw\">") && dom.contains("continuation_stages"), "no raw summary disclosure");
+
+    // The layout the page measured.
+    let layout = dom.split("data-layout=\"").nth(1).and_then(|s| s.split('"').next()).expect("the page did not record its layout").replace("&quot;", "\"");
+    let layout: serde_json::Value = serde_json::from_str(&layout).unwrap();
+    let get = |k: &str| layout[k].as_f64().unwrap_or_else(|| panic!("{k} missing in {layout}"));
+    eprintln!("layout at 1400 x 900: {layout}");
+    // Headless chromium's --window-size counts its own (invisible) window frame: the page
+    // gets the full width and 757 of the 900 pixels' height (Chromium 156 on Debian 12).
+    assert_eq!(get("window_width"), 1400.0);
+    let viewport = get("window_height");
+    assert!(viewport > 700.0 && viewport <= 900.0, "viewport {viewport} px high");
+    assert!(get("view_height") >= 450.0 && get("view_height") >= 0.5 * viewport, "the 3D view is {} px high of {viewport}", get("view_height"));
+    assert!(get("scroll_width") <= get("client_width"), "the page scrolls sideways: {} > {}", get("scroll_width"), get("client_width"));
+    let (w, h, _) = decode_png(&shot);
+    assert_eq!((w, h), size);
     if !keep {
         std::fs::remove_dir_all(&dir).ok();
     }

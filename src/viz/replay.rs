@@ -108,7 +108,12 @@ struct ReplayData {
     robot: String,
     scenario: String,
     legwork_version: String,
-    summary: Vec<String>,
+    /// The run's verdict (`met`, `missed`, ...), if its summary has one.
+    verdict: Option<String>,
+    /// The summary's target checks as a table (runs side by side), if it has them.
+    targets: Option<TargetTable>,
+    /// The whole summary, pretty-printed, for the page's disclosure.
+    summary_json: String,
     foot_names: Vec<String>,
     skeleton: Skeleton,
     frames: Frames,
@@ -122,6 +127,44 @@ struct ReplayData {
     /// the same).
     #[serde(skip_serializing_if = "Option::is_none")]
     overlay: Option<ReplayOverlay>,
+}
+
+/// The target checks of a summary (`summary.target`: run name -> the checks' results, or
+/// "failed"), one row per check of the first run, one column per run.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+struct TargetTable {
+    runs: Vec<String>,
+    rows: Vec<TargetRow>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize)]
+struct TargetRow {
+    what: String,
+    required: String,
+    /// Per run: the value and whether it is met; `None` where the run failed or lacks the check.
+    cells: Vec<Option<(String, bool)>>,
+}
+
+impl TargetTable {
+    /// The table of `summary["target"]`, if it holds checks in the shape `legwork solve`
+    /// writes them (`legwork::ocp::TargetResult`).
+    fn of(summary: &serde_json::Map<String, serde_json::Value>) -> Option<Self> {
+        let runs = summary.get("target")?.as_object()?;
+        let checks = |v: &serde_json::Value| -> Option<Vec<(String, String, String, bool)>> {
+            v.as_array()?.iter().map(|r| Some((r.get("what")?.as_str()?.to_string(), r.get("required")?.as_str()?.to_string(), r.get("value")?.as_str()?.to_string(), r.get("met")?.as_bool()?))).collect()
+        };
+        let columns: Vec<(String, Option<Vec<(String, String, String, bool)>>)> = runs.iter().map(|(name, v)| (name.clone(), checks(v))).collect();
+        let first = columns.iter().find_map(|(_, c)| c.as_ref())?;
+        let rows = first
+            .iter()
+            .map(|(what, required, _, _)| TargetRow {
+                what: what.clone(),
+                required: required.clone(),
+                cells: columns.iter().map(|(_, c)| c.as_ref().and_then(|c| c.iter().find(|r| &r.0 == what)).map(|r| (r.2.clone(), r.3))).collect(),
+            })
+            .collect();
+        Some(Self { runs: columns.into_iter().map(|(name, _)| name).collect(), rows })
+    }
 }
 
 /// What a planner intended, drawn over the replay's scene (all in the world frame, m and s).
@@ -448,13 +491,15 @@ impl ReplayData {
         ];
         panels.push(normal_forces(model, &mut data, traj, &pidx, terrain));
 
-        let summary = traj.summary.iter().map(|(k, v)| format!("{k}: {}", v.as_str().map(String::from).unwrap_or_else(|| v.to_string()))).collect();
+        let summary_json = if traj.summary.is_empty() { String::new() } else { serde_json::to_string_pretty(&traj.summary).unwrap_or_default() };
         let m = &traj.metadata;
         ReplayData {
             robot: m.robot.clone(),
             scenario: m.scenario.clone(),
             legwork_version: m.legwork_version.clone(),
-            summary,
+            verdict: traj.summary.get("verdict").and_then(|v| v.as_str()).map(String::from),
+            targets: TargetTable::of(&traj.summary),
+            summary_json,
             foot_names: m.foot_names.clone(),
             terrain: terrain_patch(terrain, &m.terrain, lo, hi, sketch.skeleton.size),
             skeleton: sketch.skeleton,
