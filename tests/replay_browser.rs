@@ -264,7 +264,7 @@ fn replay_header_is_a_target_table_and_leaves_the_view_half_the_window() {
     traj.summary.insert("task".into(), "gallop".into());
     traj.summary.insert("verdict".into(), "missed".into());
     traj.summary.insert("target".into(), serde_json::json!({ "plan": plan, "SLQ policy": rerun, "tracking ctrl": rerun, "MuJoCo track": "failed", "MuJoCo policy": rerun }));
-    let stages: Vec<serde_json::Value> = (0..40).map(|i| serde_json::json!({ "horizon_s": 0.5 * i as f64, "initial_cost": 13812.123456789012 / (i + 1) as f64, "final_cost": 96.94212345678901, "solve_time_s": 0.123456789012345 })).collect();
+    let stages: Vec<serde_json::Value> = (0..40).map(|i| serde_json::json!({ "horizon_s": 0.5 * i as f64, "initial_cost": 13812.123456789012 / (i + 1) as f64, "final_cost": 96.942_123_456_789, "solve_time_s": 0.123456789012345 })).collect();
     traj.summary.insert("continuation_stages".into(), serde_json::Value::Array(stages));
     traj.summary.insert("a_very_long_key_without_spaces".into(), "x".repeat(3000).into());
     let page = dir.join("replay.html");

@@ -150,20 +150,27 @@ impl TargetTable {
     /// writes them (`legwork::ocp::TargetResult`).
     fn of(summary: &serde_json::Map<String, serde_json::Value>) -> Option<Self> {
         let runs = summary.get("target")?.as_object()?;
-        let checks = |v: &serde_json::Value| -> Option<Vec<(String, String, String, bool)>> {
-            v.as_array()?.iter().map(|r| Some((r.get("what")?.as_str()?.to_string(), r.get("required")?.as_str()?.to_string(), r.get("value")?.as_str()?.to_string(), r.get("met")?.as_bool()?))).collect()
-        };
-        let columns: Vec<(String, Option<Vec<(String, String, String, bool)>>)> = runs.iter().map(|(name, v)| (name.clone(), checks(v))).collect();
-        let first = columns.iter().find_map(|(_, c)| c.as_ref())?;
+        /// One check of one run, as `summary.target` holds it.
+        struct Check<'j> {
+            what: &'j str,
+            required: &'j str,
+            value: &'j str,
+            met: bool,
+        }
+        fn checks(v: &serde_json::Value) -> Option<Vec<Check<'_>>> {
+            v.as_array()?.iter().map(|r| Some(Check { what: r.get("what")?.as_str()?, required: r.get("required")?.as_str()?, value: r.get("value")?.as_str()?, met: r.get("met")?.as_bool()? })).collect()
+        }
+        let columns: Vec<Option<Vec<Check>>> = runs.values().map(checks).collect();
+        let first = columns.iter().find_map(Option::as_ref)?;
         let rows = first
             .iter()
-            .map(|(what, required, _, _)| TargetRow {
-                what: what.clone(),
-                required: required.clone(),
-                cells: columns.iter().map(|(_, c)| c.as_ref().and_then(|c| c.iter().find(|r| &r.0 == what)).map(|r| (r.2.clone(), r.3))).collect(),
+            .map(|check| TargetRow {
+                what: check.what.to_string(),
+                required: check.required.to_string(),
+                cells: columns.iter().map(|c| c.as_ref().and_then(|c| c.iter().find(|r| r.what == check.what)).map(|r| (r.value.to_string(), r.met))).collect(),
             })
             .collect();
-        Some(Self { runs: columns.into_iter().map(|(name, _)| name).collect(), rows })
+        Some(Self { runs: runs.keys().cloned().collect(), rows })
     }
 }
 
