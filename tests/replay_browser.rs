@@ -282,6 +282,8 @@ fn replay_header_is_a_target_table_and_leaves_the_view_half_the_window() {
     for needle in ["<th>MuJoCo policy</th>", "<td>base x at the end</td>", "class=\"value missed\">1.838 m</td>", "class=\"value met\">6/8/8/6</td>", ">failed</td>", "target missed"] {
         assert!(dom.contains(needle), "the page lacks {needle}");
     }
+    // The gait diagram is among the plots.
+    assert!(dom.contains("Gait: contact per foot"), "no gait diagram");
     // The raw summary is there, but closed.
     assert!(dom.contains("<details id=\"raw\">") && dom.contains("continuation_stages"), "no raw summary disclosure");
 
