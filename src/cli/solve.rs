@@ -28,7 +28,7 @@ pub struct SolveArgs {
     iterations: Option<usize>,
     /// Explore: solve from this many initial control laws (the standing PD and perturbed
     /// ones) and keep the best; overrides the task's `[exploration] starts` (1: no
-    /// exploration).
+    /// exploration, unless the task has a sampling stage).
     #[arg(long)]
     starts: Option<usize>,
     /// Seed of the exploration's perturbations; overrides the task's `[exploration] seed`.
@@ -382,7 +382,8 @@ fn exploration_override(spec: &legwork::ocp::TaskSpec, starts: Option<usize>, se
     };
     e.starts = starts.unwrap_or(e.starts);
     e.seed = seed.unwrap_or(e.seed);
-    e.validate().map_err(|(field, problem)| anyhow::anyhow!("--{}: {problem}", if field == "starts" { "starts" } else { field }))?;
+    // Only --starts can be out of range here (the file's own fields were checked on reading).
+    e.validate().map_err(|(field, problem)| if field == "starts" { anyhow::anyhow!("--starts: {problem}") } else { anyhow::anyhow!("[exploration] {field}: {problem}") })?;
     Ok(Some(e))
 }
 

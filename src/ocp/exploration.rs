@@ -182,8 +182,9 @@ impl<'a> PerturbedStanding<'a> {
     }
 
     /// The standing PD with set-point offset and feedforward splines (knots
-    /// `knot_interval` apart, at least two, each of the same length), no oscillation.
-    pub fn splines(pd: &'a JointPd, setpoint: Vec<Vec<f64>>, feedforward: Vec<Vec<f64>>, knot_interval: f64) -> Self {
+    /// `knot_interval` apart, at least two, both of the same length: the callers here build
+    /// them with [`spline_knots`]), no oscillation.
+    fn splines(pd: &'a JointPd, setpoint: Vec<Vec<f64>>, feedforward: Vec<Vec<f64>>, knot_interval: f64) -> Self {
         let nu = setpoint.first().map_or(0, Vec::len);
         Self { pd, setpoint, feedforward, knot_interval, amplitude: vec![0.0; nu], phase: vec![0.0; nu], omega: 0.0 }
     }
