@@ -289,7 +289,7 @@ impl TaskSpec {
         let Some(e) = exploration.filter(|e| e.starts > 1 || e.sampling.is_some()) else { return self.estimated_memory_bytes() };
         let starts = e.starts + e.sampling.as_ref().map_or(0, |s| s.starts);
         let kept = if e.rounds > 1 { super::survivors(starts, 1) } else { 1 };
-        let solvers = 1 + threads.clamp(1, starts);
+        let solvers = 1 + threads.max(1).min(starts.max(1));
         12e6 + (72e3 * solvers as f64 + 8e3 * kept as f64) * (self.duration / self.dt)
     }
 
