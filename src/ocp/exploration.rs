@@ -27,7 +27,7 @@
 
 use super::{RobotState, WholeBodyProblem};
 use crate::control::JointPd;
-use crate::slq::{Policy, Slq, SlqError, SlqSettings, SlqSolution, SolutionPolicy, Termination};
+use crate::slq::{input_boxes, rollout, InputBox, Policy, Slq, SlqError, SlqSettings, SlqSolution, SolutionPolicy, Termination};
 use nalgebra::DVector;
 use rand::rngs::Xoshiro256PlusPlus;
 use rand::{Rng, SeedableRng};
@@ -273,30 +273,8 @@ impl SamplingSpec {
 /// Rollout buffers of one thread.
 struct RolloutScratch<'a> {
     ws: super::WholeBodyWorkspace<'a>,
-    x: RobotState,
-    next: RobotState,
-    u: DVector<f64>,
-}
-
-/// The cost of rolling `policy` out on `problem` (inputs clipped to the effort limits, as
-/// SLQ's rollouts do), or infinity if the rollout leaves the valid states.
-fn rollout_cost<'a>(problem: &WholeBodyProblem<'a>, scratch: &mut RolloutScratch<'a>, policy: &dyn Policy<WholeBodyProblem<'a>>) -> f64 {
-    use crate::slq::Problem as _;
-    let RolloutScratch { ws, x, next, u } = scratch;
-    x.clone_from(&problem.initial);
-    let mut cost = 0.0;
-    for k in 0..problem.knots {
-        policy.control(problem, k, x, u);
-        for (u, limit) in u.iter_mut().zip(problem.effort_limits.iter()) {
-            *u = u.clamp(-limit, *limit);
-        }
-        cost += problem.step(ws, k, x, u, next);
-        if !problem.is_valid(next) || !cost.is_finite() {
-            return f64::INFINITY;
-        }
-        std::mem::swap(x, next);
-    }
-    cost + problem.terminal_cost(ws, x)
+    states: Vec<RobotState>,
+    inputs: Vec<DVector<f64>>,
 }
 
 /// The sampling stage ([`SamplingSpec`]): the `sampling.starts` cheapest samples' policies
@@ -314,17 +292,20 @@ fn sample_starts<'a, 'p>(problem: &WholeBodyProblem<'p>, pd: &'a JointPd, spec: 
         let rows = |part: &[f64]| part.chunks(nu).map(<[f64]>::to_vec).collect::<Vec<_>>();
         PerturbedStanding::splines(pd, rows(&theta[..half]), rows(&theta[half..]), sampling.knot_interval)
     };
+    let (lower, upper) = input_boxes(problem);
+    let bounds = InputBox { lower: &lower, upper: &upper };
     let mut best: Vec<(f64, Vec<f64>)> = Vec::new();
     for iteration in 0..sampling.iterations {
         // Its own stream per iteration, apart from the random starts' (index >= 2^32).
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(start_seed(spec.seed, (1u64 << 32) + iteration as u64));
         let samples: Vec<Vec<f64>> = (0..sampling.population).map(|i| if i == 0 { mean.clone() } else { mean.iter().zip(&std).map(|(m, s)| m + s * normal(&mut rng)).collect() }).collect();
+        // SLQ's own rollout (inputs projected onto their boxes); a diverged sample costs infinity.
         let costs: Vec<f64> = pool.install(|| {
             samples
                 .par_iter()
                 .map_init(
-                    || RolloutScratch { ws: problem.workspace(), x: problem.initial.clone(), next: problem.initial.clone(), u: DVector::zeros(nu) },
-                    |scratch, theta| rollout_cost(problem, scratch, &policy_of(theta)),
+                    || RolloutScratch { ws: problem.workspace(), states: vec![problem.initial.clone(); problem.knots + 1], inputs: vec![DVector::zeros(nu); problem.knots] },
+                    |RolloutScratch { ws, states, inputs }, theta| rollout(problem, ws, &policy_of(theta), bounds, states, inputs).unwrap_or(f64::INFINITY),
                 )
                 .collect()
         });

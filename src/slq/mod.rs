@@ -285,6 +285,41 @@ where
     }
 }
 
+/// The input box `lower_k <= u_k <= upper_k` of every knot ([`Problem::input_bounds`]).
+#[derive(Clone, Copy)]
+pub struct InputBox<'b> {
+    pub lower: &'b [DVector<f64>],
+    pub upper: &'b [DVector<f64>],
+}
+
+/// The input boxes of `problem`'s knots, from [`Problem::input_bounds`].
+pub fn input_boxes<P: Problem>(problem: &P) -> (Vec<DVector<f64>>, Vec<DVector<f64>>) {
+    let (n, nu) = (problem.horizon(), problem.nu());
+    let (mut lower, mut upper) = (vec![DVector::zeros(nu); n], vec![DVector::zeros(nu); n]);
+    for k in 0..n {
+        problem.input_bounds(k, &mut lower[k], &mut upper[k]);
+    }
+    (lower, upper)
+}
+
+/// Rolls `policy` out from `states[0]` (Algorithm 1's forward simulation): each input
+/// projected onto its knot's box, into `inputs[k]`, each state into `states[k + 1]`.
+/// Returns `h(x_N) + sum_k l_k`, or `Err(k)` at the first step whose state is not valid
+/// or whose cost is not finite. `states` has `N + 1` entries, `inputs` `N`.
+pub fn rollout<P: Problem>(problem: &P, ws: &mut P::Workspace, policy: &dyn Policy<P>, bounds: InputBox<'_>, states: &mut [P::State], inputs: &mut [DVector<f64>]) -> Result<f64, usize> {
+    let mut cost = 0.0;
+    for k in 0..problem.horizon() {
+        policy.control(problem, k, &states[k], &mut inputs[k]);
+        project(&mut inputs[k], &bounds.lower[k], &bounds.upper[k]);
+        let (head, tail) = states.split_at_mut(k + 1);
+        cost += problem.step(ws, k, &head[k], &inputs[k], &mut tail[0]);
+        if !problem.is_valid(&tail[0]) || !cost.is_finite() {
+            return Err(k);
+        }
+    }
+    Ok(cost + problem.terminal_cost(ws, &states[problem.horizon()]))
+}
+
 /// Sets its flag if dropped while its thread panics.
 struct FlagOnPanic<'a>(&'a AtomicBool);
 
@@ -463,9 +498,8 @@ impl<'p, P: Problem> Slq<'p, P> {
             Some(rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| SlqError::Settings { field: "threads", problem: e.to_string() })?)
         };
         let x0 = problem.initial_state();
-        let (mut lower, mut upper) = (vec![DVector::zeros(nu); n], vec![DVector::zeros(nu); n]);
+        let (lower, upper) = input_boxes(problem);
         for k in 0..n {
-            problem.input_bounds(k, &mut lower[k], &mut upper[k]);
             for i in 0..nu {
                 let (lo, hi) = (lower[k][i], upper[k][i]);
                 if lo.is_nan() || hi.is_nan() || lo > hi {
@@ -517,19 +551,8 @@ impl<'p, P: Problem> Slq<'p, P> {
 
     /// Step 1 (first iteration): `x_{k+1} = f(x_k, pi_k(x_k))` with the initial policy.
     fn rollout(&mut self, policy: &dyn Policy<P>) -> Result<f64, SlqError> {
-        let problem = self.problem;
-        let ws = &mut self.workspaces[0];
-        let mut cost = 0.0;
-        for k in 0..problem.horizon() {
-            policy.control(problem, k, &self.states[k], &mut self.inputs[k]);
-            project(&mut self.inputs[k], &self.lower[k], &self.upper[k]);
-            let (head, tail) = self.states.split_at_mut(k + 1);
-            cost += problem.step(ws, k, &head[k], &self.inputs[k], &mut tail[0]);
-            if !problem.is_valid(&tail[0]) || !cost.is_finite() {
-                return Err(SlqError::InitialRolloutDiverged { step: k });
-            }
-        }
-        Ok(cost + problem.terminal_cost(ws, &self.states[problem.horizon()]))
+        let bounds = InputBox { lower: &self.lower, upper: &self.upper };
+        rollout(self.problem, &mut self.workspaces[0], policy, bounds, &mut self.states, &mut self.inputs).map_err(|step| SlqError::InitialRolloutDiverged { step })
     }
 
     /// Step 2: linearize the dynamics and quadratize the cost at every knot, in parallel.
