@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Installs the MuJoCo checker's Python environment (tools/mujoco_check.py): a virtual
+# Installs the MuJoCo checker's Python environment (python/legwork/mujoco_check.py): a virtual
 # environment in `.venv-mujoco/` at the repository root (git-ignored) with the pinned
 # packages below, from PyPI with pip. Idempotent: a venv whose stamp file matches the pins
 # is reused as it is; any other is rebuilt. `LEGWORK_MUJOCO_VENV` overrides the location

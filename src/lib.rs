@@ -29,6 +29,7 @@ pub mod export;
 pub mod fullbody;
 pub mod io;
 pub mod ipocp;
+pub mod job;
 pub mod jump;
 pub mod model;
 pub mod ocp;

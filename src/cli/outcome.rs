@@ -10,54 +10,8 @@
 //!
 //! `--json` summaries carry the same verdict (`"verdict"`, `"exit_code"`).
 
-use std::process::ExitCode;
 
-/// How a job that ran ended.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Verdict {
-    /// It met its target, or it has none and ran to the end.
-    Met,
-    /// It ran to the end and missed its target.
-    Missed,
-}
-
-/// Exit code 1: ran, target missed.
-pub const TARGET_MISSED: u8 = 1;
-/// Exit code 2: bad input.
-pub const BAD_INPUT: u8 = 2;
-/// Exit code 3: the job could not finish.
-pub const COULD_NOT_FINISH: u8 = 3;
-
-impl Verdict {
-    pub fn exit_code(self) -> u8 {
-        match self {
-            Verdict::Met => 0,
-            Verdict::Missed => TARGET_MISSED,
-        }
-    }
-
-    /// `"met"` or `"missed"`, as `--json` summaries write it.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Verdict::Met => "met",
-            Verdict::Missed => "missed",
-        }
-    }
-
-    pub fn from_met(met: bool) -> Self {
-        if met {
-            Verdict::Met
-        } else {
-            Verdict::Missed
-        }
-    }
-}
-
-impl From<Verdict> for ExitCode {
-    fn from(v: Verdict) -> Self {
-        ExitCode::from(v.exit_code())
-    }
-}
+pub use legwork::job::{Verdict, BAD_INPUT, COULD_NOT_FINISH};
 
 /// An error of a job that had started from valid input (exit code 3); any other error of a
 /// command is its input's (exit code 2).

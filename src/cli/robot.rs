@@ -1,10 +1,9 @@
 //! `legwork robot list` and `legwork robot info <name|path>`.
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::Subcommand;
 use legwork::model::info::RobotInfo;
-use legwork::model::{description, embedded, urdf, Model};
-use std::path::Path;
+use legwork::model::{embedded, Model};
 
 #[derive(Debug, Subcommand)]
 pub enum RobotCommand {
@@ -53,21 +52,9 @@ pub(super) enum Origin {
 /// Loads an embedded robot by name, or a `.urdf` / `.toml` file by path. The library's
 /// errors already name the file, the field and the problem.
 pub(super) fn load(spec: &str) -> Result<(Model, Origin)> {
-    let path = Path::new(spec);
-    if embedded::names().contains(&spec) && !path.exists() {
-        let model = embedded::load(spec)?;
-        return Ok((model, Origin::Embedded { summary: embedded::summary(spec)? }));
-    }
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    let model = match ext.as_deref() {
-        Some("urdf") => urdf::load_file(path)?,
-        Some("toml") => description::load_file(path)?,
-        _ => bail!(
-            "'{spec}' is neither an embedded robot ({}) nor a .urdf file nor a legwork robot description (.toml)",
-            embedded::names().join(", ")
-        ),
-    };
-    Ok((model, Origin::File))
+    let model = legwork::model::load(spec)?;
+    let origin = if legwork::model::is_embedded(spec) { Origin::Embedded { summary: embedded::summary(spec)? } } else { Origin::File };
+    Ok((model, origin))
 }
 
 fn info(spec: &str) -> Result<()> {

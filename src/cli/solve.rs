@@ -1,12 +1,11 @@
 //! `legwork solve <task>` and `legwork tasks`: Neunert 2017's trajectory optimization.
 
 use super::outcome::{OrCouldNotFinish, Verdict};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Args;
-use legwork::export::{check_plan_in_mujoco, MujocoCheck};
-use legwork::ocp::{all_met, solve_task, MotionMetrics, Rerun, Snapshot, SolveError, SolveOptions, Target, TargetResult, TaskSpec, EMBEDDED_TASKS};
-use legwork::terrain::{Plane, Terrain};
-use serde_json::json;
+use legwork::export::MujocoCheck;
+use legwork::job::solve::SolveJob;
+use legwork::ocp::{MotionMetrics, Rerun, Snapshot, SolveOptions, Target, TargetResult, TaskSpec, EMBEDDED_TASKS};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -34,6 +33,11 @@ pub struct SolveArgs {
     /// Seed of the exploration's perturbations; overrides the task's `[exploration] seed`.
     #[arg(long)]
     seed: Option<u64>,
+    /// Overrides one value of the task: `PATH=VALUE`, the path into the task file's tables
+    /// (`input.weight`, `waypoint[0].desired.base_position[0]`), the value in TOML
+    /// (`0.1`, `[2.0, "start", "start"]`). Repeatable.
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    set: Vec<String>,
     /// After the solve and legwork's re-runs, check the plan in another simulator:
     /// `mujoco` replays it in MuJoCo with the tracking controller and with the exported
     /// feedback policy (needs `scripts/install-mujoco.sh`), two more columns.
@@ -46,6 +50,24 @@ pub struct SolveArgs {
 pub enum CheckSimulator {
     /// MuJoCo 4.0.0 (Python package in `.venv-mujoco/`), default contact, 1 ms step.
     Mujoco,
+}
+
+/// The task argument with `--set` overrides applied.
+fn load_task_with_overrides(spec: &str, set: &[String]) -> Result<(TaskSpec, String)> {
+    if set.is_empty() {
+        return load_task(spec);
+    }
+    let overrides = set
+        .iter()
+        .map(|item| {
+            let (path, value) = item.split_once('=').ok_or_else(|| anyhow::anyhow!("--set {item}: expected PATH=VALUE, e.g. input.weight=0.1"))?;
+            // A TOML value on its own: parsed as the right-hand side of a key.
+            let table: toml::Table = toml::from_str(&format!("value = {value}")).map_err(|e| anyhow::anyhow!("--set {item}: the value is not TOML ({}): quote strings", e.message()))?;
+            Ok((path.trim().to_string(), table["value"].clone()))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let (text, origin) = TaskSpec::text_of(spec)?;
+    Ok((TaskSpec::from_toml_with_overrides(&text, &origin, &overrides)?, origin))
 }
 
 pub(super) fn load_task(spec: &str) -> Result<(TaskSpec, String)> {
@@ -68,152 +90,64 @@ pub fn list() -> Result<()> {
     Ok(())
 }
 
-pub(super) fn metrics_json(m: &MotionMetrics) -> serde_json::Value {
-    serde_json::to_value(m).unwrap_or(serde_json::Value::Null)
-}
-
-pub(super) fn rerun_json(r: &Rerun) -> serde_json::Value {
-    match r {
-        Rerun::Completed { metrics, .. } => metrics_json(metrics),
-        Rerun::Failed { reason } => json!({ "failed": reason }),
-    }
-}
+pub(super) use legwork::job::solve::{metrics_json, rerun_json};
 
 /// The exit code's verdict: the plan meets the task's `[[target]]` (and, with `--check
 /// mujoco`, both MuJoCo runs meet it at twice the tolerances); a task without a target is
 /// met when the solve and its re-runs ran.
 pub fn run(args: SolveArgs) -> Result<Verdict> {
-    let (spec, origin) = load_task(&args.task)?;
+    let (spec, origin) = load_task_with_overrides(&args.task, &args.set)?;
     let robot = args.robot.clone().unwrap_or_else(|| spec.robot.clone());
     let (model, _) = super::robot::load(&robot)?;
-    let target = spec.target(&model, &origin)?;
     if args.iterations == Some(0) {
         anyhow::bail!("--iterations: expected at least 1 SLQ iteration, got 0");
     }
     let exploration = exploration_override(&spec, args.starts, args.seed)?;
-    let threads = super::capped_threads(args.threads);
-    let explored = exploration.as_ref().or(spec.exploration.as_ref());
-    if let Some(e) = explored.filter(|e| e.starts > 1 || e.sampling.is_some()) {
-        let limit = args.iterations.or(spec.iterations).unwrap_or(legwork::slq::SlqSettings::default().max_iterations);
-        spec.exploration_budget(e, limit).map_err(|budget| anyhow::anyhow!("{origin}: the exploration's screening ({} x {} SLQ iterations) does not fit in {budget}; raise --iterations or lower [exploration] screen_iterations or rounds", e.screen_iterations, e.rounds))?;
-    }
-    super::resources::check_memory(
-        &format!("{origin}: {} knots ({} s at dt {} s){}", spec.knots(), spec.duration, spec.dt, explored.filter(|e| e.starts > 1).map_or(String::new(), |e| format!(", {} starts", e.starts))),
-        spec.estimated_memory_bytes_exploring(explored, if threads == 0 { rayon::current_num_threads() } else { threads }),
-        "shorten the task's duration, lengthen its dt, or explore from fewer starts",
-    )?;
-    let terrain = Plane::flat(0.0);
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&spec.name));
+    let job = SolveJob {
+        spec: &spec,
+        origin: &origin,
+        model: &model,
+        options: SolveOptions { threads: super::capped_threads(args.threads), max_iterations: args.iterations, exploration },
+        mujoco: None,
+        out: &out,
+        memory_limit: super::resources::memory_limit(),
+    };
+    job.check().map_err(job_error)?;
     // A missing MuJoCo environment is reported before the solve, not after it.
     let mujoco = match args.check {
         Some(CheckSimulator::Mujoco) => Some(MujocoCheck::locate().or_could_not_finish()?),
         None => None,
     };
+    let job = SolveJob { mujoco: mujoco.as_ref(), ..job };
     say!("Solving {} ({}) for {}: {} s, {} knots of {} s", spec.name, spec.summary, model.name, spec.duration, spec.knots(), spec.dt);
     let started = Instant::now();
-    let options = SolveOptions { threads, max_iterations: args.iterations, exploration };
-    let run = solve_task(&spec, &model, &terrain, &origin, &options, |progress| {
-        let log = progress.log;
-        let t = &log.timing;
-        if let (Some((index, horizon)), 1) = (progress.stage, log.iteration) {
-            say!("  continuation stage {} on {horizon} s:", index + 1);
-        } else if let (None, 1, Some(_)) = (progress.stage, log.iteration, &spec.continuation) {
-            say!("  full horizon, {} s:", spec.duration);
-        }
-        say!(
-            "  iteration {:2}  cost {:11.5e}  step {:<9}  |l| {:9.3e}  {:6.1} ms (linearize {:5.1}, backward {:5.1}, line search {:5.1})",
-            log.iteration,
-            log.cost,
-            if log.alpha > 0.0 { format!("{:.4}", log.alpha) } else { "rejected".into() },
-            log.feedforward_norm,
-            (t.linearization + t.backward_pass + t.line_search) * 1e3,
-            t.linearization * 1e3,
-            t.backward_pass * 1e3,
-            t.line_search * 1e3
-        );
-    })
-    .map_err(|e| match e {
-        // The task's own numbers, found wanting once the robot is known: its input.
-        SolveError::Task(_) | SolveError::IterationBudget { .. } => anyhow::Error::new(e),
-        SolveError::Slq(legwork::slq::SlqError::InitialRolloutDiverged { .. }) => anyhow::Error::new(e).context(format!(
-            "{origin}: the robot falls before the optimization starts: with the task's dt = {} s the standing PD, its input held over each knot interval, does not keep it up; try a shorter dt (the embedded tasks use 0.002 s)",
-            spec.dt
-        )),
-        e => anyhow::Error::new(super::outcome::CouldNotFinish(e.into())),
-    })?;
-    let sol = &run.solution;
-    let solve_time = run.solve_time();
-    let plan = &run.plan_metrics;
-    let mut traj = run.plan.clone();
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot create the output folder {}", out.display())).or_could_not_finish()?;
-    // MuJoCo: the plan as solved, on the ground it was solved on, the task's friction.
-    let mujoco_reruns = match &mujoco {
-        Some(check) => {
-            say!("Checking the plan in MuJoCo (tracking controller, feedback policy) ...");
-            Some(check_plan_in_mujoco(check, &model, &run.plan, &terrain.spec(), &out.join("mujoco")).or_could_not_finish()?)
-        }
-        None => None,
-    };
-    // The target: on the plan, and at twice the tolerances on every run of it.
-    let mut checked: Vec<(&str, Option<Vec<TargetResult>>)> = vec![("plan", Some(target.check(&model, &run.plan, 1.0)))];
-    let rerun_results = |r: &Rerun| match r {
-        Rerun::Completed { trajectory, .. } => Some(target.check(&model, trajectory, 2.0)),
-        Rerun::Failed { .. } => None,
-    };
-    checked.push(("SLQ policy", rerun_results(&run.policy_rerun)));
-    checked.push(("tracking ctrl", rerun_results(&run.tracking_rerun)));
-    if let Some(m) = &mujoco_reruns {
-        checked.push(("MuJoCo track", rerun_results(&m.tracking)));
-        checked.push(("MuJoCo policy", rerun_results(&m.policy)));
-    }
-    let met = |name: &str| checked.iter().find(|(n, _)| *n == name).and_then(|(_, r)| r.as_deref()).is_some_and(all_met);
-    let verdict = if target.is_empty() {
-        Verdict::Met
-    } else {
-        Verdict::from_met(met("plan") && (mujoco_reruns.is_none() || (met("MuJoCo track") && met("MuJoCo policy"))))
-    };
-    let mut summary = json!({
-        "task": spec.name,
-        "verdict": verdict.as_str(),
-        "exit_code": verdict.exit_code(),
-        "target": checked.iter().map(|(name, results)| (name.to_string(), results.as_ref().map_or(json!("failed"), |r| json!(r)))).collect::<serde_json::Map<_, _>>(),
-        "robot": model.name,
-        "knots": spec.knots(),
-        "dt_s": spec.dt,
-        "iterations": run.iterations(),
-        "termination": format!("{:?}", sol.termination),
-        "continuation_stages": run.stages.iter().map(|s| json!({ "horizon_s": s.horizon, "iterations": s.iterations, "termination": format!("{:?}", s.termination), "initial_cost": s.initial_cost, "final_cost": s.final_cost, "solve_time_s": s.time })).collect::<Vec<_>>(),
-        "augmented_lagrangian_rounds": run.rounds.iter().map(|s| json!({ "iterations": s.iterations, "termination": format!("{:?}", s.termination), "initial_cost": s.initial_cost, "final_cost": s.final_cost, "solve_time_s": s.time })).collect::<Vec<_>>(),
-        "exploration": run.exploration.as_ref().map(exploration_json),
-        "constraint_violation": run.violation,
-        "task_cost": run.task_cost,
-        "initial_cost": sol.cost_history[0],
-        "final_cost": sol.cost_history.last(),
-        "solve_time_s": solve_time,
-        "mean_iteration_ms": if sol.iterations.is_empty() { 0.0 } else { sol.iterations.iter().map(|l| l.timing.linearization + l.timing.backward_pass + l.timing.line_search).sum::<f64>() / sol.iterations.len() as f64 * 1e3 },
-        "plan": metrics_json(plan),
-        "slq_policy_rerun": rerun_json(&run.policy_rerun),
-        "tracking_controller_rerun": rerun_json(&run.tracking_rerun),
-    });
-    if let (Some(m), serde_json::Value::Object(map)) = (&mujoco_reruns, &mut summary) {
-        map.insert("mujoco_version".into(), json!(m.version));
-        map.insert("mujoco_tracking_controller".into(), rerun_json(&m.tracking));
-        map.insert("mujoco_policy".into(), rerun_json(&m.policy));
-    }
-    if let serde_json::Value::Object(map) = summary {
-        traj.summary = map;
-    }
-    traj.save_file(out.join("trajectory.json")).or_could_not_finish()?;
-    for (rerun, file) in [(&run.policy_rerun, "rerun_slq_policy.json"), (&run.tracking_rerun, "rerun_tracking.json")] {
-        if let Rerun::Completed { trajectory, .. } = rerun {
-            trajectory.save_file(out.join(file)).or_could_not_finish()?;
-        }
-    }
-    legwork::viz::write_replay(&model, &traj, out.join("replay.html")).or_could_not_finish()?;
-    let mut plots = legwork::viz::write_plots(&traj, out.join("plots")).or_could_not_finish()?;
-    plots.extend(legwork::viz::write_limit_plots(&model, &traj, out.join("plots")).or_could_not_finish()?);
-    legwork::viz::write_cost_plot(&sol.cost_history, &format!("{}: normalized cost per SLQ iteration", spec.name), out.join("plots").join("cost.svg")).or_could_not_finish()?;
-
+    let solved = job
+        .run(|progress| {
+            let log = progress.log;
+            let t = &log.timing;
+            if let (Some((index, horizon)), 1) = (progress.stage, log.iteration) {
+                say!("  continuation stage {} on {horizon} s:", index + 1);
+            } else if let (None, 1, Some(_)) = (progress.stage, log.iteration, &spec.continuation) {
+                say!("  full horizon, {} s:", spec.duration);
+            }
+            say!(
+                "  iteration {:2}  cost {:11.5e}  step {:<9}  |l| {:9.3e}  {:6.1} ms (linearize {:5.1}, backward {:5.1}, line search {:5.1})",
+                log.iteration,
+                log.cost,
+                if log.alpha > 0.0 { format!("{:.4}", log.alpha) } else { "rejected".into() },
+                log.feedforward_norm,
+                (t.linearization + t.backward_pass + t.line_search) * 1e3,
+                t.linearization * 1e3,
+                t.backward_pass * 1e3,
+                t.line_search * 1e3
+            );
+        })
+        .map_err(job_error)?;
+    let (run, verdict) = (&solved.run, solved.verdict);
+    let (sol, solve_time, plan, traj) = (&run.solution, run.solve_time(), &run.plan_metrics, &solved.trajectory);
+    let checked = &solved.checked;
+    let mujoco_reruns = &solved.mujoco;
     if let Some(e) = &run.exploration {
         let rounds = if e.spec.rounds > 1 { format!("{} rounds of {} SLQ iterations, the cheaper half going on each round", e.spec.rounds, e.spec.screen_iterations) } else { format!("{} SLQ iterations each", e.spec.screen_iterations) };
         say!("exploration: {} starts (seed {}), {rounds}, {} iterations in all, {:.2} s; kept start {} (cost {:.4e})", e.starts.len(), e.spec.seed, e.iterations, e.time, e.best, e.starts[e.best].cost);
@@ -246,7 +180,7 @@ pub fn run(args: SolveArgs) -> Result<Verdict> {
     let stages_note = if run.stages.is_empty() && run.rounds.is_empty() { String::new() } else { format!(" ({} in the last round on the full horizon)", sol.iterations.len()) };
     say!("{:?} after {} iterations{stages_note} in {:.2} s (cost {:.4e} -> {:.4e}; the task's own terms, without the feasibility constraints': {:.4e})", sol.termination, run.iterations(), solve_time, sol.cost_history[0], sol.cost_history.last().unwrap_or(&f64::NAN), run.task_cost);
     let mut columns = vec![
-        Column::completed("plan", plan, &traj),
+        Column::completed("plan", plan, traj),
         Column::of("SLQ policy", &run.policy_rerun),
         Column::of("tracking ctrl", &run.tracking_rerun),
     ];
@@ -255,8 +189,8 @@ pub fn run(args: SolveArgs) -> Result<Verdict> {
         columns.push(Column::of("MuJoCo policy", &m.policy));
     }
     print_figures(&model, &spec.waypoints.iter().map(|w| w.time).collect::<Vec<_>>(), &columns);
-    print_target(&target, &checked, mujoco_reruns.is_some(), verdict);
-    say!("Wrote {} (trajectory.json, closed-loop re-runs, replay.html, {} plots) in {:.1} s", out.display(), plots.len() + 1, started.elapsed().as_secs_f64());
+    print_target(&solved.target, checked, mujoco_reruns.is_some(), verdict);
+    say!("Wrote {} (trajectory.json, closed-loop re-runs, replay.html, {} plots) in {:.1} s", out.display(), solved.plots, started.elapsed().as_secs_f64());
     Ok(verdict)
 }
 
@@ -365,52 +299,19 @@ pub(super) fn print_figures(model: &legwork::model::Model, waypoints: &[f64], co
 
 /// The task's `[exploration]` with `--starts` / `--seed` over it (the defaults if the task
 /// has none); `None` when neither asks for one.
-fn exploration_override(spec: &legwork::ocp::TaskSpec, starts: Option<usize>, seed: Option<u64>) -> Result<Option<legwork::ocp::ExplorationSpec>> {
-    if starts.is_none() && seed.is_none() {
-        return Ok(None);
-    }
-    let mut e = match (&spec.exploration, &spec.continuation) {
-        (Some(e), _) => e.clone(),
-        // The first continuation stage is the explored problem: its iterations are the
-        // screening's budget.
-        (None, Some(c)) => {
-            let e = legwork::ocp::ExplorationSpec { screen_iterations: c.iterations, ..Default::default() };
-            say!("exploring the first continuation stage: {} SLQ iterations per start (the stage's)", e.screen_iterations);
-            e
+fn exploration_override(spec: &TaskSpec, starts: Option<usize>, seed: Option<u64>) -> Result<Option<legwork::ocp::ExplorationSpec>> {
+    if spec.exploration.is_none() && starts.is_some() {
+        if let Some(c) = &spec.continuation {
+            say!("exploring the first continuation stage: {} SLQ iterations per start (the stage's)", c.iterations);
         }
-        (None, None) => legwork::ocp::ExplorationSpec::default(),
-    };
-    e.starts = starts.unwrap_or(e.starts);
-    e.seed = seed.unwrap_or(e.seed);
-    // Only --starts can be out of range here (the file's own fields were checked on reading).
-    e.validate().map_err(|(field, problem)| if field == "starts" { anyhow::anyhow!("--starts: {problem}") } else { anyhow::anyhow!("[exploration] {field}: {problem}") })?;
-    Ok(Some(e))
+    }
+    legwork::job::solve::exploration_override(spec, starts, seed, "--starts").map_err(job_error)
 }
 
-fn exploration_json(e: &legwork::ocp::ExplorationReport) -> serde_json::Value {
-    json!({
-        "starts": e.starts.len(),
-        "seed": e.spec.seed,
-        "screen_iterations": e.spec.screen_iterations,
-        "rounds": e.spec.rounds,
-        "sampling": e.spec.sampling.as_ref().map(|s| json!({ "population": s.population, "elite": s.elite, "iterations": s.iterations, "knot_interval_s": s.knot_interval, "setpoint_std_rad": s.setpoint_std, "torque_std": s.torque_std, "starts": s.starts })),
-        "kept_start": e.best,
-        "screening_continued": e.screening_continued,
-        "single_start_final": e.single_start.as_ref().map(|f| json!({ "kept_start_task_cost": f.explored_task_cost, "single_start_task_cost": f.single_task_cost, "returned": if f.kept_single { "single start" } else { "kept start" }, "time_s": f.time })),
-        "iterations": e.iterations,
-        "time_s": e.time,
-        "per_start": e.starts.iter().map(|s| json!({
-            "index": s.index,
-            "seed": s.seed,
-            "sampled_rollout_cost": s.sampled_cost,
-            "initial_cost": s.initial_cost,
-            "cost": s.cost,
-            "iterations": s.iterations,
-            "rounds": s.rounds,
-            "outcome": match &s.outcome { Ok(t) => format!("{t:?}"), Err(e) => e.to_string() },
-            "time_s": s.time,
-            "finished_at_s": s.finished_at,
-            "target_met": s.met,
-        })).collect::<Vec<_>>(),
-    })
+/// A job's error for the command line: exit code 3 when the job could not finish, else 2.
+pub(super) fn job_error(e: legwork::job::JobError) -> anyhow::Error {
+    match e.kind {
+        legwork::job::JobErrorKind::CouldNotFinish => anyhow::Error::new(super::outcome::CouldNotFinish(anyhow::Error::msg(e.message))),
+        legwork::job::JobErrorKind::BadInput => anyhow::Error::msg(e.message),
+    }
 }

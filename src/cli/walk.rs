@@ -3,14 +3,13 @@
 //! its files: trajectory.json, replay.html (planned footholds, CoG and ZMP drawn over the
 //! terrain), plots (Fig. 8's CoG and ZMP over the support triangles) and summary.json.
 
-use super::outcome::{OrCouldNotFinish, Verdict};
-use anyhow::{Context, Result};
+use super::outcome::Verdict;
+use anyhow::Result;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use legwork::report::walk::TrialReport;
-use legwork::walk::trial::{run_trial, TrialSetup, WalkConfig};
+use legwork::job::walk::walk;
+use legwork::walk::trial::TrialSetup;
 use legwork::walk::ScenarioSpec;
-use serde_json::json;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -40,7 +39,6 @@ fn opt(x: Option<f64>, decimals: usize) -> String {
 pub fn run(args: WalkArgs) -> Result<Verdict> {
     let spec = ScenarioSpec::resolve(&args.scenario)?;
     let (model, _) = super::robot::load(&spec.robot)?;
-    let config = WalkConfig::hyq(&model).with_context(|| format!("cannot set up the walk for robot {}", model.name))?;
     let setup = if args.random { TrialSetup::random(args.seed) } else { TrialSetup::nominal(args.seed) };
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(format!("walk-{}", spec.name)));
     say!(
@@ -69,54 +67,16 @@ pub fn run(args: WalkArgs) -> Result<Verdict> {
     bar.set_message(format!("{}: settling", spec.name));
     let started = Instant::now();
     let mut planned = 0;
-    let result = run_trial(&model, &spec, &config, setup, |t, what| {
+    let result = walk(&model, &spec, setup, Some(&out), |t, what| {
         planned += 1;
         bar.set_message(format!("{}: simulated t = {t:.2} s, plan {planned}: {what}", spec.name));
         bar.suspend(|| say!("  t = {t:6.2} s  {what}  ({:.1} s elapsed)", started.elapsed().as_secs_f64()));
     });
     bar.finish_and_clear();
-    let outcome = result.or_could_not_finish()?;
+    let walked = result.map_err(super::solve::job_error)?;
     let wall = started.elapsed().as_secs_f64();
-    let report = TrialReport::new(&outcome, wall);
-
-    let mut traj = outcome.trajectory.clone();
+    let (report, past_limits, plots) = (&walked.report, &walked.past_limits, walked.plots);
     let p = &report.planning;
-    // The trajectory's own summary is short (the replay shows it in its header); every
-    // number is in summary.json.
-    let round = |x: f64, decimals: i32| (x * 10f64.powi(decimals)).round() / 10f64.powi(decimals);
-    // Neither the simulator (by default) nor the controller has joint stops: how far a joint
-    // went past its position limit says whether the hardware could walk it.
-    let past_limits = legwork::ocp::joint_limit_excess(&model, &traj);
-    let summary = json!({
-        "scenario": spec.name,
-        "success": report.success,
-        "verdict": Verdict::from_met(report.success).as_str(),
-        "exit_code": Verdict::from_met(report.success).exit_code(),
-        "failure": report.failure.clone().unwrap_or_else(|| "none".into()),
-        "goal_error_m": report.goal_error_m.map(|e| round(e, 3)),
-        "walking_time_s": round(report.walking_time_s, 2),
-        "speed_cm_s": round(report.speed_cm_s, 1),
-        "plans": p.plans,
-        "mean_plan_ms": p.mean_plan_ms.map(|m| round(m, 1)),
-        "worst_zmp_margin_m": p.worst_zmp_margin_m.map(|m| round(m, 4)),
-        "clipped_ticks": report.clipped_ticks,
-        "joint_limit_excess": past_limits,
-    });
-    if let serde_json::Value::Object(map) = summary {
-        traj.summary = map;
-    }
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot create the output folder {}", out.display())).or_could_not_finish()?;
-    traj.save_file(out.join("trajectory.json")).or_could_not_finish()?;
-    let world = spec.world_at(f64::INFINITY);
-    let end_time = traj.knots.last().map_or(0.0, |k| k.t);
-    let overlay = legwork::viz::walk::plan_overlay(&outcome.plans, &world, end_time);
-    legwork::viz::write_replay_with_overlay(&model, &traj, Some(&overlay), out.join("replay.html")).or_could_not_finish()?;
-    let mut plots = legwork::viz::write_plots(&traj, out.join("plots")).or_could_not_finish()?;
-    plots.extend(legwork::viz::write_limit_plots(&model, &traj, out.join("plots")).or_could_not_finish()?);
-    plots.extend(legwork::viz::walk::write_walk_plots(&model, &outcome.plans, &traj, out.join("plots"))?);
-    let summary_path = out.join("summary.json");
-    let text = serde_json::to_string_pretty(&json!({ "scenario_summary": spec.summary, "robot": model.name, "trial": report })).or_could_not_finish()?;
-    std::fs::write(&summary_path, text + "\n").with_context(|| format!("cannot write {}", summary_path.display())).or_could_not_finish()?;
 
     // The summary.
     match &report.failure {
@@ -164,6 +124,6 @@ pub fn run(args: WalkArgs) -> Result<Verdict> {
             );
         }
     }
-    say!("Wrote {} (trajectory.json, replay.html, summary.json, {} plots in plots/)", out.display(), plots.len());
-    Ok(Verdict::from_met(report.success))
+    say!("Wrote {} (trajectory.json, replay.html, summary.json, {plots} plots in plots/)", out.display());
+    Ok(walked.verdict)
 }

@@ -1,6 +1,6 @@
 //! The MuJoCo checker from Rust: writes the MJCF ([`super::mjcf_model`]), the controller's
 //! settings (legwork's own gains, so MuJoCo runs the controllers legwork runs) and the
-//! reference trajectory into a folder, runs `tools/mujoco_check.py` (compiled into the
+//! reference trajectory into a folder, runs `python/legwork/mujoco_check.py` (compiled into the
 //! crate and written beside them) with the Python of the checker's virtual environment,
 //! and reads the run back as a legwork [`Trajectory`], whose figures legwork computes with
 //! its own [`MotionMetrics`]: one metrics code, not two.
@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// The checker script, as compiled in.
-pub const CHECKER_SCRIPT: &str = include_str!("../../tools/mujoco_check.py");
+pub const CHECKER_SCRIPT: &str = include_str!("../../python/legwork/mujoco_check.py");
 /// The script that installs the checker's environment.
 pub const INSTALL_SCRIPT: &str = "scripts/install-mujoco.sh";
 
@@ -160,6 +160,12 @@ impl MujocoCheck {
         } else {
             Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv-mujoco").join("bin").join("python")
         };
+        Self::with_python(python)
+    }
+
+    /// The checker run by `python` (an interpreter that imports mujoco and numpy: the
+    /// Python package's own, `sys.executable`).
+    pub fn with_python(python: PathBuf) -> Result<Self, MujocoCheckError> {
         let missing = |why: String| MujocoCheckError::MissingEnvironment { path: python.display().to_string(), why };
         if !python.is_file() {
             return Err(missing("no such file".into()));
@@ -283,6 +289,27 @@ pub fn check_plan_in_mujoco(check: &MujocoCheck, model: &Model, plan: &Trajector
     let tracking = rerun(CheckController::Track, ControllerSettings::tracking(model, plan, control_dt)?)?;
     let policy = rerun(CheckController::Policy, ControllerSettings::Policy {})?;
     Ok(MujocoReruns { tracking, policy, version: check.version()? })
+}
+
+/// Replays `plan` in MuJoCo with one controller (tracking or the exported policy) for
+/// `duration` seconds (default: the plan's); writes `model.xml`, `reference.json`, the
+/// controller's settings and `mujoco_<controller>.json` into `folder`. Returns the run and,
+/// if MuJoCo flagged it as unstable, why.
+pub fn replay_in_mujoco(check: &MujocoCheck, model: &Model, plan: &Trajectory, controller: CheckController, duration: Option<f64>, folder: &Path) -> Result<(Trajectory, Option<String>), MujocoCheckError> {
+    plan.check_against(model, "the plan")?;
+    std::fs::create_dir_all(folder).map_err(|error| MujocoCheckError::Io { path: folder.display().to_string(), error })?;
+    let settings = MjcfSettings::default();
+    let mjcf_path = folder.join("model.xml");
+    write(&mjcf_path, &mjcf_model(model, &plan.metadata.terrain, &settings)?)?;
+    let reference = folder.join("reference.json");
+    plan.save_file(&reference)?;
+    let controller_settings = match controller {
+        CheckController::Track => ControllerSettings::tracking(model, plan, settings.timestep)?,
+        CheckController::Policy => ControllerSettings::Policy {},
+        CheckController::Stand => ControllerSettings::standing(model, settings.timestep)?,
+    };
+    let output = folder.join(format!("mujoco_{}.json", controller.name()));
+    check.run(folder, &CheckRun { mjcf: &mjcf_path, reference: &reference, controller, settings: &controller_settings, output: &output, duration, record_dt: settings.timestep })
 }
 
 /// HyQ (or any robot) dropped from `drop_height` (m, feet above flat ground, standing

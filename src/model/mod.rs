@@ -22,6 +22,8 @@
 //! ```
 
 pub mod description;
+mod load;
+pub use load::{is_embedded, load, LoadError};
 pub mod embedded;
 pub mod info;
 pub mod urdf;

@@ -25,6 +25,7 @@ mod deviation;
 mod exploration;
 mod limit_cost;
 mod metrics;
+mod overrides;
 mod physical_gains;
 mod run;
 mod target;
@@ -37,7 +38,7 @@ pub use exploration::{explore, start_seed, survivors, Exploration, ExplorationSp
 pub use limit_cost::{JointLimitCost, JointLimitCostSpec};
 pub use metrics::{joint_limit_excess, Feasibility, LimitExcess, MotionMetrics, Snapshot, FRICTION_MARGIN, SLIDE_SPEED};
 pub use physical_gains::{physical_gain, PhysicalGainWorkspace};
-pub use run::{solution_trajectory, solve_task, ExplorationReport, Rerun, SingleStartFinal, SlqPolicyController, SolveError, SolveOptions, TaskRun};
+pub use run::{solution_trajectory, solve_task, ExplorationReport, Rerun, SingleStartFinal, SlqPolicyController, SolveError, SolveOptions, SolveProgress, StageReport, TaskRun};
 pub use target::{all_met, CheckTime, Target, TargetCoordinate, TargetResult, TargetSpec, TargetTime};
 pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, TaskError, TaskSpec, WaypointSpec, WeightSpec, EMBEDDED_TASKS};
 
