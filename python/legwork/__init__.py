@@ -18,6 +18,7 @@ job that started from valid input and failed (exit code 3).
 from ._legwork import (
     CouldNotFinishError,
     InputError,
+    JumpResult,
     LegworkError,
     Robot,
     SolveResult,
@@ -26,6 +27,8 @@ from ._legwork import (
     __version__,
     check_targets,
     figures,
+    jump,
+    jumps,
     robots,
     simulate,
     solve,
@@ -49,6 +52,7 @@ def sweep(jobs, **kwargs):
 __all__ = [
     "CouldNotFinishError",
     "InputError",
+    "JumpResult",
     "LegworkError",
     "Robot",
     "SolveResult",
@@ -58,6 +62,8 @@ __all__ = [
     "__version__",
     "check_targets",
     "figures",
+    "jump",
+    "jumps",
     "robots",
     "simulate",
     "solve",

@@ -121,6 +121,19 @@ class WalkResult:
     @property
     def met(self) -> bool: ...
 
+class JumpResult:
+    """A 3D jump (Nguyen 2022): the phase durations, the full-body plan, the controllers' run."""
+
+    verdict: str
+    exit_code: int
+    phase_durations: list[float]
+    plan: Optional[Trajectory]
+    rerun: Optional[Trajectory]
+    summary: dict[str, Any]
+    out: Optional[os.PathLike[str]]
+    @property
+    def met(self) -> bool: ...
+
 TaskLike = Union[str, os.PathLike[str], dict[str, Any]]
 RobotLike = Union[str, os.PathLike[str], Robot]
 
@@ -168,6 +181,17 @@ def walk(
     write: bool = True,
     progress: Optional[Callable[[float, str], None]] = None,
 ) -> WalkResult: ...
+def jumps() -> list[tuple[str, str]]: ...
+def jump(
+    jump: PathLike,
+    *,
+    knots: Optional[int] = None,
+    trials: int = 0,
+    threads: int = 0,
+    out: Optional[PathLike] = None,
+    write: bool = True,
+    progress: Optional[Callable[[str, bool], None]] = None,
+) -> JumpResult: ...
 def figures(trajectory: Trajectory, robot: Robot) -> dict[str, Any]: ...
 def check_targets(task: TaskLike, trajectory: Trajectory, robot: Robot, tolerance_scale: float = 1.0, overrides: Optional[dict[str, Any]] = None) -> list[dict[str, Any]]: ...
 def mjcf(robot: Robot, terrain: Optional[dict[str, Any]] = None) -> str: ...

@@ -376,7 +376,7 @@ impl WalkResult {
         self.verdict == "met"
     }
     fn __repr__(&self) -> String {
-        format!("legwork.WalkResult(verdict={:?}, out={:?})", self.verdict, self.out.as_ref().map(|p| p.display().to_string()))
+        format!("legwork.WalkResult(verdict={:?}, out={})", self.verdict, repr_path(&self.out))
     }
 }
 
@@ -411,4 +411,108 @@ pub fn walk(py: Python<'_>, scenario: &Bound<'_, PyAny>, seed: u64, random: bool
     }
     let report = to_python(py, &serde_json::to_value(&walked.report).map_err(|e| could_not_finish(e.to_string()))?)?.unbind();
     Ok(WalkResult { trajectory: Py::new(py, Trajectory::new(walked.trajectory))?, verdict: walked.verdict.as_str().to_string(), report, out })
+}
+
+/// The result of [`jump`]: the plans, the controllers' run and the report.
+#[pyclass(name = "JumpResult", module = "legwork", frozen)]
+pub struct JumpResult {
+    /// `"landed"`, `"contact timing failed"`, `"full body failed"`, `"missed target"` or `"fell"`.
+    #[pyo3(get)]
+    verdict: String,
+    /// 0 landed on target, 1 missed or fell, 3 an optimization failed (the command's).
+    #[pyo3(get)]
+    exit_code: u8,
+    /// The optimal phase durations (s) of the contact timing (Nguyen 2022 eq. 1-2).
+    #[pyo3(get)]
+    phase_durations: Vec<f64>,
+    /// The full-body plan (10 ms knots), if the full-body optimization ran.
+    #[pyo3(get)]
+    plan: Option<Py<Trajectory>>,
+    /// The jump and landing controllers' run in legwork's simulator, if it ran.
+    #[pyo3(get)]
+    rerun: Option<Py<Trajectory>>,
+    /// The report (`trajectory.json`'s summary): each stage, the landing errors, the trials.
+    #[pyo3(get)]
+    summary: Py<PyAny>,
+    #[pyo3(get)]
+    out: Option<PathBuf>,
+}
+
+#[pymethods]
+impl JumpResult {
+    #[getter]
+    fn met(&self) -> bool {
+        self.exit_code == 0
+    }
+    fn __repr__(&self) -> String {
+        format!("legwork.JumpResult(verdict={:?}, out={})", self.verdict, repr_path(&self.out))
+    }
+}
+
+/// Nguyen 2022's 3D jump (`legwork jump`): an embedded jump (`legwork.jumps()`) or a jump
+/// file; contact timing, full-body optimization, jump and landing controllers in legwork's
+/// simulator, `trials` robustness trials. Writes the command's files to `out` (default
+/// `out/jump/<jump>`; `write=False`: none). `progress(stage, done)` sees each stage.
+#[pyfunction]
+#[pyo3(signature = (jump, *, knots=None, trials=0, threads=0, out=None, write=true, progress=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn jump(py: Python<'_>, jump: &Bound<'_, PyAny>, knots: Option<usize>, trials: usize, threads: usize, out: Option<PathBuf>, write: bool, progress: Option<Py<PyAny>>) -> PyResult<JumpResult> {
+    use legwork::jump::{Jump, PipelineOptions, Verdict as JumpVerdict};
+    let spec = Jump::load(&path_or_name(jump, "jump")?).map_err(|e| input_error(e.to_string()))?;
+    let model = legwork::model::load(&spec.robot).map_err(|e| input_error(format!("jump {}: robot: {e}", spec.name)))?;
+    if trials > 1000 {
+        return Err(input_error(format!("trials: expected at most 1000 (the paper runs 20), got {trials}")));
+    }
+    let settings = legwork::job::jump::settings_of(&spec, knots, "knots").map_err(job_error)?;
+    let out = write.then(|| out.unwrap_or_else(|| PathBuf::from("out").join("jump").join(&spec.name)));
+    let mut options = PipelineOptions { contact_timing: settings, trials, ..PipelineOptions::of(&spec) };
+    let callback_error: Mutex<Option<PyErr>> = Mutex::new(None);
+    let (report, _) = py
+        .detach(|| {
+            legwork::job::jump::jump(&spec, &model, &mut options, threads, out.as_deref(), |stage, done| {
+                if let Some(callback) = &progress {
+                    Python::attach(|py| {
+                        if let Err(e) = callback.call1(py, (legwork::job::jump::stage_name(stage), done)).and_then(|_| py.check_signals()) {
+                            callback_error.lock().map(|mut slot| slot.get_or_insert(e).clone_ref(py)).ok();
+                        }
+                    });
+                }
+            })
+        })
+        .map_err(job_error)?;
+    if let Some(e) = callback_error.into_inner().ok().flatten() {
+        return Err(e);
+    }
+    let verdict = report.verdict();
+    let name = match verdict {
+        JumpVerdict::Landed => "landed",
+        JumpVerdict::ContactTimingFailed => "contact timing failed",
+        JumpVerdict::FullBodyFailed => "full body failed",
+        JumpVerdict::MissedTarget => "missed target",
+        JumpVerdict::Fell => "fell",
+    };
+    let traj = |t: &legwork::io::Trajectory| Py::new(py, Trajectory::new(t.clone()));
+    Ok(JumpResult {
+        verdict: name.to_string(),
+        exit_code: verdict.exit_code(),
+        phase_durations: report.contact_timing.durations.clone(),
+        plan: report.full_body_plan.as_ref().map(|p| traj(&p.trajectory)).transpose()?,
+        rerun: report.rerun.as_ref().map(|r| traj(&r.trajectory)).transpose()?,
+        summary: to_python(py, &serde_json::Value::Object(report.summary(&spec)))?.unbind(),
+        out,
+    })
+}
+
+/// The embedded jumps: name -> one-line summary.
+#[pyfunction]
+pub fn jumps() -> PyResult<Vec<(String, String)>> {
+    legwork::jump::EMBEDDED_JUMPS
+        .iter()
+        .map(|(name, _, _)| Ok((name.to_string(), legwork::jump::Jump::embedded(name).map_err(|e| input_error(e.to_string()))?.summary.clone())))
+        .collect()
+}
+
+/// A folder as Python prints it: `'out/x'` or `None`.
+fn repr_path(path: &Option<PathBuf>) -> String {
+    path.as_ref().map_or("None".into(), |p| format!("{:?}", p.display().to_string()))
 }

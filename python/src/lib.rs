@@ -21,11 +21,14 @@ fn _legwork(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<trajectory::Trajectory>()?;
     m.add_class::<jobs::SolveResult>()?;
     m.add_class::<jobs::WalkResult>()?;
+    m.add_class::<jobs::JumpResult>()?;
     m.add_function(wrap_pyfunction!(robots, m)?)?;
     m.add_function(wrap_pyfunction!(jobs::solve, m)?)?;
     m.add_function(wrap_pyfunction!(jobs::tasks, m)?)?;
     m.add_function(wrap_pyfunction!(jobs::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(jobs::walk, m)?)?;
+    m.add_function(wrap_pyfunction!(jobs::jump, m)?)?;
+    m.add_function(wrap_pyfunction!(jobs::jumps, m)?)?;
     m.add_function(wrap_pyfunction!(jobs::task_dict, m)?)?;
     m.add_function(wrap_pyfunction!(checks::figures, m)?)?;
     m.add_function(wrap_pyfunction!(checks::check_targets, m)?)?;

@@ -59,3 +59,19 @@ def test_walk_is_the_command(legwork_bin, tmp_path):
     assert result.report["plans"] == len(plans) == a["summary"]["plans"]
     with pytest.raises(legwork.InputError, match="no_such_scenario"):
         legwork.walk("no_such_scenario", write=False)
+
+
+def test_jump_is_the_command(legwork_bin, tmp_path):
+    cli = run_cli(legwork_bin, "jump", "lateral", "--threads", "1", "--out", str(tmp_path / "cli"))
+    assert cli.returncode == 0, cli.stderr
+    stages = []
+    result = legwork.jump("lateral", threads=1, out=tmp_path / "py", progress=lambda stage, done: stages.append((stage, done)))
+    for name in ("trajectory.json", "rerun.json", "contact_timing.json"):
+        assert load_json(tmp_path / "cli" / name)["knots"] == load_json(tmp_path / "py" / name)["knots"], name
+    assert listing(tmp_path / "cli") == listing(tmp_path / "py")
+    assert result.verdict == "landed" and result.met and result.exit_code == 0
+    assert len(result.phase_durations) == 2 and result.plan.q.shape[1] == 19 and len(result.rerun) > len(result.plan)
+    assert stages[0][1] is False and stages[-1][1] is True
+    assert "lateral" in dict(legwork.jumps())
+    with pytest.raises(legwork.InputError, match="knots"):
+        legwork.jump("lateral", knots=0, write=False)

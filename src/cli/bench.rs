@@ -111,7 +111,7 @@ fn jumps(as_json: bool, repeats: usize, knots: Option<usize>, trials: usize, nam
         if barriers[2].is_some() {
             options.full_body.curvature_barrier_update = barriers[2];
         }
-        rows.push(super::jump::with_threads(threads, &mut options, |options| Ok(legwork::jump::bench_jump(jump, &model, options, repeats)?)).or_could_not_finish()?);
+        rows.push(legwork::job::jump::with_threads(threads, &mut options, |options| legwork::jump::bench_jump(jump, &model, options, repeats).map_err(legwork::job::JobError::could_not_finish)).map_err(super::solve::job_error)?);
         bar.inc(1);
     }
     bar.finish_and_clear();

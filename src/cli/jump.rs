@@ -1,14 +1,13 @@
 //! `legwork jump <name|file.toml>` and `legwork jumps`: Nguyen 2022's 3D jumps, planned and
 //! run as far as this build's pipeline goes ([`legwork::jump::pipeline`]).
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use legwork::jump::{pipeline, srb_plan_trajectory, Jump, JumpReport, PipelineOptions, Stage, EMBEDDED_JUMPS};
-use legwork::model::Model;
-use legwork::srb::{ContactTimingSettings, SrbParams};
-use std::path::{Path, PathBuf};
-use super::outcome::OrCouldNotFinish;
+use legwork::job::jump::stage_name;
+use legwork::jump::{Jump, JumpReport, PipelineOptions, EMBEDDED_JUMPS};
+use legwork::srb::ContactTimingSettings;
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
@@ -34,32 +33,9 @@ pub struct JumpArgs {
     threads: usize,
 }
 
-/// Runs `work` on a pool of `threads` threads (0: one per core) with the full body's stage
-/// evaluations parallel when there is more than one.
-pub(super) fn with_threads<T>(threads: usize, options: &mut PipelineOptions, work: impl FnOnce(&PipelineOptions) -> Result<T> + Send) -> Result<T>
-where
-    T: Send,
-{
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("--threads: cannot start the thread pool")?;
-    options.full_body.solver.parallel = pool.current_num_threads() > 1;
-    let options = &*options;
-    pool.install(|| work(options))
-}
-
-/// The jump's settings with the command line's overrides.
+/// The jump's settings with the command line's `--knots`.
 pub(super) fn settings_of(jump: &Jump, knots: Option<usize>) -> Result<ContactTimingSettings> {
-    let settings = ContactTimingSettings { knots_per_phase: knots.unwrap_or(jump.contact_timing.knots_per_phase), ..jump.contact_timing.clone() };
-    settings.validate().context("--knots")?;
-    Ok(settings)
-}
-
-fn stage_name(stage: Stage) -> &'static str {
-    match stage {
-        Stage::ContactTiming => "contact timing (single rigid body, sec. II-B)",
-        Stage::FullBody => "full-body trajectory optimization (sec. II-C)",
-        Stage::Controllers => "jump and landing controllers in legwork's simulator (sec. III)",
-        Stage::Trials => "robustness trials (mass, inertia, base offset)",
-    }
+    legwork::job::jump::settings_of(jump, knots, "--knots").map_err(super::solve::job_error)
 }
 
 /// `legwork jumps`: one line per embedded jump.
@@ -94,75 +70,20 @@ pub fn run(args: JumpArgs) -> Result<ExitCode> {
     bar.set_style(ProgressStyle::with_template("{spinner} {msg} ({elapsed})").expect("static template"));
     bar.enable_steady_tick(Duration::from_millis(120));
     let mut options = PipelineOptions { contact_timing: settings.clone(), trials: args.trials, ..PipelineOptions::of(&jump) };
-    let report = with_threads(super::capped_threads(args.threads), &mut options, |options| {
-        Ok(pipeline::run(&jump, &model, options, |stage, done| {
-            if done {
-                bar.println(format!("  done: {}", stage_name(stage)));
-            } else {
-                bar.set_message(stage_name(stage).to_string());
-            }
-        })?)
-    })
-    .or_could_not_finish()?;
+    let result = legwork::job::jump::jump(&jump, &model, &mut options, super::capped_threads(args.threads), Some(&out), |stage, done| {
+        if done {
+            bar.println(format!("  done: {}", stage_name(stage)));
+        } else {
+            bar.set_message(stage_name(stage).to_string());
+        }
+    });
     bar.finish_and_clear();
-    let written = write_outputs(&jump, &model, &options, &report, &out).or_could_not_finish()?;
+    let (report, written) = result.map_err(super::solve::job_error)?;
     print_report(&jump, &report);
     say!("Wrote {} ({}) in {:.1} s", out.display(), written.join(", "), started.elapsed().as_secs_f64());
     let verdict = report.verdict();
     say!("{} (exit code {})", verdict.describe(), verdict.exit_code());
     Ok(ExitCode::from(verdict.exit_code()))
-}
-
-/// trajectory.json (the full-body plan), rerun.json (the controllers' run),
-/// contact_timing.json (the single-rigid-body plan), replay.html (the re-run, or the best
-/// plan there is) and the plots; returns what was written.
-fn write_outputs(jump: &Jump, model: &Model, options: &PipelineOptions, report: &JumpReport, out: &Path) -> Result<Vec<String>> {
-    use legwork::viz::jump as plots;
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create the output folder {}", out.display()))?;
-    let dir = out.join("plots");
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let summary = report.summary(jump);
-    let terrain = legwork::terrain::Terrain::spec(&jump.terrain());
-    let mut written = Vec::new();
-    let params = SrbParams::from_model(model, "standing")?;
-    let ct = &report.contact_timing;
-    let mut srb = srb_plan_trajectory(model, jump, &params, ct.knots())?;
-    srb.summary = summary.clone();
-    srb.summary.insert("trajectory".into(), "the contact-timing plan: the single rigid body's base and ground forces, legs by inverse kinematics to its feet, no joint torques (tau = 0)".into());
-    srb.save_file(out.join("contact_timing.json"))?;
-    written.push("contact_timing.json".to_string());
-    let ct_settings = &options.contact_timing;
-    plots::write_phase_timings(&dir.join("phase_timings.svg"), &format!("{}: optimal phase durations", jump.name), &jump.phases, &ct.durations, jump.paper.as_ref().map(|p| p.timings_10ms.as_slice()))?;
-    plots::write_srb_forces(&dir.join("contact_timing_forces.svg"), ct.knots(), ct_settings.mu, (ct_settings.f_min, ct_settings.f_max))?;
-    plots::write_srb_pose(&dir.join("contact_timing_pose.svg"), ct.knots())?;
-    written.push("plots/phase_timings.svg, contact_timing_{forces,pose}.svg".into());
-    let mut replay = srb.clone();
-    if let Some(plan) = &report.full_body_plan {
-        let mut traj = plan.trajectory.clone();
-        traj.metadata.terrain = terrain.clone();
-        traj.summary = summary.clone();
-        traj.save_file(out.join("trajectory.json"))?;
-        let fb = &options.full_body;
-        plots::write_trajectory_forces(&dir.join("plan_ground_forces.svg"), &traj, fb.mu, fb.min_normal_force)?;
-        plots::write_torque_limits(&dir.join("plan_torques.svg"), model, &traj)?;
-        legwork::viz::write_plots(&traj, dir.join("plan"))?;
-        written.push("trajectory.json (full-body plan), plots/plan_{ground_forces,torques}.svg, plots/plan/".into());
-        replay = traj;
-    }
-    if let Some(run) = &report.rerun {
-        let mut traj = run.trajectory.clone();
-        traj.metadata.terrain = terrain.clone();
-        traj.summary = summary.clone();
-        traj.save_file(out.join("rerun.json"))?;
-        plots::write_trajectory_forces(&dir.join("rerun_ground_forces.svg"), &traj, model.contact.friction, 0.0)?;
-        plots::write_torque_limits(&dir.join("rerun_torques.svg"), model, &traj)?;
-        legwork::viz::write_plots(&traj, dir.join("rerun"))?;
-        written.push("rerun.json, plots/rerun_{ground_forces,torques}.svg, plots/rerun/".into());
-        replay = traj;
-    }
-    legwork::viz::write_replay(model, &replay, out.join("replay.html"))?;
-    written.push(format!("replay.html ({})", replay.metadata.scenario));
-    Ok(written)
 }
 
 fn print_report(jump: &Jump, report: &JumpReport) {

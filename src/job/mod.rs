@@ -10,6 +10,7 @@
 //! | 2 | bad input ([`JobErrorKind::BadInput`]): the file, field or value the message names |
 //! | 3 | the job could not finish ([`JobErrorKind::CouldNotFinish`]): an optimizer failed, a simulation diverged, an output could not be written |
 
+pub mod jump;
 pub mod resources;
 pub mod simulate;
 pub mod solve;
