@@ -34,12 +34,13 @@ impl Robot {
         Self { jacobian: Matrix6xX::zeros(nv), model: Arc::new(model), spec, data, q: DVector::zeros(nq), v: DVector::zeros(nv), w: DVector::zeros(nv) }
     }
 
-    /// Copies `array` into `into`, checking its length and that every value is finite.
-    fn read(what: &str, array: &PyReadonlyArray1<f64>, into: &mut DVector<f64>, expected: &str) -> PyResult<()> {
+    /// Copies `array` into `into`, checking its length (the robot's `dimension`, "nq" or
+    /// "nv") and that every value is finite. Allocates only for an error's message.
+    fn read(what: &str, array: &PyReadonlyArray1<f64>, into: &mut DVector<f64>, dimension: &str, robot: &str) -> PyResult<()> {
         let n = into.len();
         let got = array.len();
         if got != n {
-            return Err(input_error(format!("{what}: expected {n} values ({expected}), got {got}")));
+            return Err(input_error(format!("{what}: expected {n} values (the robot's {dimension} for {robot}), got {got}")));
         }
         match array.as_slice() {
             Ok(values) => into.as_mut_slice().copy_from_slice(values),
@@ -56,8 +57,7 @@ impl Robot {
     }
 
     fn read_q(&mut self, what: &str, q: &PyReadonlyArray1<f64>) -> PyResult<()> {
-        let expected = format!("the robot's nq for {}", self.model.name);
-        Self::read(what, q, &mut self.q, &expected)?;
+        Self::read(what, q, &mut self.q, "nq", &self.model.name)?;
         // The quaternion of a free-flyer base must be a rotation: refuse one far from unit.
         if self.model.has_free_flyer() {
             let norm = self.q.rows(3, 4).norm();
@@ -69,13 +69,11 @@ impl Robot {
     }
 
     fn read_v(&mut self, what: &str, v: &PyReadonlyArray1<f64>) -> PyResult<()> {
-        let expected = format!("the robot's nv for {}", self.model.name);
-        Self::read(what, v, &mut self.v, &expected)
+        Self::read(what, v, &mut self.v, "nv", &self.model.name)
     }
 
     fn read_w(&mut self, what: &str, w: &PyReadonlyArray1<f64>) -> PyResult<()> {
-        let expected = format!("the robot's nv for {}", self.model.name);
-        Self::read(what, w, &mut self.w, &expected)
+        Self::read(what, w, &mut self.w, "nv", &self.model.name)
     }
 
     fn frame_index(&self, frame: &Bound<'_, PyAny>) -> PyResult<usize> {
