@@ -12,7 +12,7 @@ use legwork::job::{JobError, JobErrorKind};
 use legwork::ocp::{Rerun, SolveOptions, TaskSpec};
 use numpy::PyArray1;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::{PyDict, PyList, PyTuple};
 use std::path::PathBuf;
 use std::sync::Mutex;
 
@@ -44,6 +44,44 @@ pub(crate) fn load_task(task: &Bound<'_, PyAny>, overrides: Option<&Bound<'_, Py
     };
     let spec = TaskSpec::from_toml_with_overrides(&text, &origin, &pairs).map_err(|e| input_error(e.to_string()))?;
     Ok((spec, origin))
+}
+
+/// A progress callback called from the job's threads (the GIL taken for each call): the
+/// first exception it raises (or a Ctrl-C) is kept and raised when the job returns, since
+/// a job cannot be stopped halfway.
+struct Progress {
+    callback: Option<Py<PyAny>>,
+    error: Mutex<Option<PyErr>>,
+}
+
+impl Progress {
+    fn new(callback: Option<Py<PyAny>>) -> Self {
+        Self { callback, error: Mutex::new(None) }
+    }
+
+    fn wanted(&self) -> bool {
+        self.callback.is_some()
+    }
+
+    /// Calls the callback with the arguments `args` builds (with the GIL held).
+    fn call(&self, args: impl FnOnce(Python<'_>) -> PyResult<Py<PyTuple>>) {
+        let Some(callback) = &self.callback else { return };
+        Python::attach(|py| {
+            if let Err(e) = args(py).and_then(|args| callback.call1(py, args.bind(py))).and_then(|_| py.check_signals()) {
+                if let Ok(mut slot) = self.error.lock() {
+                    slot.get_or_insert(e);
+                }
+            }
+        });
+    }
+
+    /// The job's result, or the callback's exception.
+    fn finish<T>(self, result: T) -> PyResult<T> {
+        match self.error.into_inner().ok().flatten() {
+            Some(e) => Err(e),
+            None => Ok(result),
+        }
+    }
 }
 
 /// A robot argument (a `Robot`, a name or a path; `default` when absent) as a model and
@@ -157,31 +195,28 @@ pub fn solve(
         out: &out,
         memory_limit: MemoryLimit { gb: memory_limit_gb, setting: "memory_limit_gb" },
     };
-    // The first exception the callback raises, re-raised after the solve (SLQ cannot be
-    // stopped between iterations).
-    let callback_error: Mutex<Option<PyErr>> = Mutex::new(None);
+    let progress = Progress::new(progress);
     let solved = py
         .detach(|| {
             job.run(|p| {
-                let Some(callback) = &progress else { return };
-                Python::attach(|py| {
-                    let log = p.log;
+                if !progress.wanted() {
+                    return;
+                }
+                let log = p.log;
+                let time = log.timing.linearization + log.timing.backward_pass + log.timing.line_search;
+                progress.call(|py| {
                     let info = PyDict::new(py);
-                    let _ = info.set_item("iteration", log.iteration);
-                    let _ = info.set_item("cost", log.cost);
-                    let _ = info.set_item("step", log.alpha);
-                    let _ = info.set_item("stage", p.stage);
-                    let _ = info.set_item("time_s", log.timing.linearization + log.timing.backward_pass + log.timing.line_search);
-                    if let Err(e) = callback.call1(py, (info,)).and_then(|_| py.check_signals()) {
-                        callback_error.lock().map(|mut slot| slot.get_or_insert(e).clone_ref(py)).ok();
-                    }
+                    info.set_item("iteration", log.iteration)?;
+                    info.set_item("cost", log.cost)?;
+                    info.set_item("step", log.alpha)?;
+                    info.set_item("stage", p.stage)?;
+                    info.set_item("time_s", time)?;
+                    Ok(PyTuple::new(py, [info])?.unbind())
                 });
             })
         })
         .map_err(job_error)?;
-    if let Some(e) = callback_error.into_inner().ok().flatten() {
-        return Err(e);
-    }
+    let solved = progress.finish(solved)?;
     let run = &solved.run;
     let reruns = PyDict::new(py);
     let add = |name: &str, rerun: &Rerun| -> PyResult<()> {
@@ -322,16 +357,7 @@ pub fn simulate(
         setting: keyword,
     };
     job.check().map_err(job_error)?;
-    let callback_error: Mutex<Option<PyErr>> = Mutex::new(None);
-    let report = |fraction: f64| {
-        if let Some(callback) = &progress {
-            Python::attach(|py| {
-                if let Err(e) = callback.call1(py, (fraction,)).and_then(|_| py.check_signals()) {
-                    callback_error.lock().map(|mut slot| slot.get_or_insert(e).clone_ref(py)).ok();
-                }
-            });
-        }
-    };
+    let progress = Progress::new(progress);
     let done = py
         .detach(|| {
             // At most a hundred calls a run, the last at 1.
@@ -339,18 +365,16 @@ pub fn simulate(
             let done = job.run(out.as_deref(), |fraction| {
                 if fraction - last >= 0.01 {
                     last = fraction;
-                    report(fraction);
+                    progress.call(|py| Ok(PyTuple::new(py, [fraction])?.unbind()));
                 }
             });
             if done.is_ok() {
-                report(1.0);
+                progress.call(|py| Ok(PyTuple::new(py, [1.0])?.unbind()));
             }
             done
         })
         .map_err(job_error)?;
-    if let Some(e) = callback_error.into_inner().ok().flatten() {
-        return Err(e);
-    }
+    let done = progress.finish(done)?;
     Ok(Trajectory::new(done.trajectory))
 }
 
@@ -392,23 +416,9 @@ pub fn walk(py: Python<'_>, scenario: &Bound<'_, PyAny>, seed: u64, random: bool
     let model = legwork::model::load(&spec.robot).map_err(|e| input_error(format!("scenario {}: robot: {e}", spec.name)))?;
     let setup = if random { TrialSetup::random(seed) } else { TrialSetup::nominal(seed) };
     let out = write.then(|| out.unwrap_or_else(|| PathBuf::from("out").join(format!("walk-{}", spec.name))));
-    let callback_error: Mutex<Option<PyErr>> = Mutex::new(None);
-    let walked = py
-        .detach(|| {
-            legwork::job::walk::walk(&model, &spec, setup, out.as_deref(), |t, what| {
-                if let Some(callback) = &progress {
-                    Python::attach(|py| {
-                        if let Err(e) = callback.call1(py, (t, what)).and_then(|_| py.check_signals()) {
-                            callback_error.lock().map(|mut slot| slot.get_or_insert(e).clone_ref(py)).ok();
-                        }
-                    });
-                }
-            })
-        })
-        .map_err(job_error)?;
-    if let Some(e) = callback_error.into_inner().ok().flatten() {
-        return Err(e);
-    }
+    let progress = Progress::new(progress);
+    let walked = py.detach(|| legwork::job::walk::walk(&model, &spec, setup, out.as_deref(), |t, what| progress.call(|py| Ok((t, what).into_pyobject(py)?.unbind())))).map_err(job_error)?;
+    let walked = progress.finish(walked)?;
     let report = to_python(py, &serde_json::to_value(&walked.report).map_err(|e| could_not_finish(e.to_string()))?)?.unbind();
     Ok(WalkResult { trajectory: Py::new(py, Trajectory::new(walked.trajectory))?, verdict: walked.verdict.as_str().to_string(), report, out })
 }
@@ -466,23 +476,11 @@ pub fn jump(py: Python<'_>, jump: &Bound<'_, PyAny>, knots: Option<usize>, trial
     let settings = legwork::job::jump::settings_of(&spec, knots, "knots").map_err(job_error)?;
     let out = write.then(|| out.unwrap_or_else(|| PathBuf::from("out").join("jump").join(&spec.name)));
     let mut options = PipelineOptions { contact_timing: settings, trials, ..PipelineOptions::of(&spec) };
-    let callback_error: Mutex<Option<PyErr>> = Mutex::new(None);
+    let progress = Progress::new(progress);
     let (report, _) = py
-        .detach(|| {
-            legwork::job::jump::jump(&spec, &model, &mut options, threads, out.as_deref(), |stage, done| {
-                if let Some(callback) = &progress {
-                    Python::attach(|py| {
-                        if let Err(e) = callback.call1(py, (legwork::job::jump::stage_name(stage), done)).and_then(|_| py.check_signals()) {
-                            callback_error.lock().map(|mut slot| slot.get_or_insert(e).clone_ref(py)).ok();
-                        }
-                    });
-                }
-            })
-        })
+        .detach(|| legwork::job::jump::jump(&spec, &model, &mut options, threads, out.as_deref(), |stage, done| progress.call(|py| Ok((legwork::job::jump::stage_name(stage), done).into_pyobject(py)?.unbind()))))
         .map_err(job_error)?;
-    if let Some(e) = callback_error.into_inner().ok().flatten() {
-        return Err(e);
-    }
+    let report = progress.finish(report)?;
     let verdict = report.verdict();
     let name = match verdict {
         JumpVerdict::Landed => "landed",
