@@ -73,7 +73,8 @@ fn tasks_lists_the_embedded_tasks_and_bench_slq_reports_json() {
     assert!(o.status.success(), "{}", text(&o.stderr));
     assert!(text(&o.stdout).lines().any(|l| l.starts_with("squat_jump ")));
     // Structure only: the numbers are timings, checked by the benchmark itself, not here.
-    let o = legwork(&["bench", "slq", "--json", "--iterations", "1"]);
+    let bench = out_dir("bench-slq");
+    let o = legwork(&["bench", "slq", "--json", "--iterations", "1", "--out", bench.to_str().unwrap()]);
     let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("not JSON ({e}): {}", text(&o.stderr)));
     // The exit code is the tasks' verdict: 1 while any embedded task misses its target.
     let missed = report["tasks"].as_array().unwrap().iter().any(|t| t["target_met"] != true);
@@ -82,6 +83,13 @@ fn tasks_lists_the_embedded_tasks_and_bench_slq_reports_json() {
     assert_eq!(report["scaling"].as_array().unwrap().len(), 6);
     assert!(report["linear_fit"]["r_squared"].is_number());
     assert_eq!(report["tasks"].as_array().unwrap().len(), legwork::ocp::EMBEDDED_TASKS.len());
+    // Every task's solve folder, and the report page over them with the scaling table.
+    let page = std::fs::read_to_string(bench.join("report.html")).unwrap();
+    assert!(page.contains("Fig. 13"));
+    for (name, _) in legwork::ocp::EMBEDDED_TASKS {
+        assert!(bench.join(name).join("replay.html").is_file(), "{name}");
+        assert!(page.contains(&format!("<a href=\"{name}/replay.html\">replay</a>")), "{name}");
+    }
     let o = legwork(&["solve", "no_such_task"]);
     assert!(!o.status.success() && text(&o.stderr).contains("no embedded task named 'no_such_task'"));
 }

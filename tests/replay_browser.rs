@@ -305,3 +305,51 @@ fn replay_header_is_a_target_table_and_leaves_the_view_half_the_window() {
         std::fs::remove_dir_all(&dir).ok();
     }
 }
+
+/// The layout the page measured (`data-layout`) at `size`, with no console error and no
+/// error box: the 3D view keeps at least half the viewport and the page does not scroll
+/// sideways.
+fn assert_layout(chromium: &Path, dir: &Path, tag: &str, page: &Path, size: (u32, u32)) {
+    let (dom, log) = run_chromium_sized(chromium, dir, tag, page, &["--dump-dom".into()], size);
+    let errors = console_errors(&log);
+    assert!(errors.is_empty(), "{tag}: console errors:\n{}", errors.join("\n"));
+    assert_no_error_box(&dom);
+    let layout = dom.split("data-layout=\"").nth(1).and_then(|s| s.split('"').next()).unwrap_or_else(|| panic!("{tag}: the page did not record its layout")).replace("&quot;", "\"");
+    let layout: serde_json::Value = serde_json::from_str(&layout).unwrap();
+    let get = |k: &str| layout[k].as_f64().unwrap_or_else(|| panic!("{tag}: {k} missing in {layout}"));
+    let viewport = get("window_height");
+    eprintln!("{tag}: 3D view {} of {viewport} px, page {} of {} px wide", get("view_height"), get("scroll_width"), get("client_width"));
+    assert!(get("view_height") >= 0.5 * viewport, "{tag}: the 3D view is {} px high of {viewport}", get("view_height"));
+    assert!(get("scroll_width") <= get("client_width"), "{tag}: the page scrolls sideways: {} > {}", get("scroll_width"), get("client_width"));
+}
+
+#[test]
+fn every_embedded_tasks_and_scenarios_replay_passes_the_layout_test() {
+    let Some(chromium) = chromium_or_skip() else { return };
+    let (dir, keep) = work_dir("every-replay");
+    let legwork = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_legwork")).args(args).output().unwrap();
+        assert!(matches!(out.status.code(), Some(0 | 1)), "legwork {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    };
+    let mut pages = Vec::new();
+    // Each task solved briefly (one iteration on the full horizon, after its continuation
+    // stages): the replay's header is the task's own targets over the plan and its re-runs.
+    for (name, _) in legwork::ocp::EMBEDDED_TASKS {
+        let spec = legwork::ocp::TaskSpec::embedded(name).unwrap();
+        let iterations = spec.continuation.as_ref().map_or(0, |c| c.horizons.len() * c.iterations) + 1;
+        let out = dir.join(name);
+        legwork(&["solve", name, "--iterations", &iterations.to_string(), "--starts", "1", "--out", out.to_str().unwrap()]);
+        pages.push((name.to_string(), out.join("replay.html")));
+    }
+    for (name, _) in legwork::walk::EMBEDDED_SCENARIOS {
+        let out = dir.join(format!("walk-{name}"));
+        legwork(&["walk", name, "--out", out.to_str().unwrap()]);
+        pages.push((format!("walk-{name}"), out.join("replay.html")));
+    }
+    for (tag, page) in &pages {
+        assert_layout(&chromium, &dir, tag, page, (1400, 900));
+    }
+    if !keep {
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

@@ -5,16 +5,17 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Subcommand;
-use legwork::export::{check_plan_in_mujoco, MujocoCheck};
+use legwork::export::MujocoCheck;
+use legwork::job::solve::SolveJob;
+use legwork::viz::report::{escape, find_runs, write_report, ReportSection};
 use legwork::model::embedded;
-use legwork::ocp::{settled_stance, solve_task, PdPolicy, SolveOptions, TaskSpec, EMBEDDED_TASKS};
+use legwork::ocp::{settled_stance, PdPolicy, SolveOptions, TaskSpec, EMBEDDED_TASKS};
 use legwork::slq::{Slq, SlqSettings};
-use legwork::terrain::{Plane, Terrain};
+use legwork::terrain::Plane;
 use legwork::report::walk::{paper_result, terrain_benchmark, TerrainBenchmark, TrialReport, TABLE_I, TARGET_SPEED_FACTOR, TARGET_SUCCESS_RATE};
 use legwork::walk::trial::WalkConfig;
 use legwork::walk::{ScenarioSpec, EMBEDDED_SCENARIOS};
 use super::outcome::{OrCouldNotFinish, Verdict};
-use legwork::ocp::all_met;
 use serde_json::json;
 
 #[derive(Debug, Subcommand)]
@@ -31,9 +32,13 @@ pub enum BenchCommand {
         #[arg(long, default_value_t = 5)]
         iterations: usize,
         /// Also check every solved task in MuJoCo (tracking controller and feedback
-        /// policy; needs `scripts/install-mujoco.sh`); the runs go to `out/bench/<task>/mujoco`.
+        /// policy; needs `scripts/install-mujoco.sh`); the runs go to `<out>/<task>/mujoco`.
         #[arg(long, value_enum)]
         check: Option<super::solve::CheckSimulator>,
+        /// Output folder: each task's solve folder (as `legwork solve` writes it) and
+        /// `report.html` (the scaling table and every task's targets, figures and replay).
+        #[arg(long, default_value = "out/bench/slq")]
+        out: std::path::PathBuf,
     },
     /// Winkler 2015's Table I: randomized walk trials over the paper's four terrains
     /// (start +-5 cm, yaw +-5 deg, map noise), speed and success beside the paper's.
@@ -52,6 +57,10 @@ pub enum BenchCommand {
         /// scenario. Default: the paper's four terrains.
         #[arg(long, value_delimiter = ',', value_name = "NAMES")]
         scenarios: Vec<String>,
+        /// Output folder: `report.html` (the paper's Table I beside legwork's, every trial)
+        /// and `summary.json` (the benchmark as --json prints it).
+        #[arg(long, default_value = "out/bench/terrain")]
+        out: std::path::PathBuf,
     },
     /// Nguyen 2022's Table I beside legwork's: phase timings, contact-timing and full-body
     /// solve times, landing error and success rate, one row per embedded jump.
@@ -171,8 +180,8 @@ fn cpu_name() -> String {
 pub fn run(cmd: BenchCommand) -> Result<Verdict> {
     match cmd {
         BenchCommand::Jumps { json, repeats, knots, trials, jumps: names, barrier_contact_timing, barrier_full_body, barrier_curvature, threads } => jumps(json, repeats, knots, trials, &names, [barrier_contact_timing, barrier_full_body, barrier_curvature], super::capped_threads(threads)),
-        BenchCommand::Slq { json, threads, iterations, check } => slq(json, super::capped_threads(threads), iterations, check.is_some()),
-        BenchCommand::Terrain { trials, json, threads, scenarios } => terrain(trials, json, super::capped_threads(threads), &scenarios),
+        BenchCommand::Slq { json, threads, iterations, check, out } => slq(json, super::capped_threads(threads), iterations, check.is_some(), &out),
+        BenchCommand::Terrain { trials, json, threads, scenarios, out } => terrain(trials, json, super::capped_threads(threads), &scenarios, &out),
     }
 }
 
@@ -186,7 +195,7 @@ fn terrain_scenarios(names: &[String]) -> Result<Vec<ScenarioSpec>> {
     names.iter().map(|n| ScenarioSpec::resolve(n.trim()).map_err(Into::into)).collect()
 }
 
-fn terrain(trials: usize, as_json: bool, threads: usize, names: &[String]) -> Result<Verdict> {
+fn terrain(trials: usize, as_json: bool, threads: usize, names: &[String], out: &std::path::Path) -> Result<Verdict> {
     if trials == 0 {
         bail!("--trials: expected at least one trial per terrain, got 0");
     }
@@ -213,18 +222,70 @@ fn terrain(trials: usize, as_json: bool, threads: usize, names: &[String]) -> Re
     // A terrain that is not one of the paper's has no target row (meets_targets = null).
     let missed: Vec<&str> = bench.terrains.iter().filter(|r| r.meets_targets == Some(false)).map(|r| r.scenario.as_str()).collect();
     let verdict = Verdict::from_met(missed.is_empty());
+    let mut value = serde_json::to_value(&bench)?;
+    if let serde_json::Value::Object(map) = &mut value {
+        map.insert("verdict".into(), json!(verdict.as_str()));
+        map.insert("exit_code".into(), json!(verdict.exit_code()));
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create the output folder {}", out.display())).or_could_not_finish()?;
+    std::fs::write(out.join("summary.json"), serde_json::to_string_pretty(&value)? + "\n").with_context(|| format!("cannot write {}", out.join("summary.json").display())).or_could_not_finish()?;
+    write_report(out.join("report.html"), "legwork bench terrain: Winkler 2015, Table I, beside legwork", &[], &table_i_sections(&bench, verdict)).or_could_not_finish()?;
     if as_json {
-        let mut value = serde_json::to_value(&bench)?;
-        if let serde_json::Value::Object(map) = &mut value {
-            map.insert("verdict".into(), json!(verdict.as_str()));
-            map.insert("exit_code".into(), json!(verdict.exit_code()));
-        }
         say!("{}", serde_json::to_string_pretty(&value)?);
     } else {
         print_table_i(&bench);
         say_verdict(verdict, &missed);
+        say!("Wrote {} and summary.json", out.join("report.html").display());
     }
     Ok(verdict)
+}
+
+/// The report page's sections of `bench terrain`: Table I beside legwork's, then every
+/// failed trial.
+fn table_i_sections(bench: &TerrainBenchmark, verdict: Verdict) -> Vec<ReportSection> {
+    let opt = |x: Option<f64>, decimals: usize| x.map_or("-".to_string(), |x| format!("{x:.decimals$}"));
+    let pct = |x: Option<f64>| x.map_or("-".to_string(), |x| format!("{:.0} %", 100.0 * x));
+    let mut table = String::from("<table><thead><tr><th rowspan=2>terrain</th><th colspan=2>Winkler 2015, Table I</th><th colspan=2>legwork</th><th rowspan=2>speed / paper's</th><th rowspan=2>mean plan [ms]</th><th rowspan=2>worst ZMP margin [cm]</th><th rowspan=2>targets</th></tr><tr><th>speed [cm/s]</th><th>success</th><th>speed [cm/s]</th><th>success</th></tr></thead><tbody>");
+    for r in &bench.terrains {
+        let ratio = match (r.speed_cm_s, r.paper_speed_cm_s) {
+            (Some(ours), Some(paper)) => format!("{:.1}x", ours / paper),
+            _ => "-".into(),
+        };
+        let targets = match r.meets_targets {
+            Some(true) => "<span class=met>met</span>".to_string(),
+            Some(false) => "<span class=missed>missed</span>".to_string(),
+            None => "-".to_string(),
+        };
+        table += &format!(
+            "<tr><td>{}</td><td class=num>{}</td><td class=num>{}</td><td class=num>{}</td><td class=num>{} ({}/{})</td><td class=num>{ratio}</td><td class=num>{}</td><td class=num>{}</td><td>{targets}</td></tr>",
+            escape(&r.scenario),
+            opt(r.paper_speed_cm_s, 1),
+            pct(r.paper_success_rate),
+            opt(r.speed_cm_s, 1),
+            pct(Some(r.success_rate)),
+            r.successes,
+            r.trials,
+            opt(r.planning.mean_plan_ms, 1),
+            opt(r.planning.worst_zmp_margin_m.map(|m| 100.0 * m), 2),
+        );
+    }
+    table += &format!(
+        "</tbody></table><p>{} trials per terrain; {}; {} at once, {:.0} s; targets (issue 5): success on at least {:.0} % of the trials, at least {:.0}x the paper's speed. Verdict: {}. CPU: {}.</p>",
+        bench.trials_per_terrain,
+        escape(bench.randomization),
+        bench.threads,
+        bench.wall_time_s,
+        100.0 * TARGET_SUCCESS_RATE,
+        TARGET_SPEED_FACTOR,
+        if verdict == Verdict::Met { "<span class=met>met</span>" } else { "<span class=missed>missed</span>" },
+        escape(&cpu_name())
+    );
+    let mut sections = vec![ReportSection { heading: "Forward speed and success rate per terrain".into(), html: table }];
+    let failures: Vec<String> = bench.terrains.iter().flat_map(|r| r.failures.iter().map(move |f| (r, f))).map(|(r, f)| format!("<li>{}: {}</li>", escape(&r.scenario), escape(&serde_json::to_string(f).unwrap_or_default()))).collect();
+    if !failures.is_empty() {
+        sections.push(ReportSection { heading: "Failed trials".into(), html: format!("<ul>{}</ul>", failures.join("")) });
+    }
+    sections
 }
 
 /// The first line of `text`, cut at `max` characters.
@@ -307,7 +368,7 @@ fn linear_fit(x: &[f64], y: &[f64]) -> (f64, f64, f64) {
     (a, b, 1.0 - ss_res / ss_tot)
 }
 
-fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> Result<Verdict> {
+fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool, out: &std::path::Path) -> Result<Verdict> {
     if !(1..=1000).contains(&iterations) {
         bail!("--iterations: expected 1-1000 timed iterations per horizon, got {iterations}");
     }
@@ -350,29 +411,23 @@ fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> 
     for (name, _) in EMBEDDED_TASKS {
         let spec = TaskSpec::embedded(name)?;
         let task_model = embedded::load(&spec.robot)?;
-        let target = spec.target(&task_model, name)?;
-        let run = solve_task(&spec, &task_model, &ground, name, &SolveOptions { threads, ..SolveOptions::default() }, |_| ()).or_could_not_finish()?;
+        // Each task as `legwork solve` runs it (with `--check mujoco` when asked), its folder
+        // written for the report.
+        let folder = out.join(name);
+        let job = SolveJob { spec: &spec, origin: name, model: &task_model, options: SolveOptions { threads, ..SolveOptions::default() }, mujoco: mujoco.as_ref(), out: &folder, memory_limit: super::resources::memory_limit() };
+        let solved = job.run(|_| ()).map_err(super::solve::job_error)?;
+        let run = &solved.run;
         let sol = &run.solution;
         // The task's target on the plan, and at twice its tolerances in MuJoCo (as `solve`).
-        let mut target_met = all_met(&target.check(&task_model, &run.plan, 1.0));
+        let target_met = solved.verdict == Verdict::Met;
         // The plan and legwork's tracking re-run beside MuJoCo's two runs, when asked.
-        let mujoco_figures = match &mujoco {
-            Some(check) => {
-                let folder = std::path::Path::new("out").join("bench").join(name).join("mujoco");
-                let m = check_plan_in_mujoco(check, &task_model, &run.plan, &ground.spec(), &folder).or_could_not_finish()?;
-                for rerun in [&m.tracking, &m.policy] {
-                    target_met &= match rerun {
-                        legwork::ocp::Rerun::Completed { trajectory, .. } => all_met(&target.check(&task_model, trajectory, 2.0)),
-                        legwork::ocp::Rerun::Failed { .. } => false,
-                    };
-                }
-                json!({
-                    "plan": super::solve::metrics_json(&run.plan_metrics),
-                    "tracking_controller_rerun": super::solve::rerun_json(&run.tracking_rerun),
-                    "mujoco_tracking_controller": super::solve::rerun_json(&m.tracking),
-                    "mujoco_policy": super::solve::rerun_json(&m.policy),
-                })
-            }
+        let mujoco_figures = match &solved.mujoco {
+            Some(m) => json!({
+                "plan": super::solve::metrics_json(&run.plan_metrics),
+                "tracking_controller_rerun": super::solve::rerun_json(&run.tracking_rerun),
+                "mujoco_tracking_controller": super::solve::rerun_json(&m.tracking),
+                "mujoco_policy": super::solve::rerun_json(&m.policy),
+            }),
             None => serde_json::Value::Null,
         };
         tasks.push(json!({
@@ -403,10 +458,22 @@ fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool) -> 
         "linear_fit": { "ms_intercept": intercept, "ms_per_knot": slope, "r_squared": r2 },
         "tasks": tasks,
     });
+    // The report page: the scaling table, then every task's folder.
+    let folders: Vec<std::path::PathBuf> = EMBEDDED_TASKS.iter().map(|(name, _)| out.join(name)).collect();
+    let mut rows = String::from("<table><thead><tr><th>T [s]</th><th>knots</th><th>iteration [ms]</th><th>linearize [ms]</th><th>backward [ms]</th><th>line search [ms]</th><th>us / knot / iteration</th></tr></thead><tbody>");
+    for s in &scaling {
+        let f = |k: &str, d: usize| format!("{:.d$}", s[k].as_f64().unwrap_or(f64::NAN));
+        rows += &format!("<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>", f("horizon_s", 2), s["knots"], f("ms_per_iteration", 1), f("linearization_ms", 1), f("backward_pass_ms", 1), f("line_search_ms", 1), f("us_per_knot_per_iteration", 1));
+    }
+    rows += &format!("</tbody></table><p>Linear fit: {intercept:.2} ms + {:.1} us x knots, R<sup>2</sup> = {r2:.4}. HyQ, dt = {} s, {threads_used} threads, {iterations} iterations per horizon; CPU: {}.</p>", slope * 1e3, base.dt, escape(&cpu_name()));
+    let sections = [ReportSection { heading: "SLQ time per iteration against knots (Neunert 2017, Fig. 13)".into(), html: rows }];
+    let runs = find_runs(&folders).or_could_not_finish()?;
+    write_report(out.join("report.html"), "legwork bench slq: the nine tasks of Neunert 2017", &runs, &sections).or_could_not_finish()?;
     if as_json {
         say!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(verdict);
     }
+    say!("Wrote {} (each task's folder beside it)", out.join("report.html").display());
     say!("SLQ time per iteration against knots (HyQ, dt = {} s, {threads_used} threads, {iterations} iterations each):", base.dt);
     say!("  {:>6} {:>6} {:>12} {:>12} {:>12} {:>12} {:>14}", "T [s]", "knots", "iter [ms]", "linearize", "backward", "line search", "us/knot/iter");
     for s in &scaling {

@@ -29,6 +29,7 @@ mod control;
 mod export;
 mod jump;
 pub mod outcome;
+mod report;
 mod resources;
 mod robot;
 mod simulate;
@@ -126,6 +127,9 @@ enum Command {
     /// Replay a trajectory: write a self-contained HTML page (3D robot, plots) and,
     /// optionally, static SVG plots.
     View(view::ViewArgs),
+    /// One self-contained HTML page for one run or a set of runs (a bench's output folder):
+    /// the summary table, each run's target checks and key figures, links to the replays.
+    Report(report::ReportArgs),
 }
 
 /// Parses the command line, runs the command, prints an error with its causes on failure.
@@ -143,6 +147,7 @@ pub fn main() -> ExitCode {
         Command::Tasks => solve::list(),
         Command::Jumps => jump::list(),
         Command::View(args) => view::run(args),
+        Command::Report(args) => report::run(args),
         Command::Export(cmd) => export::run(cmd),
         Command::Check(cmd) => check::run(cmd),
         Command::Control(cmd) => control::run(cmd),

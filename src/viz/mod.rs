@@ -7,6 +7,9 @@
 //!   pose and twist, the joint torques and the contact normal forces with a cursor at the
 //!   current time. All geometry is computed here with legwork's own forward kinematics;
 //!   the page only projects and draws.
+//! * [`report::write_report`]: one self-contained HTML page for one run or a set of runs
+//!   (`legwork report`): a summary table, each run's target checks and key figures, links
+//!   to the replays.
 //! * [`write_plots`]: static SVG figures for papers and reports (base pose, base twist,
 //!   joint torques, contact forces, the gait diagram).
 //!
@@ -24,6 +27,7 @@
 pub mod jump;
 pub mod plots;
 pub mod replay;
+pub mod report;
 mod signals;
 pub mod walk;
 
@@ -48,6 +52,9 @@ pub enum VizError {
     /// A replay overlay that the page cannot draw.
     #[error("replay overlay: {field}: {problem}")]
     Overlay { field: String, problem: String },
+    /// A folder or file given to a report that is not a run's.
+    #[error("{path}: {problem}")]
+    Report { path: String, problem: String },
     /// The plotting library failed on a figure.
     #[error("{path}: cannot draw the figure: {message}")]
     Plot { path: String, message: String },
