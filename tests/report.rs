@@ -68,7 +68,7 @@ fn a_set_of_runs_is_one_self_contained_page() {
 #[test]
 fn a_folder_without_runs_is_named() {
     let dir = temp_dir("empty");
-    let err = report::find_runs(&[dir.clone()]).unwrap_err().to_string();
+    let err = report::find_runs(std::slice::from_ref(&dir)).unwrap_err().to_string();
     assert!(err.contains(&dir.display().to_string()) && err.contains("trajectory.json"), "{err}");
     let out = Command::new(env!("CARGO_BIN_EXE_legwork")).args(["report", dir.to_str().unwrap()]).output().unwrap();
     assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));

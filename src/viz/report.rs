@@ -135,9 +135,13 @@ fn figure(value: &Value, decimals: usize) -> String {
     }
 }
 
-/// The target checks of a run: `(what (required), [(run, value, met)])` per check, from
-/// the summary's `target` (`{run: [{what, required, value, met}] or "failed"}`).
-fn target_rows(summary: &Map<String, Value>) -> (Vec<String>, Vec<(String, Vec<Option<(String, bool)>>)>) {
+/// One target check: `what (required)` and per run its value and whether it met the check
+/// (`None`: the run failed).
+type CheckRow = (String, Vec<Option<(String, bool)>>);
+
+/// The target checks of a run: the runs' names and a row per check, from the summary's
+/// `target` (`{run: [{what, required, value, met}] or "failed"}`).
+fn target_rows(summary: &Map<String, Value>) -> (Vec<String>, Vec<CheckRow>) {
     let Some(Value::Object(target)) = summary.get("target") else { return (Vec::new(), Vec::new()) };
     let runs: Vec<String> = target.keys().cloned().collect();
     let first = target.values().find_map(Value::as_array).cloned().unwrap_or_default();
@@ -223,7 +227,7 @@ pub fn report_html(title: &str, runs: &[ReportRun], sections: &[ReportSection], 
 }
 
 fn run_section(html: &mut String, index: usize, run: &ReportRun, page_dir: &Path) -> Result<(), VizError> {
-    let _ = write!(html, "<section id=run{index}><h2>{}: {} {}</h2>\n", escape(&display_name(run, page_dir)), what_ran(&run.summary), verdict_cell(&run.summary));
+    let _ = writeln!(html, "<section id=run{index}><h2>{}: {} {}</h2>", escape(&display_name(run, page_dir)), what_ran(&run.summary), verdict_cell(&run.summary));
     if let Some(replay) = &run.replay {
         let _ = writeln!(html, "<p><a href=\"{}\">Open the replay</a> (3D view and plots with a time cursor).</p>", escape(&relative_link(replay, page_dir)));
     }
