@@ -245,3 +245,52 @@ fn the_synthetic_trajectory_is_valid_and_keeps_stance_feet_on_the_ground() {
         }
     }
 }
+
+/// The RGB pixels of a PNG file: (width, height, pixels).
+fn read_png(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    let channels = info.color_type.samples();
+    let pixels = buf[..info.buffer_size()].chunks(channels).map(|c| [c[0], c[1], c[2]]).collect();
+    (info.width, info.height, pixels)
+}
+
+#[test]
+fn png_copies_are_twice_the_size_with_their_text_drawn() {
+    let (_, traj) = common::hyq_trot(0.5);
+    let dir = temp_dir("png");
+    let svgs = viz::write_plots(&traj, &dir).unwrap();
+    let pngs = viz::png::write_pngs(&svgs, viz::png::PNG_SCALE).unwrap();
+    assert_eq!(pngs.len(), svgs.len());
+    // base_pose.svg is 960 x 540 units: 1920 x 1080 pixels.
+    let (w, h, pixels) = read_png(&dir.join("base_pose.png"));
+    assert_eq!((w, h), (1920, 1080));
+    // The title's text (the top 40 px, centred, black on white) is drawn with the embedded
+    // font: dark pixels in its band, none in the empty margin at its far left.
+    let dark = |x0: u32, x1: u32, y0: u32, y1: u32| (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y))).filter(|&(x, y)| pixels[(y * w + x) as usize].iter().all(|&c| c < 100)).count();
+    assert!(dark(600, 1320, 0, 40) > 200, "no title text drawn: {} dark pixels", dark(600, 1320, 0, 40));
+    assert_eq!(dark(0, 100, 0, 20), 0);
+    // A scale outside (0, 8] is refused with the figure's name.
+    let err = viz::png::svg_png(&std::fs::read_to_string(&svgs[0]).unwrap(), 0.0, "fig.svg").unwrap_err().to_string();
+    assert!(err.contains("fig.svg") && err.contains("scale"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn legwork_view_writes_pngs_on_request() {
+    let dir = temp_dir("view-png");
+    let (_, traj) = common::hyq_trot(0.3);
+    let file = dir.join("trajectory.json");
+    traj.save_file(&file).unwrap();
+    let out = legwork(&["view", file.to_str().unwrap(), "--out", dir.join("replay.html").to_str().unwrap(), "--plots", dir.join("plots").to_str().unwrap(), "--png"], &dir);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for name in ["base_pose", "base_twist", "joint_torques", "contact_forces", "gait"] {
+        assert!(dir.join("plots").join(format!("{name}.png")).is_file(), "{name}.png");
+    }
+    // --png needs --plots.
+    let out = legwork(&["view", file.to_str().unwrap(), "--png"], &dir);
+    assert_eq!(out.status.code(), Some(2));
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -153,6 +153,7 @@ def solve(
     overrides: Optional[dict[str, Any]] = None,
     progress: Optional[Callable[[dict[str, Any]], None]] = None,
     memory_limit_gb: Optional[float] = None,
+    png: bool = False,
 ) -> SolveResult: ...
 def simulate(
     robot: Optional[RobotLike] = None,
@@ -171,6 +172,7 @@ def simulate(
     write: bool = True,
     progress: Optional[Callable[[float], None]] = None,
     memory_limit_gb: Optional[float] = None,
+    png: bool = False,
 ) -> Trajectory: ...
 def walk(
     scenario: PathLike,
@@ -180,6 +182,7 @@ def walk(
     out: Optional[PathLike] = None,
     write: bool = True,
     progress: Optional[Callable[[float, str], None]] = None,
+    png: bool = False,
 ) -> WalkResult: ...
 def jumps() -> list[tuple[str, str]]: ...
 def jump(
@@ -191,6 +194,7 @@ def jump(
     out: Optional[PathLike] = None,
     write: bool = True,
     progress: Optional[Callable[[str, bool], None]] = None,
+    png: bool = False,
 ) -> JumpResult: ...
 def figures(trajectory: Trajectory, robot: Robot) -> dict[str, Any]: ...
 def check_targets(task: TaskLike, trajectory: Trajectory, robot: Robot, tolerance_scale: float = 1.0, overrides: Optional[dict[str, Any]] = None) -> list[dict[str, Any]]: ...

@@ -156,7 +156,7 @@ impl SolveResult {
 /// Optimizes a task with SLQ (Neunert 2017), re-runs it in closed loop, checks its targets and
 /// writes the same folder as `legwork solve` (`out`, default `out/<task>`).
 #[pyfunction]
-#[pyo3(signature = (task, *, robot=None, out=None, threads=0, iterations=None, starts=None, seed=None, check_mujoco=false, overrides=None, progress=None, memory_limit_gb=None))]
+#[pyo3(signature = (task, *, robot=None, out=None, threads=0, iterations=None, starts=None, seed=None, check_mujoco=false, overrides=None, progress=None, memory_limit_gb=None, png=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn solve(
     py: Python<'_>,
@@ -171,6 +171,7 @@ pub fn solve(
     overrides: Option<&Bound<'_, PyDict>>,
     progress: Option<Py<PyAny>>,
     memory_limit_gb: Option<f64>,
+    png: bool,
 ) -> PyResult<SolveResult> {
     let (spec, origin) = load_task(task, overrides)?;
     let (model, _) = model_of(robot, &spec.robot, &format!("{origin}: robot"))?;
@@ -194,6 +195,7 @@ pub fn solve(
         mujoco: mujoco.as_ref(),
         out: &out,
         memory_limit: MemoryLimit { gb: memory_limit_gb, setting: "memory_limit_gb" },
+        png,
     };
     let progress = Progress::new(progress);
     let solved = py
@@ -295,7 +297,7 @@ fn plan_of(reference: &Bound<'_, PyAny>) -> PyResult<(legwork::io::Trajectory, S
 /// (its `summary` has the figures) and writes the command's files to `out` (default
 /// `out/simulate`; `write=False`: none).
 #[pyfunction]
-#[pyo3(signature = (robot=None, *, controller="stand", reference=None, duration=3.0, pushes=None, drop_height=0.0, terrain=None, integrator="euler", physics_rate=2000.0, control_rate=1000.0, record_rate=None, out=None, write=true, progress=None, memory_limit_gb=None))]
+#[pyo3(signature = (robot=None, *, controller="stand", reference=None, duration=3.0, pushes=None, drop_height=0.0, terrain=None, integrator="euler", physics_rate=2000.0, control_rate=1000.0, record_rate=None, out=None, write=true, progress=None, memory_limit_gb=None, png=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn simulate(
     py: Python<'_>,
@@ -314,6 +316,7 @@ pub fn simulate(
     write: bool,
     progress: Option<Py<PyAny>>,
     memory_limit_gb: Option<f64>,
+    png: bool,
 ) -> PyResult<Trajectory> {
     let out = write.then(|| out.unwrap_or_else(|| PathBuf::from("out/simulate")));
     use legwork::job::simulate::{SimController, SimulateJob};
@@ -354,6 +357,7 @@ pub fn simulate(
         record_rate,
         scenario,
         memory_limit: MemoryLimit { gb: memory_limit_gb, setting: "memory_limit_gb" },
+        png,
         setting: keyword,
     };
     job.check().map_err(job_error)?;
@@ -409,15 +413,16 @@ impl WalkResult {
 /// scenario file; `random=True` randomizes it as `legwork bench terrain` does (trial `seed`).
 /// Writes the command's files to `out` (default `out/walk-<scenario>`; `write=False`: none).
 #[pyfunction]
-#[pyo3(signature = (scenario, *, seed=1, random=false, out=None, write=true, progress=None))]
-pub fn walk(py: Python<'_>, scenario: &Bound<'_, PyAny>, seed: u64, random: bool, out: Option<PathBuf>, write: bool, progress: Option<Py<PyAny>>) -> PyResult<WalkResult> {
+#[pyo3(signature = (scenario, *, seed=1, random=false, out=None, write=true, progress=None, png=false))]
+#[allow(clippy::too_many_arguments)]
+pub fn walk(py: Python<'_>, scenario: &Bound<'_, PyAny>, seed: u64, random: bool, out: Option<PathBuf>, write: bool, progress: Option<Py<PyAny>>, png: bool) -> PyResult<WalkResult> {
     use legwork::walk::trial::TrialSetup;
     let spec = legwork::walk::ScenarioSpec::resolve(&path_or_name(scenario, "scenario")?).map_err(|e| input_error(e.to_string()))?;
     let model = legwork::model::load(&spec.robot).map_err(|e| input_error(format!("scenario {}: robot: {e}", spec.name)))?;
     let setup = if random { TrialSetup::random(seed) } else { TrialSetup::nominal(seed) };
     let out = write.then(|| out.unwrap_or_else(|| PathBuf::from("out").join(format!("walk-{}", spec.name))));
     let progress = Progress::new(progress);
-    let walked = py.detach(|| legwork::job::walk::walk(&model, &spec, setup, out.as_deref(), |t, what| progress.call(|py| Ok((t, what).into_pyobject(py)?.unbind())))).map_err(job_error)?;
+    let walked = py.detach(|| legwork::job::walk::walk(&model, &spec, setup, out.as_deref(), png, |t, what| progress.call(|py| Ok((t, what).into_pyobject(py)?.unbind())))).map_err(job_error)?;
     let walked = progress.finish(walked)?;
     let report = to_python(py, &serde_json::to_value(&walked.report).map_err(|e| could_not_finish(e.to_string()))?)?.unbind();
     Ok(WalkResult { trajectory: Py::new(py, Trajectory::new(walked.trajectory))?, verdict: walked.verdict.as_str().to_string(), report, out })
@@ -464,9 +469,9 @@ impl JumpResult {
 /// simulator, `trials` robustness trials. Writes the command's files to `out` (default
 /// `out/jump/<jump>`; `write=False`: none). `progress(stage, done)` sees each stage.
 #[pyfunction]
-#[pyo3(signature = (jump, *, knots=None, trials=0, threads=0, out=None, write=true, progress=None))]
+#[pyo3(signature = (jump, *, knots=None, trials=0, threads=0, out=None, write=true, progress=None, png=false))]
 #[allow(clippy::too_many_arguments)]
-pub fn jump(py: Python<'_>, jump: &Bound<'_, PyAny>, knots: Option<usize>, trials: usize, threads: usize, out: Option<PathBuf>, write: bool, progress: Option<Py<PyAny>>) -> PyResult<JumpResult> {
+pub fn jump(py: Python<'_>, jump: &Bound<'_, PyAny>, knots: Option<usize>, trials: usize, threads: usize, out: Option<PathBuf>, write: bool, progress: Option<Py<PyAny>>, png: bool) -> PyResult<JumpResult> {
     use legwork::jump::{Jump, PipelineOptions, Verdict as JumpVerdict};
     let spec = Jump::load(&path_or_name(jump, "jump")?).map_err(|e| input_error(e.to_string()))?;
     let model = legwork::model::load(&spec.robot).map_err(|e| input_error(format!("jump {}: robot: {e}", spec.name)))?;
@@ -478,7 +483,7 @@ pub fn jump(py: Python<'_>, jump: &Bound<'_, PyAny>, knots: Option<usize>, trial
     let mut options = PipelineOptions { contact_timing: settings, trials, ..PipelineOptions::of(&spec) };
     let progress = Progress::new(progress);
     let (report, _) = py
-        .detach(|| legwork::job::jump::jump(&spec, &model, &mut options, threads, out.as_deref(), |stage, done| progress.call(|py| Ok((legwork::job::jump::stage_name(stage), done).into_pyobject(py)?.unbind()))))
+        .detach(|| legwork::job::jump::jump(&spec, &model, &mut options, threads, out.as_deref(), png, |stage, done| progress.call(|py| Ok((legwork::job::jump::stage_name(stage), done).into_pyobject(py)?.unbind()))))
         .map_err(job_error)?;
     let report = progress.finish(report)?;
     let verdict = report.verdict();

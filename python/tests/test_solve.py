@@ -96,3 +96,12 @@ def test_target_checks_follow_overrides(tmp_path):
     assert apex == result.targets["plan"][0]
     figures = legwork.figures(result.plan, robot)
     assert figures == result.summary["plan"]
+
+
+def test_png_on_request(tmp_path):
+    legwork.solve("squat_jump", iterations=1, threads=1, out=tmp_path / "svg")
+    legwork.solve("squat_jump", iterations=1, threads=1, out=tmp_path / "png", png=True)
+    assert not list((tmp_path / "svg" / "plots").glob("*.png"))
+    svgs = sorted(p.stem for p in (tmp_path / "png" / "plots").glob("*.svg"))
+    assert svgs and sorted(p.stem for p in (tmp_path / "png" / "plots").glob("*.png")) == svgs
+    assert (tmp_path / "png" / "plots" / "cost.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -414,7 +414,7 @@ fn slq(as_json: bool, threads: usize, iterations: usize, check_mujoco: bool, out
         // Each task as `legwork solve` runs it (with `--check mujoco` when asked), its folder
         // written for the report.
         let folder = out.join(name);
-        let job = SolveJob { spec: &spec, origin: name, model: &task_model, options: SolveOptions { threads, ..SolveOptions::default() }, mujoco: mujoco.as_ref(), out: &folder, memory_limit: super::resources::memory_limit() };
+        let job = SolveJob { spec: &spec, origin: name, model: &task_model, options: SolveOptions { threads, ..SolveOptions::default() }, mujoco: mujoco.as_ref(), out: &folder, memory_limit: super::resources::memory_limit(), png: false };
         let solved = job.run(|_| ()).map_err(super::solve::job_error)?;
         let run = &solved.run;
         let sol = &run.solution;

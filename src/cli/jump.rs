@@ -31,6 +31,9 @@ pub struct JumpArgs {
     /// its stages are too small to share (1.3-1.5x slower on two threads, BENCHMARKS.md).
     #[arg(long, default_value_t = 0)]
     threads: usize,
+    /// Also write every plot as PNG (2x, text in the embedded DejaVu Sans) beside its SVG.
+    #[arg(long)]
+    png: bool,
 }
 
 /// The jump's settings with the command line's `--knots`.
@@ -70,7 +73,7 @@ pub fn run(args: JumpArgs) -> Result<ExitCode> {
     bar.set_style(ProgressStyle::with_template("{spinner} {msg} ({elapsed})").expect("static template"));
     bar.enable_steady_tick(Duration::from_millis(120));
     let mut options = PipelineOptions { contact_timing: settings.clone(), trials: args.trials, ..PipelineOptions::of(&jump) };
-    let result = legwork::job::jump::jump(&jump, &model, &mut options, super::capped_threads(args.threads), Some(&out), |stage, done| {
+    let result = legwork::job::jump::jump(&jump, &model, &mut options, super::capped_threads(args.threads), Some(&out), args.png, |stage, done| {
         if done {
             bar.println(format!("  done: {}", stage_name(stage)));
         } else {

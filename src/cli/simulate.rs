@@ -70,6 +70,9 @@ pub struct SimulateArgs {
     /// Output folder (created).
     #[arg(long, default_value = "out/simulate")]
     out: PathBuf,
+    /// Also write every plot as PNG (2x, text in the embedded DejaVu Sans) beside its SVG.
+    #[arg(long)]
+    png: bool,
 }
 
 /// `--duration` for the job's `duration`.
@@ -118,6 +121,7 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         record_rate: args.record_rate,
         scenario,
         memory_limit: super::resources::memory_limit(),
+        png: args.png,
         setting: flag,
     };
     let (_, warnings) = job.check().map_err(super::solve::job_error)?;

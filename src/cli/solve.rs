@@ -38,6 +38,9 @@ pub struct SolveArgs {
     /// (`0.1`, `[2.0, "start", "start"]`). Repeatable.
     #[arg(long = "set", value_name = "PATH=VALUE")]
     set: Vec<String>,
+    /// Also write every plot as PNG (2x, text in the embedded DejaVu Sans) beside its SVG.
+    #[arg(long)]
+    png: bool,
     /// After the solve and legwork's re-runs, check the plan in another simulator:
     /// `mujoco` replays it in MuJoCo with the tracking controller and with the exported
     /// feedback policy (needs `scripts/install-mujoco.sh`), two more columns.
@@ -112,6 +115,7 @@ pub fn run(args: SolveArgs) -> Result<Verdict> {
         mujoco: None,
         out: &out,
         memory_limit: super::resources::memory_limit(),
+        png: args.png,
     };
     job.check().map_err(job_error)?;
     // A missing MuJoCo environment is reported before the solve, not after it.

@@ -23,6 +23,9 @@ pub struct ViewArgs {
     /// into this folder.
     #[arg(long, value_name = "DIR")]
     plots: Option<PathBuf>,
+    /// With --plots, also write each plot as PNG (2x, text in the embedded DejaVu Sans).
+    #[arg(long, requires = "plots")]
+    png: bool,
 }
 
 pub fn run(args: ViewArgs) -> Result<()> {
@@ -51,7 +54,12 @@ pub fn run(args: ViewArgs) -> Result<()> {
         traj.knots.len()
     );
     if let Some(dir) = &args.plots {
-        for file in viz::write_plots(&traj, dir)? {
+        let mut files = viz::write_plots(&traj, dir)?;
+        if args.png {
+            let pngs = viz::png::write_pngs(&files, viz::png::PNG_SCALE)?;
+            files.extend(pngs);
+        }
+        for file in files {
             say!("plot:   {}", file.display());
         }
     }

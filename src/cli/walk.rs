@@ -28,6 +28,9 @@ pub struct WalkArgs {
     /// +-5 deg, map noise 0.5-2 cm (`--random --seed K` is the benchmark's trial K).
     #[arg(long)]
     random: bool,
+    /// Also write every plot as PNG (2x, text in the embedded DejaVu Sans) beside its SVG.
+    #[arg(long)]
+    png: bool,
 }
 
 /// `x` with `decimals` places, or `-` when there is none.
@@ -67,7 +70,7 @@ pub fn run(args: WalkArgs) -> Result<Verdict> {
     bar.set_message(format!("{}: settling", spec.name));
     let started = Instant::now();
     let mut planned = 0;
-    let result = walk(&model, &spec, setup, Some(&out), |t, what| {
+    let result = walk(&model, &spec, setup, Some(&out), args.png, |t, what| {
         planned += 1;
         bar.set_message(format!("{}: simulated t = {t:.2} s, plan {planned}: {what}", spec.name));
         bar.suspend(|| say!("  t = {t:6.2} s  {what}  ({:.1} s elapsed)", started.elapsed().as_secs_f64()));

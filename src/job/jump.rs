@@ -36,11 +36,20 @@ pub fn stage_name(stage: Stage) -> &'static str {
 }
 
 /// Runs the pipeline on `threads` threads (`on_stage` sees each stage start and end) and,
-/// with `out`, writes the folder; returns the report and the files written.
-pub fn jump(jump: &Jump, model: &Model, options: &mut PipelineOptions, threads: usize, out: Option<&Path>, on_stage: impl FnMut(Stage, bool) + Send) -> Result<(JumpReport, Vec<String>), JobError> {
+/// with `out`, writes the folder (`png`: the plots as PNG too); returns the report and the
+/// files written.
+pub fn jump(jump: &Jump, model: &Model, options: &mut PipelineOptions, threads: usize, out: Option<&Path>, png: bool, on_stage: impl FnMut(Stage, bool) + Send) -> Result<(JumpReport, Vec<String>), JobError> {
     let report = with_threads(threads, options, |options| pipeline::run(jump, model, options, on_stage).or_could_not_finish())?;
     let written = match out {
-        Some(out) => write_outputs(jump, model, options, &report, out).or_could_not_finish()?,
+        Some(out) => {
+            let mut written = write_outputs(jump, model, options, &report, out).or_could_not_finish()?;
+            if png {
+                let plots = out.join("plots");
+                let svgs: Vec<_> = [plots.clone(), plots.join("plan"), plots.join("rerun")].iter().flat_map(|d| crate::viz::png::svgs_in(d)).collect();
+                written.push(format!("{} PNGs", crate::viz::png::write_pngs(&svgs, crate::viz::png::PNG_SCALE).or_could_not_finish()?.len()));
+            }
+            written
+        }
         None => Vec::new(),
     };
     Ok((report, written))

@@ -66,6 +66,8 @@ pub struct SimulateJob<'a> {
     /// What the run is (`legwork simulate --robot hyq ...`), in the trajectory's metadata.
     pub scenario: String,
     pub memory_limit: MemoryLimit<'a>,
+    /// Also write each plot as PNG (`--png`).
+    pub png: bool,
     /// Names a setting in messages: `setting("duration")` is `--duration` on the command line.
     pub setting: fn(&str) -> String,
 }
@@ -220,7 +222,7 @@ impl SimulateJob<'_> {
             trajectory.summary = map;
         }
         let plots = match out {
-            Some(out) => write_files(model, &trajectory, out).or_could_not_finish()?,
+            Some(out) => write_files(model, &trajectory, out, self.png).or_could_not_finish()?,
             None => 0,
         };
         Ok(Simulated { trajectory, stats, controller: controller.name().to_string(), final_height, standing_height, drift, plots })
@@ -228,12 +230,15 @@ impl SimulateJob<'_> {
 }
 
 /// `trajectory.json`, `trajectory.csv`, `replay.html` and the plots; returns the number of plots.
-fn write_files(model: &Model, trajectory: &Trajectory, out: &Path) -> Result<usize, Box<dyn std::error::Error + Send + Sync>> {
+fn write_files(model: &Model, trajectory: &Trajectory, out: &Path, png: bool) -> Result<usize, Box<dyn std::error::Error + Send + Sync>> {
     std::fs::create_dir_all(out).map_err(|e| format!("cannot create the output folder {}: {e}", out.display()))?;
     trajectory.save_file(out.join("trajectory.json"))?;
     trajectory.save_csv(out.join("trajectory.csv"))?;
     crate::viz::write_replay(model, trajectory, out.join("replay.html"))?;
     let mut plots = crate::viz::write_plots(trajectory, out.join("plots"))?;
     plots.extend(crate::viz::write_limit_plots(model, trajectory, out.join("plots"))?);
+    if png {
+        crate::viz::png::write_pngs(&plots, crate::viz::png::PNG_SCALE)?;
+    }
     Ok(plots.len())
 }

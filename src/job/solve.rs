@@ -27,6 +27,8 @@ pub struct SolveJob<'a> {
     /// The output folder (created).
     pub out: &'a Path,
     pub memory_limit: MemoryLimit<'a>,
+    /// Also write each plot as PNG (`--png`).
+    pub png: bool,
 }
 
 /// A finished solve and what it wrote.
@@ -133,13 +135,14 @@ impl SolveJob<'_> {
         if let serde_json::Value::Object(map) = summary(spec, model, &run, &checked, mujoco.as_ref(), verdict) {
             trajectory.summary = map;
         }
-        let plots = write_files(spec, model, &run, &trajectory, out).or_could_not_finish()?;
+        let plots = write_files(spec, model, &run, &trajectory, out, self.png).or_could_not_finish()?;
         Ok(SolvedTask { run, target, checked, mujoco, verdict, trajectory, plots })
     }
 }
 
-/// `trajectory.json`, the re-runs, `replay.html` and the plots; returns the number of plots.
-fn write_files(spec: &TaskSpec, model: &Model, run: &TaskRun, trajectory: &Trajectory, out: &Path) -> Result<usize, Box<dyn std::error::Error + Send + Sync>> {
+/// `trajectory.json`, the re-runs, `replay.html` and the plots (and their PNGs); returns
+/// the number of plots.
+fn write_files(spec: &TaskSpec, model: &Model, run: &TaskRun, trajectory: &Trajectory, out: &Path, png: bool) -> Result<usize, Box<dyn std::error::Error + Send + Sync>> {
     trajectory.save_file(out.join("trajectory.json"))?;
     for (rerun, file) in [(&run.policy_rerun, "rerun_slq_policy.json"), (&run.tracking_rerun, "rerun_tracking.json")] {
         if let Rerun::Completed { trajectory, .. } = rerun {
@@ -151,7 +154,11 @@ fn write_files(spec: &TaskSpec, model: &Model, run: &TaskRun, trajectory: &Traje
     let mut written = crate::viz::write_plots(trajectory, &plots)?;
     written.extend(crate::viz::write_limit_plots(model, trajectory, &plots)?);
     crate::viz::write_cost_plot(&run.solution.cost_history, &format!("{}: normalized cost per SLQ iteration", spec.name), plots.join("cost.svg"))?;
-    Ok(written.len() + 1)
+    written.push(plots.join("cost.svg"));
+    if png {
+        crate::viz::png::write_pngs(&written, crate::viz::png::PNG_SCALE)?;
+    }
+    Ok(written.len())
 }
 
 pub fn metrics_json(m: &MotionMetrics) -> serde_json::Value {

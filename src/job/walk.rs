@@ -31,9 +31,9 @@ pub struct Walked {
 }
 
 /// Runs one trial of `spec` with `model` (`setup`: nominal or randomized, as `legwork bench
-/// terrain` randomizes its trials) and, with `out`, writes the folder; `on_plan` sees each
-/// plan (simulated time, what was planned).
-pub fn walk(model: &Model, spec: &ScenarioSpec, setup: TrialSetup, out: Option<&Path>, on_plan: impl FnMut(f64, &str)) -> Result<Walked, JobError> {
+/// terrain` randomizes its trials) and, with `out`, writes the folder (`png`: the plots as
+/// PNG too); `on_plan` sees each plan (simulated time, what was planned).
+pub fn walk(model: &Model, spec: &ScenarioSpec, setup: TrialSetup, out: Option<&Path>, png: bool, on_plan: impl FnMut(f64, &str)) -> Result<Walked, JobError> {
     let config = WalkConfig::hyq(model).map_err(|e| JobError::bad_input(format!("cannot set up the walk for robot {}: {e}", model.name)))?;
     let started = Instant::now();
     let outcome = run_trial(model, spec, &config, setup, on_plan).or_could_not_finish()?;
@@ -64,13 +64,13 @@ pub fn walk(model: &Model, spec: &ScenarioSpec, setup: TrialSetup, out: Option<&
         trajectory.summary = map;
     }
     let plots = match out {
-        Some(out) => write_files(model, spec, &outcome, &report, &trajectory, out)?,
+        Some(out) => write_files(model, spec, &outcome, &report, &trajectory, out, png)?,
         None => 0,
     };
     Ok(Walked { outcome, report, verdict, trajectory, past_limits, plots })
 }
 
-fn write_files(model: &Model, spec: &ScenarioSpec, outcome: &TrialOutcome, report: &TrialReport, trajectory: &Trajectory, out: &Path) -> Result<usize, JobError> {
+fn write_files(model: &Model, spec: &ScenarioSpec, outcome: &TrialOutcome, report: &TrialReport, trajectory: &Trajectory, out: &Path, png: bool) -> Result<usize, JobError> {
     std::fs::create_dir_all(out).map_err(|e| JobError::could_not_finish(format!("cannot create the output folder {}: {e}", out.display())))?;
     trajectory.save_file(out.join("trajectory.json")).or_could_not_finish()?;
     let world = spec.world_at(f64::INFINITY);
@@ -80,6 +80,9 @@ fn write_files(model: &Model, spec: &ScenarioSpec, outcome: &TrialOutcome, repor
     let mut plots = crate::viz::write_plots(trajectory, out.join("plots")).or_could_not_finish()?;
     plots.extend(crate::viz::write_limit_plots(model, trajectory, out.join("plots")).or_could_not_finish()?);
     plots.extend(crate::viz::walk::write_walk_plots(model, &outcome.plans, trajectory, out.join("plots")).or_could_not_finish()?);
+    if png {
+        crate::viz::png::write_pngs(&plots, crate::viz::png::PNG_SCALE).or_could_not_finish()?;
+    }
     let summary_path = out.join("summary.json");
     let text = serde_json::to_string_pretty(&json!({ "scenario_summary": spec.summary, "robot": model.name, "trial": report })).or_could_not_finish()?;
     std::fs::write(&summary_path, text + "\n").map_err(|e| JobError::could_not_finish(format!("cannot write {}: {e}", summary_path.display())))?;

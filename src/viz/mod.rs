@@ -26,6 +26,7 @@
 
 pub mod jump;
 pub mod plots;
+pub mod png;
 pub mod replay;
 pub mod report;
 mod signals;
