@@ -73,7 +73,7 @@ impl Format {
             Format::Robot => description::from_str(text, ORIGIN).map(|_| ()).map_err(|x| e(&x)),
             Format::Task => {
                 let spec = TaskSpec::from_toml(text, ORIGIN).map_err(|x| e(&x))?;
-                let model = embedded::load(&spec.robot).map_err(|x| e(&x))?;
+                let model = spec.load_robot(ORIGIN).map_err(|x| e(&x))?;
                 spec.target(&model, ORIGIN).map_err(|x| e(&x))?;
                 let _ = spec.estimated_memory_bytes();
                 Ok(())

@@ -100,8 +100,11 @@ pub(super) use legwork::job::solve::{metrics_json, rerun_json};
 /// met when the solve and its re-runs ran.
 pub fn run(args: SolveArgs) -> Result<Verdict> {
     let (spec, origin) = load_task_with_overrides(&args.task, &args.set)?;
-    let robot = args.robot.clone().unwrap_or_else(|| spec.robot.clone());
-    let (model, _) = super::robot::load(&robot)?;
+    // The robot: --robot's, or the task's own (an error then names the task file).
+    let model = match &args.robot {
+        Some(robot) => super::robot::load(robot)?.0,
+        None => spec.load_robot(&origin)?,
+    };
     if args.iterations == Some(0) {
         anyhow::bail!("--iterations: expected at least 1 SLQ iteration, got 0");
     }

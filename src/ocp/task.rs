@@ -249,6 +249,12 @@ impl TaskSpec {
         Self::from_toml(text, &format!("embedded task {name}"))
     }
 
+    /// The task's own robot (`robot = "..."`: an embedded name or a file), loaded; an error
+    /// names the task and the field.
+    pub fn load_robot(&self, origin: &str) -> Result<Model, TaskError> {
+        crate::model::load(&self.robot).map_err(|e| TaskError::Invalid { origin: origin.into(), field: "robot".into(), problem: e.to_string() })
+    }
+
     /// The task's targets, resolved for `model`; names the file and field of a bad one.
     pub fn target(&self, model: &Model, origin: &str) -> Result<super::Target, TaskError> {
         super::Target::resolve(&self.targets, model, self.duration, origin)
