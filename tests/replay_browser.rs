@@ -89,21 +89,6 @@ fn console_errors(stderr: &str) -> Vec<&str> {
         .collect()
 }
 
-/// The RGB pixels of a PNG.
-fn decode_png(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
-    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
-    let mut reader = decoder.read_info().unwrap();
-    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut buf).unwrap();
-    let channels = info.color_type.samples();
-    assert_eq!(info.bit_depth, png::BitDepth::Eight, "unexpected PNG bit depth");
-    let pixels = buf[..info.buffer_size()]
-        .chunks(channels)
-        .map(|c| if channels >= 3 { [c[0], c[1], c[2]] } else { [c[0]; 3] })
-        .collect();
-    (info.width, info.height, pixels)
-}
-
 /// Chromium, or `None` (the test skips) when it is missing outside CI.
 fn chromium_or_skip() -> Option<PathBuf> {
     let found = find_chromium();
@@ -163,7 +148,7 @@ fn replay_loads_in_chromium_without_errors_and_draws_the_robot() {
 
     // The screenshot: the 3D view (left part, between the header and the controls) is not
     // blank, and shows the legs (their colours, shaded: orange left, blue right).
-    let (w, h, px) = decode_png(&shot);
+    let (w, h, px) = common::decode_png(&shot);
     assert_eq!((w, h), (WIDTH, HEIGHT));
     let (x0, x1, y0, y1) = (120usize, 680usize, 140usize, 700usize);
     let region: Vec<[u8; 3]> = (y0..y1).flat_map(|y| px[y * w as usize + x0..y * w as usize + x1].to_vec()).collect();
@@ -230,7 +215,7 @@ fn replay_draws_a_plan_overlay() {
         assert!(dom.contains(needle), "the legend lacks {needle:?}");
     }
 
-    let (w, _, px) = decode_png(&shot);
+    let (w, _, px) = common::decode_png(&shot);
     // Below the legend (which has the same colours), above the controls.
     let (x0, x1, y0, y1) = (20usize, 730usize, 260usize, 740usize);
     let region: Vec<[u8; 3]> = (y0..y1).flat_map(|y| px[y * w as usize + x0..y * w as usize + x1].to_vec()).collect();
@@ -299,7 +284,7 @@ fn replay_header_is_a_target_table_and_leaves_the_view_half_the_window() {
     assert!(viewport > 700.0 && viewport <= 900.0, "viewport {viewport} px high");
     assert!(get("view_height") >= 450.0 && get("view_height") >= 0.5 * viewport, "the 3D view is {} px high of {viewport}", get("view_height"));
     assert!(get("scroll_width") <= get("client_width"), "the page scrolls sideways: {} > {}", get("scroll_width"), get("client_width"));
-    let (w, h, _) = decode_png(&shot);
+    let (w, h, _) = common::decode_png(&shot);
     assert_eq!((w, h), size);
     if !keep {
         std::fs::remove_dir_all(&dir).ok();

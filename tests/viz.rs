@@ -246,17 +246,6 @@ fn the_synthetic_trajectory_is_valid_and_keeps_stance_feet_on_the_ground() {
     }
 }
 
-/// The RGB pixels of a PNG file: (width, height, pixels).
-fn read_png(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
-    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
-    let mut reader = decoder.read_info().unwrap();
-    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut buf).unwrap();
-    let channels = info.color_type.samples();
-    let pixels = buf[..info.buffer_size()].chunks(channels).map(|c| [c[0], c[1], c[2]]).collect();
-    (info.width, info.height, pixels)
-}
-
 #[test]
 fn png_copies_are_twice_the_size_with_their_text_drawn() {
     let (_, traj) = common::hyq_trot(0.5);
@@ -265,7 +254,7 @@ fn png_copies_are_twice_the_size_with_their_text_drawn() {
     let pngs = viz::png::write_pngs(&svgs, viz::png::PNG_SCALE).unwrap();
     assert_eq!(pngs.len(), svgs.len());
     // base_pose.svg is 960 x 540 units: 1920 x 1080 pixels.
-    let (w, h, pixels) = read_png(&dir.join("base_pose.png"));
+    let (w, h, pixels) = common::decode_png(&dir.join("base_pose.png"));
     assert_eq!((w, h), (1920, 1080));
     // The title's text (the top 40 px, centred, black on white) is drawn with the embedded
     // font: dark pixels in its band, none in the empty margin at its far left.

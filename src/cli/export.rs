@@ -49,7 +49,7 @@ fn mjcf(args: MjcfArgs) -> Result<()> {
         (Some(s), _) => ScenarioSpec::resolve(s)?.world_at(0.0).spec(),
         (None, Some(t)) => {
             // Tasks are solved on flat ground (`legwork solve`); the file is still checked.
-            super::solve::load_task(t)?;
+            super::solve::load_task(t, &[])?;
             TerrainSpec::flat()
         }
         (None, None) => TerrainSpec::flat(),

@@ -6,7 +6,7 @@ use clap::Args;
 use legwork::export::MujocoCheck;
 use legwork::job::solve::SolveJob;
 use legwork::ocp::{MotionMetrics, Rerun, Snapshot, SolveOptions, Target, TargetResult, TaskSpec, EMBEDDED_TASKS};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(Debug, Args)]
@@ -55,11 +55,9 @@ pub enum CheckSimulator {
     Mujoco,
 }
 
-/// The task argument with `--set` overrides applied.
-fn load_task_with_overrides(spec: &str, set: &[String]) -> Result<(TaskSpec, String)> {
-    if set.is_empty() {
-        return load_task(spec);
-    }
+/// The task argument (an embedded name or a `.toml` file) with `--set` overrides applied,
+/// and where it came from.
+pub(super) fn load_task(spec: &str, set: &[String]) -> Result<(TaskSpec, String)> {
     let overrides = set
         .iter()
         .map(|item| {
@@ -71,16 +69,6 @@ fn load_task_with_overrides(spec: &str, set: &[String]) -> Result<(TaskSpec, Str
         .collect::<Result<Vec<_>>>()?;
     let (text, origin) = TaskSpec::text_of(spec)?;
     Ok((TaskSpec::from_toml_with_overrides(&text, &origin, &overrides)?, origin))
-}
-
-pub(super) fn load_task(spec: &str) -> Result<(TaskSpec, String)> {
-    let path = Path::new(spec);
-    // A folder that happens to share an embedded task's name (`out/gallop`'s parent, say)
-    // is not a task file.
-    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml")) || path.is_file() {
-        return Ok((TaskSpec::load_file(path)?, spec.to_string()));
-    }
-    Ok((TaskSpec::embedded(spec)?, format!("embedded task {spec}")))
 }
 
 /// `legwork tasks`: one line per embedded task.
@@ -99,7 +87,7 @@ pub(super) use legwork::job::solve::{metrics_json, rerun_json};
 /// mujoco`, both MuJoCo runs meet it at twice the tolerances); a task without a target is
 /// met when the solve and its re-runs ran.
 pub fn run(args: SolveArgs) -> Result<Verdict> {
-    let (spec, origin) = load_task_with_overrides(&args.task, &args.set)?;
+    let (spec, origin) = load_task(&args.task, &args.set)?;
     // The robot: --robot's, or the task's own (an error then names the task file).
     let model = match &args.robot {
         Some(robot) => super::robot::load(robot)?.0,

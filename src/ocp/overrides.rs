@@ -93,18 +93,15 @@ impl TaskSpec {
         Self::from_toml(&text, &format!("{origin} (overrides)"))
     }
 
-    /// The TOML text of a task argument: an embedded task's name, or a `.toml` file.
+    /// The TOML text of a task argument and where it came from (for messages): a `.toml`
+    /// file (or any file of that name: a folder named like an embedded task, `out/gallop`,
+    /// is not one), else an embedded task's name.
     pub fn text_of(task: &str) -> Result<(String, String), TaskError> {
         let path = std::path::Path::new(task);
         if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml")) || path.is_file() {
-            let text = std::fs::read_to_string(path).map_err(|error| TaskError::Io { path: task.into(), error })?;
-            return Ok((text, task.to_string()));
+            return Ok((super::task::read_task_file(path)?, task.to_string()));
         }
-        let (_, text) = super::EMBEDDED_TASKS.iter().find(|(n, _)| *n == task).ok_or_else(|| TaskError::UnknownTask {
-            name: task.into(),
-            known: super::EMBEDDED_TASKS.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "),
-        })?;
-        Ok((text.to_string(), format!("embedded task {task}")))
+        Ok((super::task::embedded_text(task)?.to_string(), format!("embedded task {task}")))
     }
 }
 

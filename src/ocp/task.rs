@@ -224,6 +224,19 @@ pub const EMBEDDED_TASKS: &[(&str, &str)] = &[
     ("humanoid_walk", include_str!("../../tasks/humanoid_walk.toml")),
 ];
 
+/// The TOML text of the embedded task `name`.
+pub(super) fn embedded_text(name: &str) -> Result<&'static str, TaskError> {
+    EMBEDDED_TASKS.iter().find(|(n, _)| *n == name).map(|(_, text)| *text).ok_or_else(|| TaskError::UnknownTask {
+        name: name.into(),
+        known: EMBEDDED_TASKS.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "),
+    })
+}
+
+/// The text of a task file; the error names it.
+pub(super) fn read_task_file(path: &std::path::Path) -> Result<String, TaskError> {
+    std::fs::read_to_string(path).map_err(|error| TaskError::Io { path: path.display().to_string(), error })
+}
+
 impl TaskSpec {
     /// Parses TOML text; `origin` (a path or `embedded task NAME`) goes into errors.
     pub fn from_toml(text: &str, origin: &str) -> Result<Self, TaskError> {
@@ -234,19 +247,13 @@ impl TaskSpec {
 
     /// Reads a task file.
     pub fn load_file(path: impl AsRef<std::path::Path>) -> Result<Self, TaskError> {
-        let path = path.as_ref();
-        let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|error| TaskError::Io { path: name.clone(), error })?;
-        Self::from_toml(&text, &name)
+        let name = path.as_ref().display().to_string();
+        Self::from_toml(&read_task_file(path.as_ref())?, &name)
     }
 
     /// An embedded task by name.
     pub fn embedded(name: &str) -> Result<Self, TaskError> {
-        let (_, text) = EMBEDDED_TASKS.iter().find(|(n, _)| *n == name).ok_or_else(|| TaskError::UnknownTask {
-            name: name.into(),
-            known: EMBEDDED_TASKS.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "),
-        })?;
-        Self::from_toml(text, &format!("embedded task {name}"))
+        Self::from_toml(embedded_text(name)?, &format!("embedded task {name}"))
     }
 
     /// The task's own robot (`robot = "..."`: an embedded name or a file), loaded; an error

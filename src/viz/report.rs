@@ -15,17 +15,17 @@ use std::path::{Path, PathBuf};
 const KEY_PLOTS: [&str; 5] = ["cost.svg", "gait.svg", "base_pose.svg", "torque_limits.svg", "ground_forces.svg"];
 
 /// The summary fields shown as figures in the summary table, when a run has them, with
-/// their labels and decimals.
-const FIGURES: [(&str, &str, usize); 9] = [
-    ("task_cost", "task cost", SIGNIFICANT),
-    ("iterations", "iterations", 0),
-    ("solve_time_s", "solve [s]", 2),
-    ("final_base_height_m", "final z [m]", 3),
-    ("final_horizontal_drift_m", "drift [m]", 3),
-    ("goal_error_m", "goal error [m]", 3),
-    ("speed_cm_s", "speed [cm/s]", 1),
-    ("walking_time_s", "walking [s]", 1),
-    ("max_torque_nm", "max torque [N m]", 1),
+/// their labels and how they are rounded.
+const FIGURES: [(&str, &str, Rounding); 9] = [
+    ("task_cost", "task cost", Rounding::Significant4),
+    ("iterations", "iterations", Rounding::Decimals(0)),
+    ("solve_time_s", "solve [s]", Rounding::Decimals(2)),
+    ("final_base_height_m", "final z [m]", Rounding::Decimals(3)),
+    ("final_horizontal_drift_m", "drift [m]", Rounding::Decimals(3)),
+    ("goal_error_m", "goal error [m]", Rounding::Decimals(3)),
+    ("speed_cm_s", "speed [cm/s]", Rounding::Decimals(1)),
+    ("walking_time_s", "walking [s]", Rounding::Decimals(1)),
+    ("max_torque_nm", "max torque [N m]", Rounding::Decimals(1)),
 ];
 
 /// One run: a folder with a `trajectory.json` (from solve, simulate, walk or jump).
@@ -115,19 +115,26 @@ fn relative_link(path: &Path, base: &Path) -> String {
     parts.join("/")
 }
 
-/// Significant digits of the figures given as `SIGNIFICANT` decimals (costs).
-const SIGNIFICANT: usize = usize::MAX;
+/// How a figure is rounded in the summary table.
+#[derive(Clone, Copy, Debug)]
+enum Rounding {
+    /// This many decimal places.
+    Decimals(usize),
+    /// Four significant digits (costs, which span decades), exponent notation outside
+    /// 0.01-10^4.
+    Significant4,
+}
 
-/// A number with `decimals` places (or 4 significant digits), or the text as it is.
-fn figure(value: &Value, decimals: usize) -> String {
-    match value.as_f64() {
-        Some(x) if decimals == SIGNIFICANT && x != 0.0 && (x.abs() >= 1e4 || x.abs() < 1e-2) => format!("{x:.3e}"),
-        Some(x) if decimals == SIGNIFICANT => {
+/// A number rounded as `rounding` says, or the text as it is.
+fn figure(value: &Value, rounding: Rounding) -> String {
+    match (value.as_f64(), rounding) {
+        (Some(x), Rounding::Significant4) if x != 0.0 && (x.abs() >= 1e4 || x.abs() < 1e-2) => format!("{x:.3e}"),
+        (Some(x), Rounding::Significant4) => {
             let places = (3 - x.abs().log10().floor() as i32).clamp(0, 4) as usize;
             format!("{x:.places$}")
         }
-        Some(x) => format!("{x:.decimals$}"),
-        None => match value {
+        (Some(x), Rounding::Decimals(decimals)) => format!("{x:.decimals$}"),
+        (None, _) => match value {
             Value::Null => "-".into(),
             Value::String(s) => s.clone(),
             other => other.to_string(),
@@ -202,7 +209,7 @@ pub fn report_html(title: &str, runs: &[ReportRun], sections: &[ReportSection], 
         let _ = write!(html, "<section><h2>{}</h2>\n{}\n</section>\n", escape(&s.heading), s.html);
     }
     if !runs.is_empty() {
-        let shown: Vec<&(&str, &str, usize)> = FIGURES.iter().filter(|(key, _, _)| runs.iter().any(|r| r.summary.contains_key(*key))).collect();
+        let shown: Vec<&(&str, &str, Rounding)> = FIGURES.iter().filter(|(key, _, _)| runs.iter().any(|r| r.summary.contains_key(*key))).collect();
         html.push_str("<section><h2>Runs</h2>\n<table class=summary><thead><tr><th>run</th><th>what</th><th>verdict</th><th>target checks (plan)</th>");
         for (_, label, _) in &shown {
             let _ = write!(html, "<th>{}</th>", escape(label));
@@ -211,8 +218,8 @@ pub fn report_html(title: &str, runs: &[ReportRun], sections: &[ReportSection], 
         for (i, run) in runs.iter().enumerate() {
             let checks = plan_checks(&run.summary).map_or("-".to_string(), |(met, all)| format!("{met} / {all}"));
             let _ = write!(html, "<tr><td><a href=\"#run{i}\">{}</a></td><td>{}</td><td>{}</td><td>{checks}</td>", escape(&display_name(run, page_dir)), what_ran(&run.summary), verdict_cell(&run.summary));
-            for (key, _, decimals) in &shown {
-                let _ = write!(html, "<td class=num>{}</td>", run.summary.get(*key).map_or("-".to_string(), |v| escape(&figure(v, *decimals))));
+            for (key, _, rounding) in &shown {
+                let _ = write!(html, "<td class=num>{}</td>", run.summary.get(*key).map_or("-".to_string(), |v| escape(&figure(v, *rounding))));
             }
             let replay = run.replay.as_ref().map_or("-".to_string(), |r| format!("<a href=\"{}\">replay</a>", escape(&relative_link(r, page_dir))));
             let _ = writeln!(html, "<td>{replay}</td></tr>");

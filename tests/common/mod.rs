@@ -153,3 +153,18 @@ pub fn trot(model: &Model, duration: f64, terrain: TerrainSpec) -> Trajectory {
     traj.summary.insert("note".into(), "synthetic, for tests".into());
     traj
 }
+
+/// The RGB pixels of a PNG.
+pub fn decode_png(path: &std::path::Path) -> (u32, u32, Vec<[u8; 3]>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    let channels = info.color_type.samples();
+    assert_eq!(info.bit_depth, png::BitDepth::Eight, "unexpected PNG bit depth");
+    let pixels = buf[..info.buffer_size()]
+        .chunks(channels)
+        .map(|c| if channels >= 3 { [c[0], c[1], c[2]] } else { [c[0]; 3] })
+        .collect();
+    (info.width, info.height, pixels)
+}
