@@ -32,6 +32,7 @@ pub mod ipocp;
 pub mod job;
 pub mod jump;
 pub mod model;
+pub mod mpc;
 pub mod ocp;
 pub mod plan;
 pub mod report;

@@ -98,7 +98,7 @@ fn solve_task_explores_and_reports_the_kept_start() {
     assert_eq!(e.iterations, e.starts.iter().map(|s| s.iterations).sum::<usize>());
     assert!(e.starts.iter().all(|s| s.met == Some(true)), "{:#?}", e.starts);
     // --starts 1 (an override with one start and no sampling) is no exploration.
-    let single = SolveOptions { threads: 2, max_iterations: Some(4), exploration: Some(ExplorationSpec { starts: 1, ..Default::default() }) };
+    let single = SolveOptions { threads: 2, max_iterations: Some(4), exploration: Some(ExplorationSpec { starts: 1, ..Default::default() }), value_function: false };
     assert!(solve_task(&task, &model, &Plane::flat(0.0), "shift.toml", &single, |_| ()).unwrap().exploration.is_none());
 }
 

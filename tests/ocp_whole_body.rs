@@ -53,6 +53,7 @@ fn hyq_shifts_its_base_forward() {
         joint_limit_cost: None,
         feasibility: None,
         anchor_states: false,
+        receding: None,
     };
     let pd = JointPd::standing(&model, dt).unwrap();
     let sol = Slq::new(&problem, SlqSettings { threads: 2, ..Default::default() }).unwrap().solve(&PdPolicy(&pd), |_| {}).unwrap();
@@ -151,6 +152,7 @@ fn cost_gradient_with_foot_targets_matches_finite_differences() {
         joint_limit_cost: None,
         feasibility: None,
         anchor_states: false,
+        receding: None,
     };
     let mut ws = problem.workspace();
     let mut x = initial.clone();

@@ -191,7 +191,7 @@ pub fn solve(
         spec: &spec,
         origin: &origin,
         model: &model,
-        options: SolveOptions { threads, max_iterations: iterations, exploration },
+        options: SolveOptions { threads, max_iterations: iterations, exploration, value_function: false },
         mujoco: mujoco.as_ref(),
         out: &out,
         memory_limit: MemoryLimit { gb: memory_limit_gb, setting: "memory_limit_gb" },

@@ -28,6 +28,7 @@ mod check;
 mod control;
 mod export;
 mod jump;
+mod mpc;
 pub mod outcome;
 mod report;
 mod resources;
@@ -99,6 +100,12 @@ enum Command {
     Simulate(simulate::SimulateArgs),
     /// Optimize a motion for a task with SLQ (Neunert 2017), then re-run it in closed loop.
     Solve(solve::SolveArgs),
+    /// Run a task in closed loop under receding-horizon SLQ (MPC): its plan first, then the
+    /// controller re-optimizing a short window from the measured state at a set rate,
+    /// beside the simulator. Writes the closed-loop motion, the per-tick solve times and a
+    /// summary. Exit code 0: the closed loop met the task's targets (at twice their
+    /// tolerances); 1: it missed them.
+    Mpc(mpc::MpcArgs),
     /// List the embedded tasks.
     Tasks,
     /// Plan and run one of Nguyen 2022's 3D jumps: contact timing, full-body trajectory
@@ -140,6 +147,7 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Jump(args) => return finish(jump::run(args)),
         Command::Solve(args) => return finish(solve::run(args).map(ExitCode::from)),
+        Command::Mpc(args) => return finish(mpc::run(args).map(ExitCode::from)),
         Command::Walk(args) => return finish(walk::run(args).map(ExitCode::from)),
         Command::Bench(cmd) => return finish(bench::run(cmd).map(ExitCode::from)),
         Command::Robot(cmd) => robot::run(cmd),

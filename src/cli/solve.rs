@@ -102,7 +102,7 @@ pub fn run(args: SolveArgs) -> Result<Verdict> {
         spec: &spec,
         origin: &origin,
         model: &model,
-        options: SolveOptions { threads: super::capped_threads(args.threads), max_iterations: args.iterations, exploration },
+        options: SolveOptions { threads: super::capped_threads(args.threads), max_iterations: args.iterations, exploration, value_function: false },
         mujoco: None,
         out: &out,
         memory_limit: super::resources::memory_limit(),

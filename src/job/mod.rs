@@ -11,6 +11,7 @@
 //! | 3 | the job could not finish ([`JobErrorKind::CouldNotFinish`]): an optimizer failed, a simulation diverged, an output could not be written |
 
 pub mod jump;
+pub mod mpc;
 pub mod resources;
 pub mod simulate;
 pub mod solve;

@@ -27,6 +27,7 @@ mod limit_cost;
 mod metrics;
 mod overrides;
 mod physical_gains;
+mod receding;
 mod run;
 mod target;
 mod task;
@@ -38,6 +39,7 @@ pub use exploration::{explore, start_seed, survivors, Exploration, ExplorationSp
 pub use limit_cost::{JointLimitCost, JointLimitCostSpec};
 pub use metrics::{joint_limit_excess, Feasibility, LimitExcess, MotionMetrics, Snapshot, FRICTION_MARGIN, SLIDE_SPEED};
 pub use physical_gains::{physical_gain, PhysicalGainWorkspace};
+pub use receding::{PlanValue, RecedingHorizon, ReferenceMotion};
 pub use run::{solution_trajectory, solve_task, ExplorationReport, Rerun, SingleStartFinal, SlqPolicyController, SolveError, SolveOptions, SolveProgress, StageReport, TaskRun};
 pub use target::{all_met, CheckTime, Target, TargetCoordinate, TargetResult, TargetSpec, TargetTime};
 pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, TaskError, TaskSpec, WaypointSpec, WeightSpec, EMBEDDED_TASKS};
@@ -173,6 +175,10 @@ pub struct WholeBodyProblem<'a> {
     /// per foot, [`crate::sim::AnchorStepDerivatives`]) rather than as hidden states held
     /// over each step.
     pub anchor_states: bool,
+    /// The problem as a receding-horizon controller's window (`None`: a plan from `t = 0`):
+    /// knot times from the window's start, the final cost at the task's end, a reference
+    /// motion's tracking cost ([`RecedingHorizon`]).
+    pub receding: Option<RecedingHorizon>,
 }
 
 /// What one thread needs: the contact dynamics, its linearization and cost scratch.
@@ -195,6 +201,9 @@ pub struct WholeBodyWorkspace<'a> {
     frame_jac: nalgebra::Matrix6xX<f64>,
     /// A constraint's gradient row (`nx`).
     constraint_row: DVector<f64>,
+    /// A receding window's terminal deviation from the plan and `P dx` (`nx`).
+    value_dx: DVector<f64>,
+    value_pdx: DVector<f64>,
     /// The terminal state's copy that a linearized step from it advances (its contacts and
     /// foot Jacobians are the terminal constraints').
     terminal_scratch: RobotState,
@@ -207,11 +216,16 @@ impl<'a> WholeBodyProblem<'a> {
 
     /// `scale (xb^T W xb + foot terms)` (no derivatives).
     fn state_cost(&self, ws: &mut WholeBodyWorkspace<'a>, cost: &StateCost, scale: f64, x: &RobotState) -> f64 {
-        ws.deviation.evaluate(self.model, (&x.q, &x.v), (&cost.q, &cost.v), &mut ws.e, None);
-        let mut c = ws.e.iter().zip(cost.weights.iter()).map(|(e, w)| w * e * e).sum::<f64>();
-        if !cost.feet.is_empty() {
+        self.deviation_cost(ws, (&cost.q, &cost.v), &cost.weights, &cost.feet, scale, x)
+    }
+
+    /// `scale (xb^T diag(weights) xb + foot terms)`, `xb` the deviation from `desired`.
+    fn deviation_cost(&self, ws: &mut WholeBodyWorkspace<'a>, desired: (&DVector<f64>, &DVector<f64>), weights: &DVector<f64>, feet: &[FootTarget], scale: f64, x: &RobotState) -> f64 {
+        ws.deviation.evaluate(self.model, (&x.q, &x.v), desired, &mut ws.e, None);
+        let mut c = ws.e.iter().zip(weights.iter()).map(|(e, w)| w * e * e).sum::<f64>();
+        if !feet.is_empty() {
             crate::dynamics::forward_kinematics(self.model, &mut ws.kinematics, &x.q);
-            for target in &cost.feet {
+            for target in feet {
                 let e = self.foot_position(ws, target.foot) - target.position;
                 c += e.component_mul(&target.weights).dot(&e);
             }
@@ -227,14 +241,14 @@ impl<'a> WholeBodyProblem<'a> {
     /// Adds the foot terms' Gauss-Newton derivatives: `e = p_f - p*`, `J` the foot's
     /// world-aligned linear Jacobian (`d p_f / d dq`): `l_x += 2 s J^T W e`,
     /// `l_xx += 2 s J^T W J` (configuration block).
-    fn add_foot_cost_derivatives(&self, ws: &mut WholeBodyWorkspace<'a>, cost: &StateCost, scale: f64, x: &RobotState, l_x: &mut DVector<f64>, l_xx: &mut DMatrix<f64>) -> f64 {
-        if cost.feet.is_empty() {
+    fn add_foot_cost_derivatives(&self, ws: &mut WholeBodyWorkspace<'a>, feet: &[FootTarget], scale: f64, x: &RobotState, l_x: &mut DVector<f64>, l_xx: &mut DMatrix<f64>) -> f64 {
+        if feet.is_empty() {
             return 0.0;
         }
         let nv = self.model.nv;
         crate::dynamics::compute_joint_jacobians(self.model, &mut ws.kinematics, &x.q);
         let mut c = 0.0;
-        for target in &cost.feet {
+        for target in feet {
             let e = self.foot_position(ws, target.foot) - target.position;
             c += e.component_mul(&target.weights).dot(&e);
             crate::dynamics::frame_jacobian(self.model, &ws.kinematics, self.model.feet[target.foot].frame, crate::dynamics::ReferenceFrame::LocalWorldAligned, &mut ws.frame_jac);
@@ -251,16 +265,22 @@ impl<'a> WholeBodyProblem<'a> {
 
     /// Adds `scale xb^T W xb` and its Gauss-Newton derivatives to `(l_x, l_xx)`.
     fn add_state_cost_derivatives(&self, ws: &mut WholeBodyWorkspace<'a>, cost: &StateCost, scale: f64, x: &RobotState, l_x: &mut DVector<f64>, l_xx: &mut DMatrix<f64>) -> f64 {
-        ws.deviation.evaluate(self.model, (&x.q, &x.v), (&cost.q, &cost.v), &mut ws.e, Some(&mut ws.jac));
+        self.add_deviation_cost_derivatives(ws, (&cost.q, &cost.v), &cost.weights, &cost.feet, scale, x, l_x, l_xx)
+    }
+
+    /// [`Self::deviation_cost`], adding its Gauss-Newton derivatives to `(l_x, l_xx)`.
+    #[allow(clippy::too_many_arguments)]
+    fn add_deviation_cost_derivatives(&self, ws: &mut WholeBodyWorkspace<'a>, desired: (&DVector<f64>, &DVector<f64>), weights: &DVector<f64>, feet: &[FootTarget], scale: f64, x: &RobotState, l_x: &mut DVector<f64>, l_xx: &mut DMatrix<f64>) -> f64 {
+        ws.deviation.evaluate(self.model, (&x.q, &x.v), desired, &mut ws.e, Some(&mut ws.jac));
         // l_x += 2 s E^T W e, l_xx += 2 s E^T W E, using E's structure (StateDeviation):
         // identity except the 3x3 blocks of the base position (R) and orientation (Jr^-1).
         for i in 0..ws.e.len() {
-            ws.we[i] = cost.weights[i] * ws.e[i];
+            ws.we[i] = weights[i] * ws.e[i];
         }
         for block in [0usize, 3] {
             let jb = ws.jac.fixed_view::<3, 3>(block, block).into_owned();
             let web = nalgebra::Vector3::new(ws.we[block], ws.we[block + 1], ws.we[block + 2]);
-            let w = nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(cost.weights[block], cost.weights[block + 1], cost.weights[block + 2]));
+            let w = nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(weights[block], weights[block + 1], weights[block + 2]));
             let g = jb.transpose() * web * (2.0 * scale);
             let h = jb.transpose() * w * jb * (2.0 * scale);
             for r in 0..3 {
@@ -272,21 +292,104 @@ impl<'a> WholeBodyProblem<'a> {
         }
         for i in 6..ws.e.len() {
             l_x[i] += 2.0 * scale * ws.we[i];
-            l_xx[(i, i)] += 2.0 * scale * cost.weights[i];
+            l_xx[(i, i)] += 2.0 * scale * weights[i];
         }
-        scale * ws.e.dot(&ws.we) + self.add_foot_cost_derivatives(ws, cost, scale, x, l_x, l_xx)
+        scale * ws.e.dot(&ws.we) + self.add_foot_cost_derivatives(ws, feet, scale, x, l_x, l_xx)
+    }
+
+    /// The absolute time of knot `k` (s): `k dt`, from the window's start in a receding horizon.
+    pub fn knot_time(&self, k: usize) -> f64 {
+        self.receding.as_ref().map_or(0.0, RecedingHorizon::start) + k as f64 * self.dt
+    }
+
+    /// The knot whose state carries the task's final cost `H` (the last, but in a receding
+    /// horizon the one at the task's end, if the window reaches it).
+    fn final_knot(&self) -> Option<usize> {
+        match &self.receding {
+            None => Some(self.knots),
+            Some(r) => r.final_knot(self.dt, self.knots),
+        }
+    }
+
+    /// The receding horizon's terms at knot `k` (`k = N`: the terminal ones): the task's
+    /// final cost if it falls on `k`, and the reference motion's tracking cost.
+    fn receding_cost(&self, ws: &mut WholeBodyWorkspace<'a>, k: usize, x: &RobotState) -> f64 {
+        let Some(r) = &self.receding else { return 0.0 };
+        let mut cost = 0.0;
+        if k < self.knots && self.final_knot() == Some(k) {
+            cost += self.state_cost(ws, &self.terminal, 1.0, x);
+        }
+        let (weights, scale) = if k < self.knots { (&r.reference.weights, self.dt) } else { (&r.reference.terminal_weights, 1.0) };
+        cost += self.deviation_cost(ws, r.reference.at(self.knot_time(k)), weights, &[], scale, x);
+        if k == self.knots {
+            cost += self.plan_value(ws, x, None);
+        }
+        cost
+    }
+
+    /// A receding window's terminal cost from the plan's value function,
+    /// `p_j^T dx + 1/2 dx^T P_j dx` with `dx = x (-) x_j` ([`PlanValue`]), and with
+    /// `derivatives` its gradient `p_j + P_j dx` and Hessian `P_j` added (`d dx / d x` taken
+    /// as the identity, as the solver's own tangent-space model does).
+    fn plan_value(&self, ws: &mut WholeBodyWorkspace<'a>, x: &RobotState, derivatives: Option<(&mut DVector<f64>, &mut DMatrix<f64>)>) -> f64 {
+        let Some(plan) = self.receding.as_ref().and_then(|r| r.value.as_ref()) else { return 0.0 };
+        let j = plan.knot_at(self.knot_time(self.knots));
+        let (p_mat, p_vec) = (&plan.value.hessians[j], &plan.value.gradients[j]);
+        if p_vec.len() != ws.value_dx.len() {
+            return 0.0;
+        }
+        self.difference(&plan.states[j], x, &mut ws.value_dx);
+        ws.value_pdx.gemv(1.0, p_mat, &ws.value_dx, 0.0);
+        let cost = p_vec.dot(&ws.value_dx) + 0.5 * ws.value_dx.dot(&ws.value_pdx);
+        if let Some((h_x, h_xx)) = derivatives {
+            *h_x += p_vec;
+            *h_x += &ws.value_pdx;
+            *h_xx += p_mat;
+        }
+        cost
+    }
+
+    /// [`Self::receding_cost`] with its derivatives added to `(l_x, l_xx)`.
+    fn add_receding_cost_derivatives(&self, ws: &mut WholeBodyWorkspace<'a>, k: usize, x: &RobotState, l_x: &mut DVector<f64>, l_xx: &mut DMatrix<f64>) -> f64 {
+        let Some(r) = &self.receding else { return 0.0 };
+        let mut cost = 0.0;
+        if k < self.knots && self.final_knot() == Some(k) {
+            cost += self.add_state_cost_derivatives(ws, &self.terminal, 1.0, x, l_x, l_xx);
+        }
+        let (weights, scale) = if k < self.knots { (&r.reference.weights, self.dt) } else { (&r.reference.terminal_weights, 1.0) };
+        cost += self.add_deviation_cost_derivatives(ws, r.reference.at(self.knot_time(k)), weights, &[], scale, x, l_x, l_xx);
+        if k == self.knots {
+            cost += self.plan_value(ws, x, Some((l_x, l_xx)));
+        }
+        cost
     }
 
     fn running_cost(&self, ws: &mut WholeBodyWorkspace<'a>, k: usize, x: &RobotState, u: &DVector<f64>) -> f64 {
-        let t = k as f64 * self.dt;
-        let mut cost = self.state_cost(ws, &self.running, self.dt, x);
+        let t = self.knot_time(k);
+        let mut cost = self.state_cost(ws, &self.running, self.dt, x) + self.receding_cost(ws, k, x);
         for w in &self.waypoints {
             cost += self.state_cost(ws, &w.cost, self.dt * w.window(t), x);
         }
         if let Some(limits) = &self.joint_limit_cost {
             cost += limits.cost(self.dt, &x.q);
         }
-        cost + self.dt * u.iter().zip(&self.input_desired).zip(&self.input_weights).map(|((u, d), r)| r * (u - d) * (u - d)).sum::<f64>()
+        cost + self.dt * u.iter().zip(&self.input_desired).zip(&self.input_weights).map(|((u, d), r)| r * (u - d) * (u - d)).sum::<f64>() + self.reference_input_cost(k, u, None)
+    }
+
+    /// A receding horizon's `dt w_u |u - u_ref(t_k)|^2`, with its gradient and Hessian
+    /// added to `derivatives = (l_u, l_uu)` if given.
+    fn reference_input_cost(&self, k: usize, u: &DVector<f64>, derivatives: Option<(&mut DVector<f64>, &mut DMatrix<f64>)>) -> f64 {
+        let Some(r) = self.receding.as_ref().filter(|r| r.reference.input_weight > 0.0 && !r.reference.tau.is_empty()) else { return 0.0 };
+        let w = self.dt * r.reference.input_weight;
+        let reference = r.reference.torque_at(self.knot_time(k));
+        let cost = w * u.iter().zip(reference.iter()).map(|(u, d)| (u - d) * (u - d)).sum::<f64>();
+        if let Some((l_u, l_uu)) = derivatives {
+            for i in 0..u.len() {
+                l_u[i] += 2.0 * w * (u[i] - reference[i]);
+                l_uu[(i, i)] += 2.0 * w;
+            }
+        }
+        cost
     }
 
     /// `tau = [0; clamp(u, -limit, limit)]`, as the simulator applies it.
@@ -375,6 +478,8 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             kinematics: crate::dynamics::Data::new(model),
             frame_jac: nalgebra::Matrix6xX::zeros(nv),
             constraint_row: DVector::zeros(self.nx()),
+            value_dx: DVector::zeros(self.nx()),
+            value_pdx: DVector::zeros(self.nx()),
             terminal_scratch: self.initial.clone(),
         }
     }
@@ -462,8 +567,9 @@ impl<'a> Problem for WholeBodyProblem<'a> {
                 d.b.column_mut(i).fill(0.0);
             }
         }
-        let t = k as f64 * self.dt;
+        let t = self.knot_time(k);
         cost += self.add_state_cost_derivatives(ws, &self.running, self.dt, x, &mut d.l_x, &mut d.l_xx);
+        cost += self.add_receding_cost_derivatives(ws, k, x, &mut d.l_x, &mut d.l_xx);
         for w in &self.waypoints {
             let scale = self.dt * w.window(t);
             if scale > 1e-12 * self.dt {
@@ -481,14 +587,15 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             d.l_uu[(i, i)] = 2.0 * self.dt * r;
             cost += self.dt * r * du * du;
         }
-        cost
+        cost + self.reference_input_cost(k, u, Some((&mut d.l_u, &mut d.l_uu)))
     }
     /// `h(x_N)`, and with [`FeasibilitySettings::terminal_knot`] the feasibility terms of
     /// `x_N` as of any knot (`dt psi`): the plan's last state is a knot of the motion, and
     /// without them the terminal cost is cheapest met by a last stamp and drag of the feet
     /// (docs/experiments/feasible-slq-3.md, turn).
     fn terminal_cost(&self, ws: &mut WholeBodyWorkspace<'a>, x: &RobotState) -> f64 {
-        let mut cost = self.state_cost(ws, &self.terminal, 1.0, x);
+        let mut cost = if self.final_knot() == Some(self.knots) { self.state_cost(ws, &self.terminal, 1.0, x) } else { 0.0 };
+        cost += self.receding_cost(ws, self.knots, x);
         if let Some(constraints) = self.feasibility.as_ref().filter(|c| c.settings.terminal_knot) {
             ws.dynamics.evaluate_contacts(&x.q, &x.v, &x.anchors);
             let at = KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params: ws.dynamics.params(), feet: ws.dynamics.feet() };
@@ -511,7 +618,10 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             let at = KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params: ws.dynamics.params(), feet: ws.dynamics.feet() };
             cost += constraints.add_derivatives(self.knots, self.dt, at, &ws.derivatives, self.anchor_states, &mut ws.constraint_row, (h_x, h_xx));
         }
-        cost + self.add_state_cost_derivatives(ws, &self.terminal, 1.0, x, h_x, h_xx)
+        if self.final_knot() == Some(self.knots) {
+            cost += self.add_state_cost_derivatives(ws, &self.terminal, 1.0, x, h_x, h_xx);
+        }
+        cost + self.add_receding_cost_derivatives(ws, self.knots, x, h_x, h_xx)
     }
     /// `-effort <= u <= effort`, the joints' effort limits.
     fn input_bounds(&self, _k: usize, lower: &mut DVector<f64>, upper: &mut DVector<f64>) {

@@ -252,6 +252,9 @@ pub struct SolveOptions {
     /// Overrides the task's `[exploration]` (`Some` with one start and no sampling stage:
     /// no exploration).
     pub exploration: Option<super::ExplorationSpec>,
+    /// Keep the plan's local value function ([`crate::slq::SlqSettings::record_value_function`]):
+    /// a receding-horizon controller's windows end on it.
+    pub value_function: bool,
 }
 
 /// SLQ on `problem` from `warm`'s policy (the standing PD after its knots), or from the
@@ -283,6 +286,8 @@ struct Pipeline<'s, 'a> {
     initial: &'s RobotState,
     pd: &'s JointPd,
     limit: usize,
+    /// Keep the final solution's value function.
+    value_function: bool,
 }
 
 impl Pipeline<'_, '_> {
@@ -300,9 +305,9 @@ impl Pipeline<'_, '_> {
 /// given, from that solution of [`Pipeline::first_problem`] (an exploration's kept start,
 /// whose iterations count as that problem's first).
 fn optimize<'a>(p: &Pipeline<'_, 'a>, threads: usize, mut first: Option<SlqSolution<RobotState>>, on_iteration: &mut dyn FnMut(SolveProgress)) -> Result<Optimized<'a>, SolveError> {
-    let Pipeline { spec, model, terrain, origin, initial, pd, limit } = *p;
+    let Pipeline { spec, model, terrain, origin, initial, pd, limit, value_function } = *p;
     let standing = PdPolicy(pd);
-    let settings = |max_iterations: usize, normalized_cost_tolerance: f64| SlqSettings { threads, max_iterations, normalized_cost_tolerance, ..SlqSettings::default() };
+    let settings = |max_iterations: usize, normalized_cost_tolerance: f64| SlqSettings { threads, max_iterations, normalized_cost_tolerance, record_value_function: value_function, ..SlqSettings::default() };
 
     // The continuation's stages, each from the last one's policy (the first from standing).
     let mut stages = Vec::new();
@@ -438,7 +443,7 @@ pub fn solve_task(spec: &TaskSpec, model: &Model, terrain: &dyn Terrain, origin:
     let pd = JointPd::standing(model, spec.dt)?;
     let limit = options.max_iterations.or(spec.iterations).unwrap_or(SlqSettings::default().max_iterations);
     let threads = if options.threads == 0 { rayon::current_num_threads() } else { options.threads };
-    let pipeline = Pipeline { spec, model, terrain, origin, initial: &initial, pd: &pd, limit };
+    let pipeline = Pipeline { spec, model, terrain, origin, initial: &initial, pd: &pd, limit, value_function: options.value_function };
 
     // Exploration (issue 19) on the first problem solved: the continuation's first stage,
     // or the full horizon. The kept start's solution is that problem's first solve.

@@ -475,6 +475,29 @@ impl<'a> Simulator<'a> {
         }
     }
 
+    /// One physics step, as [`Self::step`], recording into `trajectory` the knot of the
+    /// state at the step's start when the step count is a multiple of the recording ratio
+    /// (`record_dt / physics_dt`): a loop that interleaves the simulator with other work
+    /// (a receding-horizon controller's ticks) records as [`Self::run`] does.
+    pub fn step_recorded(&mut self, controller: &mut dyn Controller, trajectory: &mut Trajectory) -> Result<(), SimError> {
+        let record = self.step % self.record_every as u64 == 0;
+        self.step_recording(controller, if record { Some(trajectory) } else { None })
+    }
+
+    /// Appends the current state (its contacts evaluated, the torques of the last control
+    /// period) to `trajectory` if it falls on the recording grid: the end of a recorded run.
+    pub fn record_final(&mut self, trajectory: &mut Trajectory) {
+        self.workspace.evaluate_contacts(&self.state.q, &self.state.v, &self.state.anchors);
+        if self.step % self.record_every as u64 == 0 {
+            trajectory.knots.push(self.knot());
+        }
+    }
+
+    /// The simulator's settings.
+    pub fn config(&self) -> &SimConfig {
+        &self.config
+    }
+
     /// Runs for `duration` seconds, recording a knot every `record_dt` (and the initial
     /// state); `on_progress` receives the fraction done about a hundred times.
     pub fn run(&mut self, duration: f64, controller: &mut dyn Controller, mut on_progress: impl FnMut(f64)) -> Result<Run, SimError> {

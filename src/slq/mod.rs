@@ -23,10 +23,12 @@
 mod box_qp;
 mod cholesky;
 mod problem;
+mod receding;
 mod warm_start;
 
 pub use box_qp::{BoxQp, BoxQpSettings, BoxQpStatus};
 pub use problem::{KnotDerivatives, Policy, Problem};
+pub use receding::{RealTimeIteration, RealTimeIterationError};
 pub use warm_start::SolutionPolicy;
 
 use cholesky::SmallCholesky;
@@ -79,6 +81,9 @@ pub struct SlqSettings {
     pub control_limits: ControlLimits,
     /// The projected-Newton QP of [`ControlLimits::BoxQp`] ([`BoxQpSettings`]'s defaults).
     pub box_qp: BoxQpSettings,
+    /// Return the local value function of the last backward pass
+    /// ([`SlqSolution::value_function`]; false: none, no memory for it).
+    pub record_value_function: bool,
 }
 
 /// How SLQ keeps the inputs in their box (Tassa, Mansard, Todorov 2014 compare the two).
@@ -122,6 +127,7 @@ impl Default for SlqSettings {
             overlap_backward_pass: true,
             control_limits: ControlLimits::ProjectedRollout,
             box_qp: BoxQpSettings::default(),
+            record_value_function: false,
         }
     }
 }
@@ -203,6 +209,19 @@ pub struct SlqSolution<S> {
     /// Seconds for the initial rollout.
     pub initial_rollout_time: f64,
     pub total_time: f64,
+    /// The local value function of the final backward pass, with
+    /// [`SlqSettings::record_value_function`].
+    pub value_function: Option<ValueFunction>,
+}
+
+/// The backward pass's quadratic model of the cost-to-go at every knot `k = 0 .. N`
+/// (Neunert 2017, Alg. 1, step 3): `V_k(x_k (+) dx) ~ V_k + p_k^T dx + 1/2 dx^T P_k dx`,
+/// `P_N = h_xx`, `p_N = h_x`. A receding-horizon window ends on it ([`crate::mpc`]): the
+/// plan's own cost beyond the window.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ValueFunction {
+    pub hessians: Vec<DMatrix<f64>>,
+    pub gradients: Vec<DVector<f64>>,
 }
 
 /// A problem that cannot be started.
@@ -255,6 +274,10 @@ pub struct Slq<'p, P: Problem> {
     upper: Vec<DVector<f64>>,
     bounded: Vec<bool>,
     qp: BoxQp,
+    /// `P_k`, `p_k` of every knot, filled by a pass with `recording` on (empty without
+    /// [`SlqSettings::record_value_function`]).
+    value: Option<ValueFunction>,
+    recording: bool,
 }
 
 /// A line-search rollout: its trajectory, scratch and outcome.
@@ -264,6 +287,8 @@ struct Trial<S> {
     dx: DVector<f64>,
     /// The trial's cost, `None` if the rollout left the valid states or went non-finite.
     cost: Option<f64>,
+    /// The first knot whose step left the valid states (`None`: the trial completed).
+    failed_at: Option<usize>,
 }
 
 /// `alpha / alpha_d^times` by repeated division: bit for bit the step sizes of a line
@@ -512,7 +537,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             problem,
             states: vec![x0.clone(); n + 1],
             inputs: vec![DVector::zeros(nu); n],
-            trials: (0..threads).map(|_| Trial { states: vec![x0.clone(); n + 1], inputs: vec![DVector::zeros(nu); n], dx: DVector::zeros(nx), cost: None }).collect(),
+            trials: (0..threads).map(|_| Trial { states: vec![x0.clone(); n + 1], inputs: vec![DVector::zeros(nu); n], dx: DVector::zeros(nx), cost: None, failed_at: None }).collect(),
             gains: vec![DMatrix::zeros(nu, nx); n],
             feedforward: vec![DVector::zeros(nu); n],
             derivatives: (0..n).map(|_| Mutex::new(KnotDerivatives::zeros(nx, nu))).collect(),
@@ -543,6 +568,8 @@ impl<'p, P: Problem> Slq<'p, P> {
             upper,
             bounded,
             qp: BoxQp::new(nu, settings.box_qp),
+            value: settings.record_value_function.then(|| ValueFunction { hessians: vec![DMatrix::zeros(nx, nx); n + 1], gradients: vec![DVector::zeros(nx); n + 1] }),
+            recording: false,
             regularization: settings.initial_regularization,
             settings,
             pool,
@@ -593,7 +620,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             timing.backward_pass = t.elapsed().as_secs_f64();
             return ok;
         }
-        let Self { problem, settings, states, inputs, gains, feedforward, derivatives, ready, workspaces, scratch_states, terminal_gradient, terminal_hessian, riccati: r, regularization, pool, lower, upper, bounded, qp, .. } = self;
+        let Self { problem, settings, states, inputs, gains, feedforward, derivatives, ready, workspaces, scratch_states, terminal_gradient, terminal_hessian, riccati: r, regularization, pool, lower, upper, bounded, qp, value, recording, .. } = self;
         let (problem, n) = (*problem, problem.horizon());
         problem.terminal_cost_derivatives(&mut workspaces[0], &states[n], terminal_gradient, terminal_hessian);
         for flag in ready.iter() {
@@ -645,6 +672,10 @@ impl<'p, P: Problem> Slq<'p, P> {
                     let d = derivatives[k].lock().unwrap_or_else(PoisonError::into_inner);
                     let knot_ok = riccati_knot(r, qp, settings.control_limits, *regularization, &d, &inputs[k], (&lower[k], &upper[k], bounded[k]), &mut gains[k], &mut feedforward[k]);
                     drop(d);
+                    if let (true, Some(v)) = (knot_ok && *recording, value.as_mut()) {
+                        v.hessians[k].copy_from(&r.p_mat);
+                        v.gradients[k].copy_from(&r.p_vec);
+                    }
                     backward_time += t.elapsed().as_secs_f64();
                     if !knot_ok {
                         ok = false;
@@ -692,6 +723,10 @@ impl<'p, P: Problem> Slq<'p, P> {
                 if !riccati_knot(r, &mut self.qp, self.settings.control_limits, self.regularization, d, &self.inputs[k], (&self.lower[k], &self.upper[k], self.bounded[k]), &mut self.gains[k], &mut self.feedforward[k]) {
                     self.regularization = (self.regularization * 10.0).max(self.settings.min_regularization * 10.0);
                     continue 'restart;
+                }
+                if let (true, Some(v)) = (self.recording, self.value.as_mut()) {
+                    v.hessians[k].copy_from(&r.p_mat);
+                    v.gradients[k].copy_from(&r.p_vec);
                 }
             }
             return true;
@@ -747,8 +782,26 @@ impl<'p, P: Problem> Slq<'p, P> {
         alpha: f64,
         trial: &mut Trial<P::State>,
     ) -> Option<f64> {
-        let n = problem.horizon();
         trial.states[0].clone_from(&states[0]);
+        Self::trial_rollout_from(problem, ws, states, inputs, feedforward, gains, (lower, upper), alpha, trial)
+    }
+
+    /// [`Self::trial_rollout`] from the state already in `trial.states[0]` (a receding
+    /// horizon's measured state, [`Slq::real_time_iteration`]).
+    #[allow(clippy::too_many_arguments)]
+    fn trial_rollout_from(
+        problem: &P,
+        ws: &mut P::Workspace,
+        states: &[P::State],
+        inputs: &[DVector<f64>],
+        feedforward: &[DVector<f64>],
+        gains: &[DMatrix<f64>],
+        (lower, upper): (&[DVector<f64>], &[DVector<f64>]),
+        alpha: f64,
+        trial: &mut Trial<P::State>,
+    ) -> Option<f64> {
+        let n = problem.horizon();
+        trial.failed_at = None;
         let mut cost = 0.0;
         for k in 0..n {
             problem.difference(&states[k], &trial.states[k], &mut trial.dx);
@@ -760,6 +813,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             let (head, tail) = trial.states.split_at_mut(k + 1);
             cost += problem.step(ws, k, &head[k], u, &mut tail[0]);
             if !problem.is_valid(&tail[0]) || !cost.is_finite() {
+                trial.failed_at = Some(k);
                 return None;
             }
         }
@@ -861,13 +915,22 @@ impl<'p, P: Problem> Slq<'p, P> {
         // Feedback gains for the returned trajectory (the last backward pass was made at the
         // trajectory before the last step).
         if matches!(termination, Termination::Converged | Termination::CostStalled | Termination::NormalizedCostFlat | Termination::MaxIterations) {
+            self.recording = self.value.is_some();
             if linearized {
                 self.backward_pass();
             } else {
                 self.linearize_and_backward_pass(&mut IterationTiming::default());
             }
         }
+        // The value function of that pass, ending on the terminal cost's model.
+        let value_function = self.value.take().filter(|_| self.recording).map(|mut v| {
+            let n = v.hessians.len() - 1;
+            v.hessians[n].copy_from(&self.terminal_hessian);
+            v.gradients[n].copy_from(&self.terminal_gradient);
+            v
+        });
         Ok(SlqSolution {
+            value_function,
             states: self.states,
             inputs: self.inputs,
             gains: self.gains,

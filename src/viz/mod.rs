@@ -25,6 +25,7 @@
 //! ```
 
 pub mod jump;
+pub mod mpc;
 pub mod plots;
 pub mod png;
 pub mod replay;

@@ -1,0 +1,137 @@
+//! `legwork mpc <task>`: the task in closed loop under receding-horizon SLQ.
+
+use super::outcome::Verdict;
+use super::solve::{job_error, load_task};
+use anyhow::Result;
+use clap::Args;
+use legwork::job::mpc::MpcJob;
+use legwork::job::solve::SolveJob;
+use legwork::mpc::{MpcSettings, PolicyLatency};
+use legwork::ocp::SolveOptions;
+use legwork::sim::Push;
+use std::path::PathBuf;
+
+#[derive(Debug, Args)]
+pub struct MpcArgs {
+    /// An embedded task (`legwork tasks`) or a task file (`.toml`).
+    task: String,
+    /// The robot (embedded name, URDF or legwork description); default: the task's.
+    #[arg(long)]
+    robot: Option<String>,
+    /// Output folder (created; the plan's solve in `plan/` inside it); default `out/mpc/<task>`.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Length of the receding window (s).
+    #[arg(long, default_value_t = 0.5)]
+    horizon: f64,
+    /// Ticks per second: a solve from the measured state every 1 / rate s.
+    #[arg(long, default_value_t = 200.0)]
+    rate: f64,
+    /// Knot spacing of the window (s); default the tick period. The period must be a whole
+    /// number of knots.
+    #[arg(long)]
+    knot_dt: Option<f64>,
+    /// SLQ iterations per tick (real-time iteration: 1).
+    #[arg(long, default_value_t = 1)]
+    iterations_per_tick: usize,
+    /// Threads of the controller's solver (and of the plan's solve).
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
+    /// When a tick's policy reaches the robot: `measured` (after the solve's wall time, as
+    /// on a robot) or a fixed number of seconds (reproducible runs).
+    #[arg(long, default_value = "measured")]
+    latency: String,
+    /// A push on the base: X,Y,Z@T:DUR (N in the world frame, start and duration in s), e.g.
+    /// `0,100,0@1.0:0.2`. Repeatable.
+    #[arg(long)]
+    push: Vec<String>,
+    /// Drop the task's own state costs from the window (track the plan only).
+    #[arg(long)]
+    no_task_costs: bool,
+    /// End the windows on the tracking cost's terminal weights instead of the plan's value function.
+    #[arg(long)]
+    no_plan_value: bool,
+    /// Linearize without the contact anchors as states (smaller, faster windows; needs
+    /// --no-plan-value: the plan's value function is on the anchored state).
+    #[arg(long)]
+    no_anchor_states: bool,
+    /// The smallest regularization of the window's SLQ (1e-3).
+    #[arg(long, default_value_t = 1e-3)]
+    regularization: f64,
+    /// Scale of the tracking weights (0: none).
+    #[arg(long, default_value_t = 1.0)]
+    tracking: f64,
+    /// Overrides the plan's iteration limit.
+    #[arg(long)]
+    iterations: Option<usize>,
+    /// Overrides one value of the task (`PATH=VALUE`, as `legwork solve --set`). Repeatable.
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    set: Vec<String>,
+    /// Also write every plot as PNG beside its SVG.
+    #[arg(long)]
+    png: bool,
+}
+
+/// `measured` or seconds.
+fn parse_latency(text: &str) -> Result<PolicyLatency> {
+    if text == "measured" {
+        return Ok(PolicyLatency::Measured);
+    }
+    match text.parse::<f64>() {
+        Ok(l) if l.is_finite() && l >= 0.0 => Ok(PolicyLatency::Fixed(l)),
+        _ => anyhow::bail!("--latency {text}: expected `measured` or a number of seconds >= 0"),
+    }
+}
+
+/// The exit code's verdict: the closed-loop motion meets the task's targets at twice
+/// their tolerances (as every re-run of a plan).
+pub fn run(args: MpcArgs) -> Result<Verdict> {
+    let (spec, origin) = load_task(&args.task, &args.set)?;
+    let model = match &args.robot {
+        Some(robot) => super::robot::load(robot)?.0,
+        None => spec.load_robot(&origin)?,
+    };
+    let latency = parse_latency(&args.latency)?;
+    let pushes = args.push.iter().map(|p| Push::parse(p).map_err(anyhow::Error::msg)).collect::<Result<Vec<_>>>()?;
+    let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join("mpc").join(&spec.name));
+    let plan_out = out.join("plan");
+    let threads = super::capped_threads(args.threads);
+    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, iterations_per_tick: args.iterations_per_tick, threads, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, anchor_states: !args.no_anchor_states, regularization: args.regularization, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), ..MpcSettings::default() };
+    let job = MpcJob {
+        solve: SolveJob {
+            spec: &spec,
+            origin: &origin,
+            model: &model,
+            options: SolveOptions { threads, max_iterations: args.iterations, exploration: None, value_function: true },
+            mujoco: None,
+            out: &plan_out,
+            memory_limit: super::resources::memory_limit(),
+            png: args.png,
+        },
+        settings,
+        latency,
+        pushes,
+        out: &out,
+    };
+    job.check().map_err(job_error)?;
+    let s = &job.settings;
+    say!("Planning {} ({}) for {}: {} s, then MPC at {} Hz on a {} s window of {} knots of {} s, {} iteration(s) per tick, {} thread(s)", spec.name, spec.summary, model.name, spec.duration, s.rate, s.horizon, (s.horizon / s.knot_dt()).round(), s.knot_dt(), s.iterations_per_tick, s.threads);
+    let run = job.run(|_| {}, |_| {}).map_err(job_error)?;
+    let sum = &run.summary;
+    let ms = |key: &str| sum[key].as_f64().unwrap_or(f64::NAN) * 1e3;
+    say!("plan: {:.2} s to solve; closed loop: {} ticks, solve time per tick median {:.2} ms, p99 {:.2} ms, max {:.2} ms; {} over the {:.1} ms period, {} failed", sum["plan_solve_time_s"].as_f64().unwrap_or(0.0), sum["ticks"], ms("tick_time_p50_s"), ms("tick_time_p99_s"), ms("tick_time_max_s"), sum["ticks_over_period"], s.period() * 1e3, sum["failed_ticks"]);
+    if let Some(reason) = &run.closed_loop.stopped {
+        say!("the closed loop stopped: {reason}");
+    }
+    let plan_checks = run.plan.checked.iter().find(|(n, _)| *n == "plan").and_then(|(_, r)| r.as_ref());
+    say!("  {:<46}  {:<14}  {:<14}", "target", "plan", "MPC (2x tol)");
+    if let Some(plan_checks) = plan_checks {
+        for (i, p) in plan_checks.iter().enumerate() {
+            let m = run.checked.as_ref().and_then(|c| c.get(i));
+            let cell = |r: Option<&legwork::ocp::TargetResult>| r.map_or("failed".to_string(), |r| format!("{} {}", r.value, if r.met { "ok" } else { "MISSED" }));
+            say!("  {:<46}  {:<14}  {:<14}", format!("{} ({})", p.what, p.required), cell(Some(p)), cell(m));
+        }
+    }
+    say!("{}: wrote {}", if run.verdict == legwork::job::Verdict::Met { "TARGET MET" } else { "TARGET MISSED" }, out.display());
+    Ok(run.verdict)
+}

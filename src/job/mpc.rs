@@ -1,0 +1,146 @@
+//! The receding-horizon job (`legwork mpc`): the task's plan (the solve job, its folder in
+//! `plan/`), then the task in closed loop under [`crate::mpc`] in legwork's simulator, with
+//! pushes if asked; the task's targets on the closed-loop motion at twice their tolerances
+//! (as every re-run of a plan), and the folder: `trajectory.json` (the closed-loop motion
+//! and the summary), `summary.json`, `ticks.json` (every tick), `replay.html` and the plots
+//! (`plots/tick_times.svg` the per-tick solve times).
+
+use super::solve::{metrics_json, SolveJob, SolvedTask};
+use super::{JobError, OrCouldNotFinish, Verdict};
+use crate::io::Trajectory;
+use crate::mpc::{run_closed_loop, window_problem, ClosedLoopRun, Mpc, MpcSettings, PolicyLatency, TickRecord};
+use crate::ocp::{all_met, MotionMetrics, SolveProgress, TargetResult};
+use crate::sim::{Push, SimConfig, Simulator};
+use crate::terrain::Plane;
+use serde_json::json;
+
+/// A closed-loop run to make: the plan's solve job (its `out` is the plan's folder), the
+/// controller's settings, the pushes and where the files go.
+pub struct MpcJob<'a> {
+    pub solve: SolveJob<'a>,
+    pub settings: MpcSettings,
+    pub latency: PolicyLatency,
+    pub pushes: Vec<Push>,
+    pub out: &'a std::path::Path,
+}
+
+/// A finished closed-loop run and what it wrote.
+pub struct MpcRun {
+    pub plan: SolvedTask,
+    pub closed_loop: ClosedLoopRun,
+    /// The closed-loop motion's figures (`None` if it stopped early).
+    pub metrics: Option<MotionMetrics>,
+    /// The task's target on the closed-loop motion at twice its tolerances (`None`: it stopped early).
+    pub checked: Option<Vec<TargetResult>>,
+    pub verdict: Verdict,
+    pub summary: serde_json::Value,
+}
+
+impl MpcJob<'_> {
+    /// What can be refused before any work: the plan's checks, the controller's settings.
+    pub fn check(&self) -> Result<(), JobError> {
+        self.settings.check().map_err(JobError::bad_input)?;
+        if let PolicyLatency::Fixed(l) = self.latency {
+            if !(l.is_finite() && l >= 0.0) {
+                return Err(JobError::bad_input(format!("latency: expected a finite number of seconds >= 0, got {l}")));
+            }
+        }
+        self.solve.check()
+    }
+
+    /// Solves the plan, runs the closed loop, checks the targets and writes the folder;
+    /// `on_iteration` sees the plan's SLQ iterations, `on_tick` every tick.
+    pub fn run(&self, on_iteration: impl FnMut(SolveProgress) + Send, on_tick: impl FnMut(&TickRecord)) -> Result<MpcRun, JobError> {
+        self.check()?;
+        let (spec, model, origin) = (self.solve.spec, self.solve.model, self.solve.origin);
+        let plan = self.solve.run(on_iteration)?;
+        let terrain = Plane::flat(0.0);
+        let solution = &plan.run.solution;
+        let problem = window_problem(spec, model, &terrain, solution, spec.dt, &self.settings, origin).map_err(JobError::bad_input)?;
+        let mpc = Mpc::new(&problem, solution, spec.dt, self.settings.clone()).or_could_not_finish()?;
+        let mut sim = Simulator::from_plan(model, &terrain, &plan.run.plan, SimConfig::default()).or_could_not_finish()?;
+        for push in &self.pushes {
+            sim.add_push(*push);
+        }
+        let mut closed_loop = run_closed_loop(mpc, &mut sim, spec.duration, self.latency, on_tick).or_could_not_finish()?;
+        closed_loop.trajectory.metadata.scenario = format!("mpc {} at {} Hz, {} s horizon", spec.name, self.settings.rate, self.settings.horizon);
+        let (metrics, checked) = match closed_loop.stopped {
+            None => (Some(MotionMetrics::of(model, &closed_loop.trajectory, model.contact.friction)), Some(plan.target.check(model, &closed_loop.trajectory, 2.0))),
+            Some(_) => (None, None),
+        };
+        let met = checked.as_deref().is_some_and(all_met);
+        let verdict = if plan.target.is_empty() && closed_loop.stopped.is_none() { Verdict::Met } else { Verdict::from_met(met) };
+        let summary = summary(self, &plan, &closed_loop, metrics.as_ref(), checked.as_deref(), verdict);
+        let mut run = MpcRun { plan, closed_loop, metrics, checked, verdict, summary };
+        write_files(self, model, &mut run).or_could_not_finish()?;
+        Ok(run)
+    }
+}
+
+fn tick_times(ticks: &[TickRecord]) -> Vec<f64> {
+    ticks.iter().filter(|t| t.failure.is_none()).map(|t| t.solve_time).collect()
+}
+
+/// The summary: the verdict, the tick times, the closed loop's target checks and figures
+/// beside the plan's.
+fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Option<&MotionMetrics>, checked: Option<&[TargetResult]>, verdict: Verdict) -> serde_json::Value {
+    use crate::mpc::closed_loop::percentile;
+    let s = &job.settings;
+    let times = tick_times(&run.ticks);
+    let period = s.period();
+    json!({
+        "task": job.solve.spec.name,
+        "robot": job.solve.model.name,
+        "verdict": verdict.as_str(),
+        "exit_code": verdict.exit_code(),
+        "sim": "legwork",
+        "horizon_s": s.horizon,
+        "rate_hz": s.rate,
+        "knot_dt_s": s.knot_dt(),
+        "knots": (s.horizon / s.knot_dt()).round(),
+        "iterations_per_tick": s.iterations_per_tick,
+        "threads": s.threads,
+        "anchor_states": s.anchor_states,
+        "latency": match job.latency { PolicyLatency::Measured => json!("measured"), PolicyLatency::Fixed(l) => json!(l) },
+        "pushes": job.pushes.iter().map(|p| json!({ "force_n": [p.force.x, p.force.y, p.force.z], "start_s": p.start, "duration_s": p.duration })).collect::<Vec<_>>(),
+        "ticks": run.ticks.len(),
+        "failed_ticks": run.ticks.iter().filter(|t| t.failure.is_some()).count(),
+        "ticks_over_period": times.iter().filter(|t| **t > period).count(),
+        "tick_time_p50_s": percentile(times.clone(), 50.0),
+        "tick_time_p99_s": percentile(times.clone(), 99.0),
+        "tick_time_max_s": percentile(times.clone(), 100.0),
+        "tick_time_mean_s": if times.is_empty() { 0.0 } else { times.iter().sum::<f64>() / times.len() as f64 },
+        "stopped": run.stopped,
+        "target": {
+            "plan": plan.checked.iter().find(|(n, _)| *n == "plan").and_then(|(_, r)| r.as_ref()).map_or(json!("failed"), |r| json!(r)),
+            "mpc": checked.map_or(json!("failed"), |r| json!(r)),
+        },
+        "plan": metrics_json(&plan.run.plan_metrics),
+        "mpc": metrics.map_or(json!({ "failed": run.stopped }), metrics_json),
+        "plan_solve_time_s": plan.run.solve_time(),
+    })
+}
+
+/// `trajectory.json`, `summary.json`, `ticks.json`, `replay.html` and the plots.
+fn write_files(job: &MpcJob<'_>, model: &crate::model::Model, run: &mut MpcRun) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+    let out = job.out;
+    std::fs::create_dir_all(out)?;
+    let trajectory: &mut Trajectory = &mut run.closed_loop.trajectory;
+    if let serde_json::Value::Object(map) = &run.summary {
+        trajectory.summary = map.clone();
+    }
+    trajectory.save_file(out.join("trajectory.json"))?;
+    std::fs::write(out.join("summary.json"), serde_json::to_string_pretty(&run.summary)?)?;
+    std::fs::write(out.join("ticks.json"), serde_json::to_string(&run.closed_loop.ticks)?)?;
+    crate::viz::write_replay(model, trajectory, out.join("replay.html"))?;
+    let plots = out.join("plots");
+    let mut written = crate::viz::write_plots(trajectory, &plots)?;
+    written.extend(crate::viz::write_limit_plots(model, trajectory, &plots)?);
+    let title = format!("{}: MPC at {} Hz, {} s horizon", job.solve.spec.name, job.settings.rate, job.settings.horizon);
+    crate::viz::mpc::write_tick_time_histogram(&tick_times(&run.closed_loop.ticks), job.settings.period(), &title, plots.join("tick_times.svg"))?;
+    written.push(plots.join("tick_times.svg"));
+    if job.solve.png {
+        crate::viz::png::write_pngs(&written, crate::viz::png::PNG_SCALE)?;
+    }
+    Ok(())
+}

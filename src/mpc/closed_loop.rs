@@ -1,0 +1,206 @@
+//! The receding-horizon controller in closed loop with legwork's simulator.
+//!
+//! The solver runs in its own thread; the simulator in the calling thread, in simulated
+//! time, in lock step with it as a robot's control loop is with the wall clock:
+//!
+//! ```text
+//! tick i at t_i: the simulator's state goes to the solver (the "measurement")
+//! the solve takes L_i seconds (measured wall time, or a fixed latency)
+//! [t_i, t_i + L_i): the robot runs the previous policy
+//! from t_i + L_i: the new one
+//! t_{i+1} = t_i + period * max(1, ceil(L_i / period))   (an overrun skips ticks)
+//! ```
+//!
+//! While the solver works the simulator waits (its steps take microseconds; a robot's
+//! physics would not wait, which the latency above accounts for): the solver has the
+//! machine's cores to itself, as it would on the robot's computer.
+
+use super::{Mpc, MpcError, MpcPolicy, MpcPolicyController, TickReport};
+use crate::io::Trajectory;
+use crate::ocp::RobotState;
+use crate::sim::{SimError, Simulator};
+use std::sync::mpsc;
+
+/// When a tick's solution reaches the robot.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PolicyLatency {
+    /// After the solve's measured wall time (as on a robot; the run depends on the machine).
+    Measured,
+    /// After this many seconds whatever the solve took (reproducible runs).
+    Fixed(f64),
+}
+
+/// One tick of a closed-loop run.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct TickRecord {
+    /// The tick's time (s).
+    pub t: f64,
+    /// Wall time of the solve (s).
+    pub solve_time: f64,
+    /// When after `t` its policy took over (s).
+    pub latency: f64,
+    /// Cost of the kept trajectory, its step size, iterations run; `None` if the tick failed.
+    pub cost: Option<f64>,
+    pub alpha: Option<f64>,
+    /// The Levenberg-Marquardt regularization of `H` after the tick.
+    pub regularization: Option<f64>,
+    pub iterations: usize,
+    /// Seconds in the tick's linearizations, backward passes (overlapped with them on two
+    /// or more threads: the pass's own time) and trial rollouts.
+    pub linearization_time: f64,
+    pub backward_pass_time: f64,
+    pub rollout_time: f64,
+    /// Why the tick gave no policy (the previous one kept running).
+    pub failure: Option<String>,
+}
+
+/// A closed-loop run: the recorded motion, every tick, and how it ended.
+pub struct ClosedLoopRun {
+    pub trajectory: Trajectory,
+    pub ticks: Vec<TickRecord>,
+    /// `Some(reason)` if the simulation stopped early (diverged).
+    pub stopped: Option<String>,
+}
+
+impl ClosedLoopRun {
+    /// The `p`-th percentile (0-100) of the ticks' solve times (s), nearest rank.
+    pub fn tick_time_percentile(&self, p: f64) -> f64 {
+        percentile(self.ticks.iter().map(|t| t.solve_time).collect(), p)
+    }
+}
+
+/// The `p`-th percentile (0-100) of `values`, nearest rank (0 for none).
+pub fn percentile(mut values: Vec<f64>, p: f64) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    values.sort_by(f64::total_cmp);
+    let rank = ((p / 100.0) * values.len() as f64).ceil().max(1.0) as usize;
+    values[rank.min(values.len()) - 1]
+}
+
+struct Request {
+    t: f64,
+    x: RobotState,
+    policy: MpcPolicy,
+}
+
+struct Reply {
+    x: RobotState,
+    policy: MpcPolicy,
+    report: Result<TickReport, MpcError>,
+}
+
+/// Runs `mpc` on `sim` for `duration` seconds (module docs), recording the motion at the
+/// simulator's recording rate; `on_tick` sees every tick.
+pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut Simulator<'_>, duration: f64, latency: PolicyLatency, mut on_tick: impl FnMut(&TickRecord)) -> Result<ClosedLoopRun, MpcError> {
+    if !(duration.is_finite() && duration > 0.0) {
+        return Err(MpcError::Settings { field: "duration", problem: format!("expected a positive number of seconds, got {duration}") });
+    }
+    if let PolicyLatency::Fixed(l) = latency {
+        if !(l.is_finite() && l >= 0.0) {
+            return Err(MpcError::Settings { field: "latency", problem: format!("expected a finite number of seconds >= 0, got {l}") });
+        }
+    }
+    let problem = mpc.problem();
+    let period = mpc.settings().period();
+    let physics_dt = sim.config().physics_dt;
+    let mut first = MpcPolicy::for_problem(problem);
+    mpc.write_policy(&mut first);
+    let mut controller = MpcPolicyController::new(problem, first);
+    let mut spare = Some(MpcPolicy::for_problem(problem));
+    let mut measured = Some(problem.initial.clone());
+    let mut trajectory = Trajectory::new(problem.model, format!("mpc at {} Hz", mpc.settings().rate), sim.config().record_dt, problem.terrain.spec());
+    let mut ticks = Vec::new();
+    let mut stopped = None;
+    // Steps until the simulator's time reaches `t` (within half a physics step).
+    let step_until = |sim: &mut Simulator<'_>, controller: &mut MpcPolicyController<'_, '_>, trajectory: &mut Trajectory, t: f64| -> Result<(), SimError> {
+        while sim.state().t < t.min(duration) - 0.5 * physics_dt {
+            sim.step_recorded(controller, trajectory)?;
+        }
+        Ok(())
+    };
+    let (to_solver, requests) = mpsc::sync_channel::<Request>(1);
+    let (to_loop, replies) = mpsc::sync_channel::<Reply>(1);
+    std::thread::scope(|scope| -> Result<(), MpcError> {
+        scope.spawn(move || {
+            for Request { t, x, mut policy } in requests {
+                let report = mpc.tick(t, &x);
+                if report.is_ok() {
+                    mpc.write_policy(&mut policy);
+                }
+                if to_loop.send(Reply { x, policy, report }).is_err() {
+                    break;
+                }
+            }
+        });
+        let mut t_tick = 0.0;
+        let result = (|| -> Result<(), SimError> {
+            while t_tick < duration - 0.5 * physics_dt {
+                let mut x = measured.take().expect("the measurement buffer is back from the solver");
+                let s = sim.state();
+                x.q.copy_from(&s.q);
+                x.v.copy_from(&s.v);
+                x.anchors.clone_from(&s.anchors);
+                let policy = spare.take().expect("the policy buffer is back from the solver");
+                if to_solver.send(Request { t: t_tick, x, policy }).is_err() {
+                    break;
+                }
+                let Ok(reply) = replies.recv() else { break };
+                measured = Some(reply.x);
+                let (record, new_policy) = match reply.report {
+                    Ok(report) => {
+                        let last = report.iterations.last();
+                        let wait = match latency {
+                            PolicyLatency::Measured => report.solve_time,
+                            PolicyLatency::Fixed(l) => l,
+                        };
+                        (TickRecord { t: t_tick, solve_time: report.solve_time, latency: wait, cost: Some(report.cost), alpha: last.map(|i| i.alpha), regularization: last.map(|i| i.regularization), iterations: report.iterations.len(), linearization_time: report.iterations.iter().map(|i| i.timing.linearization).sum(), backward_pass_time: report.iterations.iter().map(|i| i.timing.backward_pass).sum(), rollout_time: report.iterations.iter().map(|i| i.timing.line_search).sum(), failure: None }, Some(reply.policy))
+                    }
+                    Err(e) => {
+                        spare = Some(reply.policy);
+                        (TickRecord { t: t_tick, solve_time: 0.0, latency: 0.0, cost: None, alpha: None, regularization: None, iterations: 0, linearization_time: 0.0, backward_pass_time: 0.0, rollout_time: 0.0, failure: Some(e.to_string()) }, None)
+                    }
+                };
+                step_until(sim, &mut controller, &mut trajectory, t_tick + record.latency)?;
+                if let Some(mut policy) = new_policy {
+                    std::mem::swap(&mut controller.policy, &mut policy);
+                    spare = Some(policy);
+                }
+                let periods = (record.latency / period - 1e-9).ceil().max(1.0);
+                t_tick += periods * period;
+                on_tick(&record);
+                ticks.push(record);
+                step_until(sim, &mut controller, &mut trajectory, t_tick)?;
+            }
+            Ok(())
+        })();
+        drop(to_solver);
+        if let Err(e) = result {
+            stopped = Some(match e {
+                SimError::Diverged { step, t, reason, .. } => format!("diverged at t = {t:.3} s (step {step}): {reason}"),
+                e => e.to_string(),
+            });
+        }
+        Ok(())
+    })?;
+    if stopped.is_none() {
+        sim.record_final(&mut trajectory);
+    }
+    Ok(ClosedLoopRun { trajectory, ticks, stopped })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::percentile;
+
+    #[test]
+    fn percentiles_are_nearest_rank() {
+        let v: Vec<f64> = (1..=100).map(f64::from).collect();
+        assert_eq!(percentile(v.clone(), 50.0), 50.0);
+        assert_eq!(percentile(v.clone(), 99.0), 99.0);
+        assert_eq!(percentile(v, 100.0), 100.0);
+        assert_eq!(percentile(vec![3.0, 1.0, 2.0], 50.0), 2.0);
+        assert_eq!(percentile(vec![], 99.0), 0.0);
+    }
+}

@@ -1,0 +1,429 @@
+//! Receding-horizon SLQ (model-predictive control) through contacts: the next step Neunert
+//! 2017 names (sec. VI, "apply our approach in MPC fashion"), in the real-time iteration
+//! scheme (Diehl, Bock, Schlöder 2005).
+//!
+//! The controller re-optimizes the task's whole-body problem ([`crate::ocp`]) over a
+//! short window (0.5 s) that moves with time, from the measured state, at a set rate
+//! (200 Hz):
+//!
+//! - **window** ([`window_problem`]): the task's own costs at their absolute times (the
+//!   waypoints' Gaussian windows, the final cost at the task's end), a tracking cost toward
+//!   the offline plan at every knot and a terminal one at the window's end (the plan's
+//!   motion as the cost-to-go beyond the window, [`crate::ocp::RecedingHorizon`]), the
+//!   robot's own contact model and torque limits, knots spaced by the tick period (5 ms,
+//!   coarser than the plan's 2 ms; each integrated in steps of the contact's stable step);
+//! - **warm start**: the previous tick's solution shifted by the knots the window moved
+//!   ([`crate::slq::Slq::shift`]), its new last knots from the plan's own policy;
+//! - **iteration budget**: a fixed number of SLQ iterations per tick (one by default,
+//!   [`crate::slq::Slq::real_time_iteration`]);
+//! - **policy**: between solves the robot runs the last solution's
+//!   `u = u_k + K_k (x (-) x_k)` ([`MpcPolicy`], Neunert 2017 eq. 2) at the simulator's
+//!   control rate.
+//!
+//! [`closed_loop`] runs it beside a simulator, the solver in its own thread, the measured
+//! solve time deciding when its policy takes over.
+
+pub mod closed_loop;
+
+pub use closed_loop::{run_closed_loop, ClosedLoopRun, PolicyLatency, TickRecord};
+
+use crate::model::Model;
+use crate::ocp::{PlanValue, RecedingHorizon, ReferenceMotion, RobotState, TaskError, TaskSpec, WholeBodyProblem};
+use crate::sim::{ControlError, Controller, SimState};
+use crate::slq::{Policy, Problem, RealTimeIteration, RealTimeIterationError, Slq, SlqError, SlqSettings, SlqSolution};
+use crate::terrain::Terrain;
+use nalgebra::{DMatrix, DVector};
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// Weights of the window's pull toward the plan, on the deviation coordinates of
+/// [`crate::ocp::StateDeviation`] (per second on the running knots; the terminal ones are
+/// `terminal_seconds` times them at the window's end).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrackingWeights {
+    /// Base position, world frame (1e3).
+    pub base_position: f64,
+    /// Base orientation error `log(R_ref^T R)` (1e3).
+    pub base_orientation: f64,
+    /// Joint angles (10).
+    pub joint_position: f64,
+    /// Base linear and angular velocity, base frame (10).
+    pub base_velocity: f64,
+    /// Joint velocities (0.1).
+    pub joint_velocity: f64,
+    /// The terminal weights as this many seconds of the running ones (0.5 s).
+    pub terminal_seconds: f64,
+    /// Joint torques' deviation from the plan's, per N m^2 and second (0.01).
+    pub input: f64,
+}
+
+impl Default for TrackingWeights {
+    fn default() -> Self {
+        Self { base_position: 1e3, base_orientation: 1e3, joint_position: 10.0, base_velocity: 10.0, joint_velocity: 0.1, terminal_seconds: 0.5, input: 0.01 }
+    }
+}
+
+impl TrackingWeights {
+    /// Every weight times `factor` (the terminal seconds as they are).
+    pub fn scaled(&self, factor: f64) -> Self {
+        Self { base_position: self.base_position * factor, base_orientation: self.base_orientation * factor, joint_position: self.joint_position * factor, base_velocity: self.base_velocity * factor, joint_velocity: self.joint_velocity * factor, terminal_seconds: self.terminal_seconds, input: self.input * factor }
+    }
+
+    /// The running weights as a vector over `2 nv` deviation coordinates.
+    fn running(&self, nv: usize) -> DVector<f64> {
+        let mut w = DVector::zeros(2 * nv);
+        w.rows_mut(0, 3).fill(self.base_position);
+        w.rows_mut(3, 3).fill(self.base_orientation);
+        w.rows_mut(6, nv - 6).fill(self.joint_position);
+        w.rows_mut(nv, 6).fill(self.base_velocity);
+        w.rows_mut(nv + 6, nv - 6).fill(self.joint_velocity);
+        w
+    }
+}
+
+/// Settings of the receding-horizon controller (defaults in parentheses).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MpcSettings {
+    /// Length of the window (0.5 s, the ct team's quadruped MPC).
+    pub horizon: f64,
+    /// Ticks per second: a new solve from the measured state every `1 / rate` (200 Hz).
+    pub rate: f64,
+    /// Knot spacing of the window (`None`: the tick period, so a tick moves the window by
+    /// one knot). The tick period must be a whole number of knots.
+    pub knot_dt: Option<f64>,
+    /// SLQ iterations per tick (1: the real-time iteration scheme).
+    pub iterations_per_tick: usize,
+    /// SLQ iterations on the first window before the robot starts (10): the robot waits
+    /// for its first plan, as on hardware.
+    pub initial_iterations: usize,
+    /// Threads of the solver (2).
+    pub threads: usize,
+    /// The contact anchors as states of the linearization (true, as the tasks' plans).
+    pub anchor_states: bool,
+    /// Keep the task's own state costs (running, waypoints, final) in the window beside the
+    /// tracking cost (false: the plan already optimized them; a 0.5 s window that sees a
+    /// waypoint coming re-plans toward it without the rest of the task).
+    pub task_costs: bool,
+    /// End every window on the plan's value function (true; the plan must have one:
+    /// [`crate::slq::SlqSettings::record_value_function`]).
+    pub plan_value: bool,
+    /// The feasibility constraints of the task's plan (friction, penetration, joint limits
+    /// and speeds) in the window too, as penalties without the plan's multipliers (true).
+    pub feasibility: bool,
+    /// The smallest Levenberg-Marquardt regularization of `H` (1e-3, against the plan's
+    /// 1e-10): the robot runs a tick's gains until the next, and with the tasks' small
+    /// input weights the least regularized gains drive free legs into their torque limits
+    /// and past the speed limit in the window's rollouts (squat_jump: 227 of 247 ticks
+    /// without a usable trial at 1e-10).
+    pub regularization: f64,
+    pub tracking: TrackingWeights,
+}
+
+impl Default for MpcSettings {
+    fn default() -> Self {
+        Self { horizon: 0.5, rate: 200.0, knot_dt: None, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, tracking: TrackingWeights::default() }
+    }
+}
+
+impl MpcSettings {
+    /// The tick period (s).
+    pub fn period(&self) -> f64 {
+        1.0 / self.rate
+    }
+
+    /// The window's knot spacing (s).
+    pub fn knot_dt(&self) -> f64 {
+        self.knot_dt.unwrap_or_else(|| self.period())
+    }
+
+    /// Knots per tick period.
+    pub fn knots_per_tick(&self) -> usize {
+        (self.period() / self.knot_dt()).round() as usize
+    }
+
+    /// Checks every setting: a clear error naming the one that is wrong.
+    pub fn check(&self) -> Result<(), MpcError> {
+        let bad = |field: &'static str, problem: String| Err(MpcError::Settings { field, problem });
+        if !(self.horizon.is_finite() && self.horizon > 0.0) {
+            return bad("horizon", format!("expected a positive number of seconds, got {}", self.horizon));
+        }
+        if !(self.rate.is_finite() && self.rate > 0.0) {
+            return bad("rate", format!("expected a positive number of ticks per second, got {}", self.rate));
+        }
+        let dt = self.knot_dt();
+        if !(dt.is_finite() && dt > 0.0) {
+            return bad("knot_dt", format!("expected a positive number of seconds, got {dt}"));
+        }
+        let ratio = self.period() / dt;
+        if ratio < 0.999 || (ratio - ratio.round()).abs() > 1e-6 {
+            return bad("knot_dt", format!("the tick period 1 / rate = {} s must be a whole number (at least one) of knots of {dt} s", self.period()));
+        }
+        let knots = self.horizon / dt;
+        if knots.round() < 2.0 {
+            return bad("horizon", format!("{} s holds fewer than two knots of {dt} s", self.horizon));
+        }
+        if knots > 100_000.0 {
+            return bad("horizon", format!("{} s is {knots:.0} knots of {dt} s: at most 100000", self.horizon));
+        }
+        if self.iterations_per_tick == 0 {
+            return bad("iterations_per_tick", "expected at least 1".into());
+        }
+        if !(self.regularization.is_finite() && self.regularization > 0.0) {
+            return bad("regularization", format!("expected a positive number, got {}", self.regularization));
+        }
+        if self.threads == 0 {
+            return bad("threads", "expected at least 1".into());
+        }
+        let t = &self.tracking;
+        for (field, w) in [("tracking.base_position", t.base_position), ("tracking.base_orientation", t.base_orientation), ("tracking.joint_position", t.joint_position), ("tracking.base_velocity", t.base_velocity), ("tracking.joint_velocity", t.joint_velocity), ("tracking.terminal_seconds", t.terminal_seconds), ("tracking.input", t.input)] {
+            if !(w.is_finite() && w >= 0.0) {
+                return bad(field, format!("expected a finite number >= 0, got {w}"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Why the controller could not be set up or could not go on.
+#[derive(Debug, thiserror::Error)]
+pub enum MpcError {
+    #[error("MPC setting `{field}`: {problem}")]
+    Settings { field: &'static str, problem: String },
+    #[error(transparent)]
+    Task(#[from] TaskError),
+    #[error(transparent)]
+    Slq(#[from] SlqError),
+    #[error("the plan to track has no knots")]
+    EmptyPlan,
+    #[error("tick at t = {t:.3} s: {source}")]
+    Tick {
+        t: f64,
+        #[source]
+        source: RealTimeIterationError,
+    },
+}
+
+/// The window problem of `spec` for `model` on `terrain`: the task's costs on `settings`'
+/// horizon and knot spacing, starting at `t = 0` from the plan's first state, ending on the
+/// plan's value function (with [`MpcSettings::plan_value`]) and tracking the plan (its
+/// states and inputs, knots every `plan_dt` seconds from `t = 0`; module docs).
+pub fn window_problem<'a>(spec: &TaskSpec, model: &'a Model, terrain: &'a dyn Terrain, plan: &SlqSolution<RobotState>, plan_dt: f64, settings: &MpcSettings, origin: &str) -> Result<WholeBodyProblem<'a>, MpcError> {
+    settings.check()?;
+    if plan.inputs.is_empty() {
+        return Err(MpcError::EmptyPlan);
+    }
+    let initial = plan.states[0].clone();
+    let mut window = spec.clone();
+    window.dt = settings.knot_dt();
+    window.duration = settings.knot_dt() * (settings.horizon / settings.knot_dt()).round();
+    window.substeps = None;
+    window.continuation = None;
+    window.exploration = None;
+    let mut problem = window.problem(model, terrain, initial, origin)?;
+    let weights = settings.tracking.running(model.nv);
+    let reference = ReferenceMotion {
+        dt: plan_dt,
+        q: plan.states.iter().map(|x| x.q.clone()).collect(),
+        v: plan.states.iter().map(|x| x.v.clone()).collect(),
+        tau: plan.inputs.clone(),
+        input_weight: settings.tracking.input,
+        terminal_weights: &weights * settings.tracking.terminal_seconds,
+        weights,
+    };
+    if !settings.task_costs {
+        for cost in [&mut problem.running, &mut problem.terminal] {
+            cost.weights.fill(0.0);
+            cost.feet.clear();
+        }
+        problem.waypoints.clear();
+    }
+    if !settings.feasibility {
+        problem.feasibility = None;
+    }
+    problem.anchor_states = settings.anchor_states;
+    let mut receding = RecedingHorizon::new(0.0, spec.duration, reference);
+    if settings.plan_value {
+        let value = plan.value_function.clone().ok_or(MpcError::Settings { field: "plan_value", problem: "the plan has no value function: solve it with record_value_function".into() })?;
+        if value.gradients.first().map(|g| g.len()) != Some(problem.nx()) {
+            return Err(MpcError::Settings { field: "anchor_states", problem: format!("the plan's value function has {} coordinates, the window's state {}: solve both with the same state (anchors or not)", value.gradients.first().map_or(0, |g| g.len()), problem.nx()) });
+        }
+        receding.value = Some(PlanValue { dt: plan_dt, states: plan.states.clone(), value });
+    }
+    problem.receding = Some(receding);
+    Ok(problem)
+}
+
+/// The plan's own policy at absolute times, `u = u_k + K_k (x (-) x_k)` with `k` the plan's
+/// knot at the window knot's time: the warm start of the first window and of every new last
+/// knot. Past the plan's end, its last input and gain around its last state.
+struct PlanPolicy<'s> {
+    plan: &'s SlqSolution<RobotState>,
+    plan_dt: f64,
+    dx: Mutex<DVector<f64>>,
+}
+
+impl<'a> Policy<WholeBodyProblem<'a>> for PlanPolicy<'_> {
+    fn control(&self, problem: &WholeBodyProblem<'a>, k: usize, x: &RobotState, u: &mut DVector<f64>) {
+        let last = self.plan.inputs.len() - 1;
+        let i = ((problem.knot_time(k) / self.plan_dt).round().max(0.0) as usize).min(last);
+        let mut dx = self.dx.lock().unwrap_or_else(|e| e.into_inner());
+        problem.difference(&self.plan.states[i], x, &mut dx);
+        u.copy_from(&self.plan.inputs[i]);
+        u.gemv(1.0, &self.plan.gains[i], &dx, 1.0);
+    }
+}
+
+/// A solution of the window as the robot runs it until the next one arrives: from the
+/// window's start `start`, knot `k` over `[start + k dt, start + (k + 1) dt)`,
+/// `u = u_k + K_k (x (-) x_k)`; past the window's end, its last knot's law.
+#[derive(Clone, Debug)]
+pub struct MpcPolicy {
+    pub start: f64,
+    pub dt: f64,
+    pub states: Vec<RobotState>,
+    pub inputs: Vec<DVector<f64>>,
+    pub gains: Vec<DMatrix<f64>>,
+}
+
+impl MpcPolicy {
+    /// A policy with room for `problem`'s window (all zero).
+    pub fn for_problem(problem: &WholeBodyProblem<'_>) -> Self {
+        let (n, nx, nu) = (problem.horizon(), problem.nx(), problem.nu());
+        Self { start: 0.0, dt: problem.dt, states: vec![problem.initial.clone(); n + 1], inputs: vec![DVector::zeros(nu); n], gains: vec![DMatrix::zeros(nu, nx); n] }
+    }
+
+    /// Copies the solver's current solution in (no allocation).
+    fn copy_from(&mut self, start: f64, slq: &Slq<'_, WholeBodyProblem<'_>>) {
+        self.start = start;
+        for (to, from) in self.states.iter_mut().zip(slq.states()) {
+            to.clone_from(from);
+        }
+        for (to, from) in self.inputs.iter_mut().zip(slq.inputs()) {
+            to.copy_from(from);
+        }
+        for (to, from) in self.gains.iter_mut().zip(slq.gains()) {
+            to.copy_from(from);
+        }
+    }
+
+    /// The knot acting at time `t`.
+    pub fn knot_at(&self, t: f64) -> usize {
+        (((t - self.start) / self.dt + 1e-9).floor().max(0.0) as usize).min(self.inputs.len() - 1)
+    }
+}
+
+/// The receding-horizon controller on a window problem (module docs).
+pub struct Mpc<'p, 'a> {
+    problem: &'p WholeBodyProblem<'a>,
+    slq: Slq<'p, WholeBodyProblem<'a>>,
+    settings: MpcSettings,
+    plan_policy: PlanPolicy<'p>,
+    /// The window's start at the last tick (s).
+    last_start: f64,
+    cost: f64,
+}
+
+/// What one tick did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TickReport {
+    /// The window's start (s).
+    pub t: f64,
+    /// Wall time of the tick's solve (s): shift, iterations, nothing else.
+    pub solve_time: f64,
+    /// The kept trajectory's cost and the iterations' records.
+    pub cost: f64,
+    pub iterations: Vec<RealTimeIteration>,
+}
+
+impl<'p, 'a> Mpc<'p, 'a> {
+    /// The controller on `problem` (from [`window_problem`]), warm-started from `plan`
+    /// (the task's SLQ solution, knots every `plan_dt` s from `t = 0`): rolls the plan's
+    /// policy out over the first window from `problem.initial` and runs
+    /// `settings.initial_iterations` SLQ iterations on it.
+    pub fn new(problem: &'p WholeBodyProblem<'a>, plan: &'p SlqSolution<RobotState>, plan_dt: f64, settings: MpcSettings) -> Result<Self, MpcError> {
+        settings.check()?;
+        if plan.inputs.is_empty() {
+            return Err(MpcError::EmptyPlan);
+        }
+        let receding = problem.receding.as_ref().ok_or(MpcError::Settings { field: "problem", problem: "not a receding-horizon window (build it with mpc::window_problem)".into() })?;
+        receding.set_start(0.0);
+        let slq_settings = SlqSettings { threads: settings.threads, min_regularization: settings.regularization, initial_regularization: settings.regularization, ..SlqSettings::default() };
+        let mut slq = Slq::new(problem, slq_settings)?;
+        let plan_policy = PlanPolicy { plan, plan_dt, dx: Mutex::new(DVector::zeros(problem.nx())) };
+        let initial = problem.initial.clone();
+        let mut cost = slq.start_from(&initial, &plan_policy)?;
+        for i in 0..settings.initial_iterations {
+            let it = slq.real_time_iteration(&initial, (i > 0).then_some(cost)).map_err(|source| MpcError::Tick { t: 0.0, source })?;
+            cost = it.cost;
+        }
+        Ok(Self { problem, slq, settings, plan_policy, last_start: 0.0, cost })
+    }
+
+    pub fn settings(&self) -> &MpcSettings {
+        &self.settings
+    }
+
+    pub fn problem(&self) -> &'p WholeBodyProblem<'a> {
+        self.problem
+    }
+
+    /// One tick at time `t` (a multiple of the knot spacing after the last tick's) from the
+    /// measured state `x`: the window moved to `t`, the solution shifted, the iteration
+    /// budget spent. The new policy is then in [`Self::write_policy`].
+    pub fn tick(&mut self, t: f64, x: &RobotState) -> Result<TickReport, MpcError> {
+        let started = Instant::now();
+        let dt = self.problem.dt;
+        let knots = ((t - self.last_start) / dt).round().max(0.0) as usize;
+        let start = self.last_start + knots as f64 * dt;
+        if let Some(r) = &self.problem.receding {
+            r.set_start(start);
+        }
+        self.last_start = start;
+        self.slq.shift(knots, &self.plan_policy);
+        let mut iterations = Vec::with_capacity(self.settings.iterations_per_tick);
+        for i in 0..self.settings.iterations_per_tick {
+            let it = self.slq.real_time_iteration(x, (i > 0).then_some(self.cost)).map_err(|source| MpcError::Tick { t, source })?;
+            self.cost = it.cost;
+            iterations.push(it);
+        }
+        Ok(TickReport { t: start, solve_time: started.elapsed().as_secs_f64(), cost: self.cost, iterations })
+    }
+
+    /// The current solution as the policy the robot runs.
+    pub fn write_policy(&self, policy: &mut MpcPolicy) {
+        policy.copy_from(self.last_start, &self.slq);
+    }
+}
+
+/// A [`MpcPolicy`] as a simulator controller: `u = u_k + K_k (x (-) x_k)` at the knot of
+/// the simulator's time.
+pub struct MpcPolicyController<'p, 'a> {
+    problem: &'p WholeBodyProblem<'a>,
+    pub policy: MpcPolicy,
+    x: RobotState,
+    dx: DVector<f64>,
+    u: DVector<f64>,
+}
+
+impl<'p, 'a> MpcPolicyController<'p, 'a> {
+    pub fn new(problem: &'p WholeBodyProblem<'a>, policy: MpcPolicy) -> Self {
+        Self { problem, policy, x: problem.initial.clone(), dx: DVector::zeros(problem.nx()), u: DVector::zeros(problem.nu()) }
+    }
+}
+
+impl Controller for MpcPolicyController<'_, '_> {
+    fn name(&self) -> &str {
+        "mpc"
+    }
+    fn compute(&mut self, _model: &Model, state: &SimState, tau: &mut DVector<f64>) -> Result<(), ControlError> {
+        let k = self.policy.knot_at(state.t);
+        self.x.q.copy_from(&state.q);
+        self.x.v.copy_from(&state.v);
+        self.x.anchors.clone_from(&state.anchors);
+        self.problem.difference(&self.policy.states[k], &self.x, &mut self.dx);
+        self.u.copy_from(&self.policy.inputs[k]);
+        self.u.gemv(1.0, &self.policy.gains[k], &self.dx, 1.0);
+        tau.rows_mut(6, self.u.len()).copy_from(&self.u);
+        Ok(())
+    }
+}

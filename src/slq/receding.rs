@@ -1,0 +1,167 @@
+//! SLQ as a receding-horizon controller's solver: the real-time iteration scheme (Diehl,
+//! Bock, Schlöder 2005) on Neunert 2017's Algorithm 1. Between ticks the solution is kept,
+//! shifted by the ticks' knots ([`Slq::shift`]); each tick runs a fixed budget of
+//! iterations ([`Slq::real_time_iteration`]) from the measured state:
+//!
+//! ```text
+//! linearize and backward pass around the shifted solution x_n, u_n   (Alg. 1, steps 2-3)
+//! roll out u = clamp(u_n + alpha l + K (x (-) x_n)) from the measured x_0 for one step
+//!   size per thread, alpha = 1, 1/alpha_d, ...; keep the cheapest        (step 4)
+//! ```
+//!
+//! The first iteration of a tick starts from a state the shifted trajectory did not start
+//! from, so its costs are not comparable with the trajectory's: the cheapest trial is
+//! taken whatever the old cost (the step is the controller's answer to the new state).
+//! Later iterations of the same tick keep a trial only if it lowers the cost. Nothing
+//! here allocates: the trajectories, gains and trials are the solver's own.
+
+use super::{divided, for_each_job, IterationTiming, Policy, Problem, Slq, SlqError};
+use nalgebra::{DMatrix, DVector};
+use std::time::Instant;
+
+/// One real-time iteration's record.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RealTimeIteration {
+    /// Cost of the kept trajectory (from the measured state).
+    pub cost: f64,
+    /// Its step size; 0 if no trial lowered the cost of a later iteration (kept as it was).
+    pub alpha: f64,
+    /// RMS over knots of the feedforward increments `l_k`.
+    pub feedforward_norm: f64,
+    pub regularization: f64,
+    pub timing: IterationTiming,
+}
+
+/// Why a real-time iteration gave no trajectory.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum RealTimeIterationError {
+    #[error("the backward pass found no positive-definite H up to the largest regularization")]
+    BackwardPass,
+    #[error("no step size's rollout from the measured state stayed finite")]
+    NoValidTrial,
+}
+
+impl<'p, P: Problem> Slq<'p, P> {
+    /// The states `x_0 .. x_N` of the current solution.
+    pub fn states(&self) -> &[P::State] {
+        &self.states
+    }
+
+    /// The inputs `u_0 .. u_{N-1}` of the current solution.
+    pub fn inputs(&self) -> &[DVector<f64>] {
+        &self.inputs
+    }
+
+    /// The feedback gains `K_k` of the last backward pass (`u = u_k + K_k (x (-) x_k)`).
+    pub fn gains(&self) -> &[DMatrix<f64>] {
+        &self.gains
+    }
+
+    /// Rolls `policy` out from `x0` and makes it the current solution (the warm start of
+    /// the first tick); returns its cost. The gains stay those of the last pass (zero on a
+    /// new solver) until [`Self::real_time_iteration`] computes them.
+    pub fn start_from(&mut self, x0: &P::State, policy: &dyn Policy<P>) -> Result<f64, SlqError> {
+        self.states[0].clone_from(x0);
+        self.rollout(policy)
+    }
+
+    /// Moves the solution `knots` knots earlier (the window has moved on by as much): knot
+    /// `k` takes knot `k + knots`'s state, input and gain; the last `knots` inputs come from
+    /// `tail` (the gains repeat the last shifted one) and their states are rolled out with
+    /// them. Call it after moving the problem's window, so the tail's knots are the new
+    /// window's. A tail step that leaves the valid states holds the state before it;
+    /// returns how many did.
+    pub fn shift(&mut self, knots: usize, tail: &dyn Policy<P>) -> usize {
+        let n = self.problem.horizon();
+        let m = knots.min(n);
+        let mut held_states = 0;
+        if m == 0 {
+            return held_states;
+        }
+        self.states.rotate_left(m);
+        self.inputs.rotate_left(m);
+        self.gains.rotate_left(m);
+        self.feedforward.rotate_left(m);
+        // The old last state is now at n - m: the new tail starts from it.
+        let last_gain = (n - m).saturating_sub(1);
+        for k in n - m..n {
+            if k > 0 && last_gain < k {
+                let (head, tail_gains) = self.gains.split_at_mut(k);
+                tail_gains[0].copy_from(&head[last_gain]);
+            }
+            self.feedforward[k].fill(0.0);
+            tail.control(self.problem, k, &self.states[k], &mut self.inputs[k]);
+            super::project(&mut self.inputs[k], &self.lower[k], &self.upper[k]);
+            let (head, next) = self.states.split_at_mut(k + 1);
+            self.problem.step(&mut self.workspaces[0], k, &head[k], &self.inputs[k], &mut next[0]);
+            if !self.problem.is_valid(&next[0]) {
+                // A tail that leaves the valid states holds its last valid one (the next
+                // iteration's trials start from the measured state, not from it).
+                next[0].clone_from(&head[k]);
+                held_states += 1;
+            }
+        }
+        held_states
+    }
+
+    /// One real-time iteration from the measured state `x0` (module docs): the model
+    /// around the current solution, then one round of trials (a step size per thread) from
+    /// `x0`. With `must_improve`, a trial is kept only if it costs less than `cost`
+    /// (a later iteration of the same tick, whose trajectory already starts at `x0`).
+    pub fn real_time_iteration(&mut self, x0: &P::State, must_improve: Option<f64>) -> Result<RealTimeIteration, RealTimeIterationError> {
+        let mut timing = IterationTiming::default();
+        if !self.linearize_and_backward_pass(&mut timing) {
+            // Start the next tick's pass less regularized than the failed one ended.
+            self.regularization = self.settings.max_regularization / 10.0;
+            return Err(RealTimeIterationError::BackwardPass);
+        }
+        let feedforward_norm = self.feedforward_norm();
+        let t = Instant::now();
+        let problem = self.problem;
+        let divisor = self.settings.alpha_divisor;
+        let (states, inputs, feedforward, gains) = (&self.states, &self.inputs, &self.feedforward, &self.gains);
+        let bounds = (&self.lower[..], &self.upper[..]);
+        let round = self.trials.len();
+        let jobs = self.trials.iter_mut().zip(self.workspaces.iter_mut()).enumerate();
+        for_each_job(self.pool.as_ref(), jobs, |(j, (trial, ws))| {
+            trial.states[0].clone_from(x0);
+            trial.cost = Self::trial_rollout_from(problem, ws, states, inputs, feedforward, gains, bounds, divided(1.0, divisor, j), trial);
+        });
+        let best = (0..round).filter_map(|j| self.trials[j].cost.map(|c| (j, c))).filter(|&(_, c)| must_improve.is_none_or(|old| c < old)).min_by(|a, b| a.1.total_cmp(&b.1));
+        timing.line_search = t.elapsed().as_secs_f64();
+        let (alpha, cost) = match (best, must_improve) {
+            (Some((j, c)), _) => {
+                std::mem::swap(&mut self.states, &mut self.trials[j].states);
+                std::mem::swap(&mut self.inputs, &mut self.trials[j].inputs);
+                (divided(1.0, divisor, j), c)
+            }
+            (None, Some(old)) => (0.0, old),
+            (None, None) => {
+                // Every trial left the valid states (a flailing free leg past the speed
+                // limit, late in the window): the robot only runs the window's first knots
+                // before the next tick, so the trial that went furthest is kept if it held
+                // for a quarter of the window, its tail held at its last valid state.
+                let n = problem.horizon();
+                let Some((j, k)) = (0..round).filter_map(|j| self.trials[j].failed_at.map(|k| (j, k))).max_by_key(|&(_, k)| k).filter(|&(_, k)| 4 * k >= n) else {
+                    return Err(RealTimeIterationError::NoValidTrial);
+                };
+                let trial = &mut self.trials[j];
+                for i in k + 1..=n {
+                    let (head, tail) = trial.states.split_at_mut(i);
+                    tail[0].clone_from(&head[k]);
+                }
+                for i in k..n {
+                    trial.inputs[i].copy_from(&self.inputs[i]);
+                }
+                std::mem::swap(&mut self.states, &mut trial.states);
+                std::mem::swap(&mut self.inputs, &mut trial.inputs);
+                (divided(1.0, divisor, j), f64::INFINITY)
+            }
+        };
+        // The regularization only grows where the backward pass needs it (an H that is not
+        // positive definite restarts the pass with more) and decays after every tick: a
+        // half step is no reason for weaker gains, which the robot runs until the next tick.
+        self.regularization = (self.regularization / 10.0).max(self.settings.min_regularization);
+        Ok(RealTimeIteration { cost, alpha, feedforward_norm, regularization: self.regularization, timing })
+    }
+}

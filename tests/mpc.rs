@@ -1,0 +1,155 @@
+//! Receding-horizon SLQ (issue 21): the warm start's shift, the window's costs, the closed
+//! loop's tick schedule, HyQ standing under a 100 N lateral push, and the settings' errors.
+
+use legwork::model::{embedded, Model};
+use legwork::mpc::{run_closed_loop, window_problem, Mpc, MpcError, MpcSettings, PolicyLatency};
+use legwork::ocp::{solve_task, PdPolicy, RobotState, SolveOptions, TaskRun, TaskSpec};
+use legwork::sim::{Push, SimConfig, Simulator};
+use legwork::slq::{Problem, Slq, SlqSettings};
+use legwork::terrain::Plane;
+
+/// HyQ holding its stance for `duration` seconds: the standing task of the issue's push test.
+fn stand(duration: f64) -> TaskSpec {
+    let text = format!(
+        r#"
+name = "stand"
+summary = "hold the default stance"
+robot = "hyq"
+duration = {duration}
+dt = 0.002
+iterations = 4
+
+[desired]
+base_position = ["start", "start", "start"]
+base_rpy = [0.0, 0.0, 0.0]
+joints = "stance"
+
+[running]
+base_position = [100.0, 100.0, 100.0]
+base_orientation = [100.0, 100.0, 100.0]
+joint_position = 1.0
+base_linear_velocity = [1.0, 1.0, 1.0]
+base_angular_velocity = [1.0, 1.0, 1.0]
+joint_velocity = 0.01
+
+[final]
+base_position = [1000.0, 1000.0, 1000.0]
+base_orientation = [1000.0, 1000.0, 1000.0]
+joint_position = 10.0
+base_linear_velocity = [10.0, 10.0, 10.0]
+base_angular_velocity = [10.0, 10.0, 10.0]
+joint_velocity = 0.1
+
+[input]
+weight = 1e-3
+"#
+    );
+    TaskSpec::from_toml(&text, "stand.toml").unwrap()
+}
+
+fn plan(spec: &TaskSpec, model: &Model) -> TaskRun {
+    solve_task(spec, model, &Plane::flat(0.0), "stand.toml", &SolveOptions { threads: 2, value_function: true, ..SolveOptions::default() }, |_| ()).unwrap()
+}
+
+#[test]
+fn the_shift_moves_every_knot_earlier_and_rolls_out_the_new_tail() {
+    let model = embedded::load("hyq").unwrap();
+    let spec = stand(0.3);
+    let run = plan(&spec, &model);
+    let settings = MpcSettings { horizon: 0.1, ..MpcSettings::default() };
+    let ground = Plane::flat(0.0);
+    let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
+    let pd = legwork::control::JointPd::standing(&model, problem.dt).unwrap();
+    let mut slq = Slq::new(&problem, SlqSettings { threads: 1, ..SlqSettings::default() }).unwrap();
+    slq.start_from(&problem.initial, &PdPolicy(&pd)).unwrap();
+    slq.real_time_iteration(&problem.initial, None).unwrap();
+    let (states, inputs, gains): (Vec<RobotState>, Vec<_>, Vec<_>) = (slq.states().to_vec(), slq.inputs().to_vec(), slq.gains().to_vec());
+    let n = problem.horizon();
+    let m = 3;
+    problem.receding.as_ref().unwrap().set_start(m as f64 * problem.dt);
+    assert_eq!(slq.shift(m, &PdPolicy(&pd)), 0, "the standing tail stays valid");
+    for k in 0..=n - m {
+        assert_eq!(slq.states()[k], states[k + m], "state {k}");
+    }
+    for k in 0..n - m {
+        assert_eq!(slq.inputs()[k], inputs[k + m], "input {k}");
+        assert_eq!(slq.gains()[k], gains[k + m], "gain {k}");
+    }
+    // The new tail: the PD's torques from the rolled-out states, the last gain repeated.
+    let mut ws = problem.workspace();
+    let mut next = problem.initial.clone();
+    for k in n - m..n {
+        assert_eq!(slq.gains()[k], gains[n - 1]);
+        let mut u = nalgebra::DVector::zeros(problem.nu());
+        pd.actuated_torques(&model, &slq.states()[k].q, &slq.states()[k].v, &mut u);
+        assert_eq!(slq.inputs()[k], u, "tail input {k}");
+        problem.step(&mut ws, k, &slq.states()[k], &slq.inputs()[k], &mut next);
+        assert_eq!(next, slq.states()[k + 1], "tail state {}", k + 1);
+    }
+}
+
+#[test]
+fn standing_hyq_rejects_a_100_n_lateral_push_and_ticks_on_schedule() {
+    let model = embedded::load("hyq").unwrap();
+    let spec = stand(1.0);
+    let run = plan(&spec, &model);
+    let value = run.solution.value_function.as_ref().expect("the plan's value function");
+    assert_eq!(value.hessians.len(), run.solution.states.len());
+    let ground = Plane::flat(0.0);
+    let settings = MpcSettings::default();
+    let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
+    // The window: 0.5 s in knots of the 5 ms tick period, each integrated in the contact's
+    // stable 1 ms steps.
+    assert_eq!((problem.knots, problem.dt, problem.substeps), (100, 0.005, 5));
+    let mpc = Mpc::new(&problem, &run.solution, spec.dt, settings.clone()).unwrap();
+    let mut sim = Simulator::from_plan(&model, &ground, &run.plan, SimConfig::default()).unwrap();
+    sim.add_push(Push::parse("0,100,0@0.3:0.2").unwrap());
+    // A latency of 12 ms: every tick's policy reaches the robot 12 ms late, and the next
+    // tick is three periods after the last.
+    let closed = run_closed_loop(mpc, &mut sim, spec.duration, PolicyLatency::Fixed(0.012), |_| ()).unwrap();
+    assert!(closed.stopped.is_none(), "{:?}", closed.stopped);
+    let failed = closed.ticks.iter().filter(|t| t.failure.is_some()).count();
+    assert_eq!(failed, 0, "{:?}", closed.ticks.iter().find(|t| t.failure.is_some()));
+    for pair in closed.ticks.windows(2) {
+        assert!((pair[1].t - pair[0].t - 0.015).abs() < 1e-9, "{} -> {}", pair[0].t, pair[1].t);
+        assert_eq!(pair[0].latency, 0.012);
+    }
+    assert_eq!(closed.ticks.len(), 67);
+    // Standing through the push: the base stays up and level and comes back toward its stance.
+    let knots = &closed.trajectory.knots;
+    let start = &knots[0].q;
+    let lowest = knots.iter().map(|k| k.q[2]).fold(f64::INFINITY, f64::min);
+    let widest = knots.iter().map(|k| (k.q[1] - start[1]).abs()).fold(0.0, f64::max);
+    let last = &knots.last().unwrap().q;
+    eprintln!("push: lowest base {lowest:.3} m (start {:.3}), widest lateral {widest:.3} m, final lateral {:.3} m", start[2], last[1] - start[1]);
+    assert!(lowest > start[2] - 0.1, "the base sank to {lowest}");
+    assert!(widest < 0.15, "pushed {widest} m sideways");
+    assert!((last[1] - start[1]).abs() < 0.05, "ended {} m off its stance", last[1] - start[1]);
+    assert!((closed.trajectory.knots.last().unwrap().t - 1.0).abs() < 1e-9);
+}
+
+#[test]
+fn bad_settings_and_a_plan_without_its_value_function_are_named() {
+    let model = embedded::load("hyq").unwrap();
+    let spec = stand(0.2);
+    let ground = Plane::flat(0.0);
+    let name = |e: MpcError| e.to_string();
+    for (settings, field) in [
+        (MpcSettings { rate: 0.0, ..MpcSettings::default() }, "rate"),
+        (MpcSettings { knot_dt: Some(0.002), ..MpcSettings::default() }, "knot_dt"),
+        (MpcSettings { knot_dt: Some(0.01), ..MpcSettings::default() }, "knot_dt"),
+        (MpcSettings { horizon: 0.004, ..MpcSettings::default() }, "horizon"),
+        (MpcSettings { horizon: f64::NAN, ..MpcSettings::default() }, "horizon"),
+        (MpcSettings { iterations_per_tick: 0, ..MpcSettings::default() }, "iterations_per_tick"),
+        (MpcSettings { regularization: -1.0, ..MpcSettings::default() }, "regularization"),
+    ] {
+        let message = name(settings.check().unwrap_err());
+        assert!(message.contains(&format!("`{field}`")), "{message}");
+    }
+    let run = solve_task(&spec, &model, &ground, "stand.toml", &SolveOptions { threads: 1, max_iterations: Some(1), ..SolveOptions::default() }, |_| ()).unwrap();
+    assert!(run.solution.value_function.is_none());
+    let message = name(window_problem(&spec, &model, &ground, &run.solution, spec.dt, &MpcSettings::default(), "stand.toml").err().expect("no value function"));
+    assert!(message.contains("`plan_value`") && message.contains("value function"), "{message}");
+    let no_anchors = MpcSettings { anchor_states: false, plan_value: false, ..MpcSettings::default() };
+    assert!(window_problem(&spec, &model, &ground, &run.solution, spec.dt, &no_anchors, "stand.toml").is_ok());
+}
