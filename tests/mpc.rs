@@ -152,4 +152,17 @@ fn bad_settings_and_a_plan_without_its_value_function_are_named() {
     assert!(message.contains("`plan_value`") && message.contains("value function"), "{message}");
     let no_anchors = MpcSettings { anchor_states: false, plan_value: false, ..MpcSettings::default() };
     assert!(window_problem(&spec, &model, &ground, &run.solution, spec.dt, &no_anchors, "stand.toml").is_ok());
+    // A plan solved without the anchors as states cannot end an anchored window.
+    let run = solve_task(&spec, &model, &ground, "stand.toml", &SolveOptions { threads: 1, max_iterations: Some(1), value_function: true, ..SolveOptions::default() }, |_| ()).unwrap();
+    let mut value = run.solution.value_function.clone().unwrap();
+    for (p, g) in value.hessians.iter_mut().zip(value.gradients.iter_mut()) {
+        *p = p.view((0, 0), (36, 36)).into_owned();
+        *g = g.rows(0, 36).into_owned();
+    }
+    let short = legwork::slq::SlqSolution { value_function: Some(value), ..run.solution.clone() };
+    let message = name(window_problem(&spec, &model, &ground, &short, spec.dt, &MpcSettings::default(), "stand.toml").err().expect("too few coordinates"));
+    assert!(message.contains("`anchor_states`"), "{message}");
+    // The other way round the window takes the plan's value at the plan's anchors.
+    let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &MpcSettings { anchor_states: false, ..MpcSettings::default() }, "stand.toml").unwrap();
+    assert_eq!(problem.receding.as_ref().unwrap().value.as_ref().unwrap().value.hessians[0].nrows(), 36);
 }

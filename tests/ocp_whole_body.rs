@@ -53,6 +53,7 @@ fn hyq_shifts_its_base_forward() {
         joint_limit_cost: None,
         feasibility: None,
         anchor_states: false,
+        linearization: legwork::ocp::KnotLinearization::EverySubstep,
         receding: None,
     };
     let pd = JointPd::standing(&model, dt).unwrap();
@@ -152,6 +153,7 @@ fn cost_gradient_with_foot_targets_matches_finite_differences() {
         joint_limit_cost: None,
         feasibility: None,
         anchor_states: false,
+        linearization: legwork::ocp::KnotLinearization::EverySubstep,
         receding: None,
     };
     let mut ws = problem.workspace();

@@ -55,6 +55,10 @@ pub struct MpcArgs {
     /// --no-plan-value: the plan's value function is on the anchored state).
     #[arg(long)]
     no_anchor_states: bool,
+    /// Linearize every substep of a window's knot exactly (default: the first substep's
+    /// model held over the knot, one derivative evaluation per knot).
+    #[arg(long)]
+    exact_knots: bool,
     /// The smallest regularization of the window's SLQ (1e-3).
     #[arg(long, default_value_t = 1e-3)]
     regularization: f64,
@@ -96,7 +100,7 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join("mpc").join(&spec.name));
     let plan_out = out.join("plan");
     let threads = super::capped_threads(args.threads);
-    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, iterations_per_tick: args.iterations_per_tick, threads, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, anchor_states: !args.no_anchor_states, regularization: args.regularization, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), ..MpcSettings::default() };
+    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, iterations_per_tick: args.iterations_per_tick, threads, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), ..MpcSettings::default() };
     let job = MpcJob {
         solve: SolveJob {
             spec: &spec,

@@ -28,7 +28,7 @@ pub mod closed_loop;
 pub use closed_loop::{run_closed_loop, ClosedLoopRun, PolicyLatency, TickRecord};
 
 use crate::model::Model;
-use crate::ocp::{PlanValue, RecedingHorizon, ReferenceMotion, RobotState, TaskError, TaskSpec, WholeBodyProblem};
+use crate::ocp::{KnotLinearization, PlanValue, RecedingHorizon, ReferenceMotion, RobotState, TaskError, TaskSpec, WholeBodyProblem};
 use crate::sim::{ControlError, Controller, SimState};
 use crate::slq::{Policy, Problem, RealTimeIteration, RealTimeIterationError, Slq, SlqError, SlqSettings, SlqSolution};
 use crate::terrain::Terrain;
@@ -116,12 +116,15 @@ pub struct MpcSettings {
     /// and past the speed limit in the window's rollouts (squat_jump: 227 of 247 ticks
     /// without a usable trial at 1e-10).
     pub regularization: f64,
+    /// How a window's knot (several substeps) is linearized (`FirstSubstep`: one
+    /// derivative evaluation per knot).
+    pub linearization: KnotLinearization,
     pub tracking: TrackingWeights,
 }
 
 impl Default for MpcSettings {
     fn default() -> Self {
-        Self { horizon: 0.5, rate: 200.0, knot_dt: None, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, tracking: TrackingWeights::default() }
+        Self { horizon: 0.5, rate: 200.0, knot_dt: None, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default() }
     }
 }
 
@@ -241,11 +244,21 @@ pub fn window_problem<'a>(spec: &TaskSpec, model: &'a Model, terrain: &'a dyn Te
         problem.feasibility = None;
     }
     problem.anchor_states = settings.anchor_states;
+    problem.linearization = settings.linearization;
     let mut receding = RecedingHorizon::new(0.0, spec.duration, reference);
     if settings.plan_value {
-        let value = plan.value_function.clone().ok_or(MpcError::Settings { field: "plan_value", problem: "the plan has no value function: solve it with record_value_function".into() })?;
-        if value.gradients.first().map(|g| g.len()) != Some(problem.nx()) {
-            return Err(MpcError::Settings { field: "anchor_states", problem: format!("the plan's value function has {} coordinates, the window's state {}: solve both with the same state (anchors or not)", value.gradients.first().map_or(0, |g| g.len()), problem.nx()) });
+        let mut value = plan.value_function.clone().ok_or(MpcError::Settings { field: "plan_value", problem: "the plan has no value function: solve it with record_value_function".into() })?;
+        let (plan_nx, nx) = (value.gradients.first().map_or(0, |g| g.len()), problem.nx());
+        if plan_nx < nx {
+            return Err(MpcError::Settings { field: "anchor_states", problem: format!("the plan's value function has {plan_nx} coordinates, the window's state {nx}: solve the plan with the anchors as states too") });
+        }
+        if plan_nx > nx {
+            // A window without the anchor states ends on the plan's value at the plan's
+            // anchors (dx_anchors = 0): the leading [dq; dv] block.
+            for (p, g) in value.hessians.iter_mut().zip(value.gradients.iter_mut()) {
+                *p = p.view((0, 0), (nx, nx)).into_owned();
+                *g = g.rows(0, nx).into_owned();
+            }
         }
         receding.value = Some(PlanValue { dt: plan_dt, states: plan.states.clone(), value });
     }
@@ -267,7 +280,24 @@ impl<'a> Policy<WholeBodyProblem<'a>> for PlanPolicy<'_> {
         let last = self.plan.inputs.len() - 1;
         let i = ((problem.knot_time(k) / self.plan_dt).round().max(0.0) as usize).min(last);
         let mut dx = self.dx.lock().unwrap_or_else(|e| e.into_inner());
-        problem.difference(&self.plan.states[i], x, &mut dx);
+        // On the plan's own state (its gains have anchor columns when it was solved with
+        // the anchors as states, whatever the window's state is).
+        let (model, y) = (problem.model, &self.plan.states[i]);
+        let nv = model.nv;
+        crate::dynamics::difference_into(model, &y.q, &x.q, &mut dx.as_mut_slice()[..nv]);
+        for j in 0..nv {
+            dx[nv + j] = x.v[j] - y.v[j];
+        }
+        for (f, (ay, ax)) in y.anchors.iter().zip(&x.anchors).enumerate() {
+            let at = 2 * nv + crate::sim::ANCHOR_DIM * f;
+            if at + crate::sim::ANCHOR_DIM <= dx.len() {
+                let d = match (ay, ax) {
+                    (Some(ay), Some(ax)) => ax - ay,
+                    _ => nalgebra::Vector3::zeros(),
+                };
+                dx.fixed_rows_mut::<3>(at).copy_from(&d);
+            }
+        }
         u.copy_from(&self.plan.inputs[i]);
         u.gemv(1.0, &self.plan.gains[i], &dx, 1.0);
     }
@@ -349,7 +379,7 @@ impl<'p, 'a> Mpc<'p, 'a> {
         receding.set_start(0.0);
         let slq_settings = SlqSettings { threads: settings.threads, min_regularization: settings.regularization, initial_regularization: settings.regularization, ..SlqSettings::default() };
         let mut slq = Slq::new(problem, slq_settings)?;
-        let plan_policy = PlanPolicy { plan, plan_dt, dx: Mutex::new(DVector::zeros(problem.nx())) };
+        let plan_policy = PlanPolicy { plan, plan_dt, dx: Mutex::new(DVector::zeros(plan.gains[0].ncols())) };
         let initial = problem.initial.clone();
         let mut cost = slq.start_from(&initial, &plan_policy)?;
         for i in 0..settings.initial_iterations {

@@ -40,6 +40,7 @@ pub use limit_cost::{JointLimitCost, JointLimitCostSpec};
 pub use metrics::{joint_limit_excess, Feasibility, LimitExcess, MotionMetrics, Snapshot, FRICTION_MARGIN, SLIDE_SPEED};
 pub use physical_gains::{physical_gain, PhysicalGainWorkspace};
 pub use receding::{PlanValue, RecedingHorizon, ReferenceMotion};
+
 pub use run::{solution_trajectory, solve_task, ExplorationReport, Rerun, SingleStartFinal, SlqPolicyController, SolveError, SolveOptions, SolveProgress, StageReport, TaskRun};
 pub use target::{all_met, CheckTime, Target, TargetCoordinate, TargetResult, TargetSpec, TargetTime};
 pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, TaskError, TaskSpec, WaypointSpec, WeightSpec, EMBEDDED_TASKS};
@@ -175,10 +176,26 @@ pub struct WholeBodyProblem<'a> {
     /// per foot, [`crate::sim::AnchorStepDerivatives`]) rather than as hidden states held
     /// over each step.
     pub anchor_states: bool,
+    /// How a knot of several substeps is linearized ([`KnotLinearization`]).
+    pub linearization: KnotLinearization,
     /// The problem as a receding-horizon controller's window (`None`: a plan from `t = 0`):
     /// knot times from the window's start, the final cost at the task's end, a reference
     /// motion's tracking cost ([`RecedingHorizon`]).
     pub receding: Option<RecedingHorizon>,
+}
+
+/// How [`WholeBodyProblem`] linearizes a knot integrated in several substeps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum KnotLinearization {
+    /// Every substep's exact `A_i`, `B_i`, chained: `A = A_n .. A_1`, `B = sum_i A_n .. A_{i+1} B_i`
+    /// (the plans').
+    #[default]
+    EverySubstep,
+    /// The first substep's `A_1`, `B_1` held over the knot (`A = A_1^n`,
+    /// `B = sum_i A_1^i B_1`): one derivative evaluation per knot instead of `n`, for a
+    /// receding horizon's coarse knots ([`crate::mpc`]); the states are still integrated
+    /// exactly, only the local model is frozen at the knot's start.
+    FirstSubstep,
 }
 
 /// What one thread needs: the contact dynamics, its linearization and cost scratch.
@@ -194,6 +211,9 @@ pub struct WholeBodyWorkspace<'a> {
     step_a: DMatrix<f64>,
     step_b: DMatrix<f64>,
     chain_tmp_a: DMatrix<f64>,
+    /// The first substep's `A_1`, `B_1` ([`KnotLinearization::FirstSubstep`]).
+    frozen_a: DMatrix<f64>,
+    frozen_b: DMatrix<f64>,
     e: DVector<f64>,
     we: DVector<f64>,
     jac: DMatrix<f64>,
@@ -472,6 +492,8 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             step_a: DMatrix::zeros(self.nx(), self.nx()),
             step_b: DMatrix::zeros(self.nx(), self.nu()),
             chain_tmp_a: DMatrix::zeros(self.nx(), self.nx()),
+            frozen_a: DMatrix::zeros(self.nx(), self.nx()),
+            frozen_b: DMatrix::zeros(self.nx(), self.nu()),
             e: DVector::zeros(2 * nv),
             we: DVector::zeros(2 * nv),
             jac: DMatrix::zeros(2 * nv, 2 * nv),
@@ -535,7 +557,18 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         // Each substep's A_i, B_i (the anchor-extended ones with anchor states), chained
         // with the input held: A <- A_i A, B <- A_i B + B_i.
         let h = self.dt / self.substeps as f64;
+        let frozen = self.linearization == KnotLinearization::FirstSubstep;
         for substep in 0..self.substeps {
+            if frozen && substep > 0 {
+                // The state exactly, the model the first substep's: A <- A_1 A, B <- A_1 B + B_1.
+                ws.dynamics.step(&mut next.q, &mut next.v, &mut next.anchors, &ws.tau, h);
+                ws.chain_tmp_a.gemm(1.0, &ws.frozen_a, &d.a, 0.0);
+                std::mem::swap(&mut d.a, &mut ws.chain_tmp_a);
+                ws.step_b.copy_from(&ws.frozen_b);
+                ws.step_b.gemm(1.0, &ws.frozen_a, &d.b, 1.0);
+                std::mem::swap(&mut d.b, &mut ws.step_b);
+                continue;
+            }
             ws.anchors_before.clone_from(&next.anchors);
             ws.derivatives.step(&mut ws.dynamics, &mut next.q, &mut next.v, &mut next.anchors, &ws.tau, h);
             // The first substep evaluated the contacts and foot Jacobians at x.
@@ -551,6 +584,10 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             } else {
                 a.copy_from(&ws.derivatives.a);
                 b.copy_from(&ws.derivatives.b);
+            }
+            if frozen {
+                ws.frozen_a.copy_from(&d.a);
+                ws.frozen_b.copy_from(&d.b);
             }
             if substep > 0 {
                 // The products land in scratch of the same shapes, which then trades its

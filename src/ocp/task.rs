@@ -438,6 +438,7 @@ impl TaskSpec {
             // The anchors as states of the linearization: the held-anchor model mispredicts
             // every touch-down and slip (see `crate::sim::AnchorStepDerivatives`).
             anchor_states: true,
+            linearization: super::KnotLinearization::EverySubstep,
             receding: None,
         })
     }
