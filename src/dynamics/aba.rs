@@ -75,7 +75,6 @@ fn aba_impl<'d>(
         };
         let oy = data.body_moments[i].transformed(&omi);
         data.y_aba[i] = oy.matrix();
-        data.o_y_crb[i] = oy; // for the RNEA derivatives after ABA
         let mut pa = ov.cross_force(&oy.mul_motion(&ov));
         if let Some(fe) = f_ext {
             pa -= omi.act_force(&fe[i]);

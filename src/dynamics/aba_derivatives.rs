@@ -10,13 +10,12 @@
 //! d qdd / dtau =  M^-1
 //! ```
 //!
-//! `M^-1` comes from ABA's articulated inertias (`minverse.rs`). The tree-sparse `L^T D L`
-//! factorization of `M` (Featherstone 2008, §6.5, Table 6.3), which exploits that
-//! `M_ij = 0` unless `i` and `j` lie on one branch, solves with `M` without forming `M^-1`.
+//! `M^-1` comes from the tree-sparse `L^T D L` factorization of `M` (Featherstone 2008,
+//! §6.5, Table 6.3), which exploits that `M_ij = 0` unless `i` and `j` lie on one branch.
 
 use super::aba::aba;
-use super::minverse::minverse_from_articulated_inertias;
-use super::rnea_derivatives::rnea_derivatives_after_aba;
+use super::crba::crba;
+use super::rnea_derivatives::compute_rnea_derivatives;
 use super::Data;
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
@@ -44,6 +43,67 @@ fn ltdl_in_place(h: &mut [f64], n: usize, lambda: &[usize]) {
             i = lambda[i];
         }
     }
+}
+
+/// `M^-1 = L^-1 D^-1 L^-T` from the factor in `h`, into `out` (full, symmetric);
+/// `linv` is scratch for `L^-1`.
+///
+/// `L^-1` has the branch pattern of `L`: from `L L^-1 = I`,
+/// `L^-1[i, j] = -sum_{k on the branch from i (excluded) to j (included)} L[i, k] L^-1[k, j]`.
+/// Then `M^-1[a, b] = sum_{k common ancestor of a and b} L^-1[a, k] L^-1[b, k] / D_k`.
+fn minv_from_ltdl(h: &[f64], n: usize, lambda: &[usize], linv: &mut [f64], d_inv: &mut [f64], out: &mut [f64]) {
+    for k in 0..n {
+        d_inv[k] = 1.0 / h[k + k * n];
+    }
+    linv.fill(0.0);
+    for i in 0..n {
+        linv[i + i * n] = 1.0;
+        let mut j = lambda[i];
+        while j != ROOT {
+            let mut acc = 0.0;
+            let mut k = lambda[i];
+            while k != ROOT && k >= j {
+                acc += h[i + k * n] * linv[k + j * n];
+                k = lambda[k];
+            }
+            linv[i + j * n] = -acc;
+            j = lambda[j];
+        }
+    }
+    for a in 0..n {
+        for b in 0..=a {
+            let mut acc = 0.0;
+            let mut k = b;
+            while k != ROOT {
+                acc += linv[a + k * n] * linv[b + k * n] * d_inv[k];
+                k = lambda[k];
+            }
+            out[a + b * n] = acc;
+            out[b + a * n] = acc;
+        }
+    }
+}
+
+/// The inverse of the joint-space inertia matrix, full and symmetric, into `data.minv`
+/// (also fills `data.mass_matrix`).
+pub fn compute_minverse<'d>(model: &Model, data: &'d mut Data, q: &DVector<f64>) -> &'d DMatrix<f64> {
+    crba(model, data, q);
+    invert_mass_matrix(model, data);
+    &data.minv
+}
+
+fn invert_mass_matrix(model: &Model, data: &mut Data) {
+    let n = model.nv;
+    data.ltdl.copy_from(&data.mass_matrix);
+    ltdl_in_place(data.ltdl.as_mut_slice(), n, &model.dof_parent);
+    minv_from_ltdl(
+        data.ltdl.as_slice(),
+        n,
+        &model.dof_parent,
+        data.linv.as_mut_slice(),
+        data.tmp_nv.as_mut_slice(),
+        data.minv.as_mut_slice(),
+    );
 }
 
 /// `x <- M^-1 x` for the mass matrix in `data.mass_matrix` (as [`crba`] or
@@ -89,106 +149,23 @@ pub fn mass_matrix_factored_solve(model: &Model, data: &Data, x: &mut [f64]) {
     }
 }
 
-/// `out = -M^-1 X` for a derivative `X` of RNEA (`d tau / dq` or `d tau / dv`), on its
-/// sparsity: column `c` of joint `j` has nonzeros only on the rows of `j`'s ancestors and of
-/// `j`'s subtree (Carpentier & Mansard 2018, Alg. 1: `dtau/dq[i, sub(j)]` for `i` on the
-/// path to `j`, `dtau/dq[sub(j), j]`), so for a leg joint of a quadruped 9 of the 18 rows.
-/// Exact zeros (the free flyer's translation columns of `d tau / dq`: gravity is uniform)
-/// are skipped too. On x86-64 CPUs with AVX2 and FMA the same loops run compiled for them
-/// (runtime detection, as `matrixmultiply` does for nalgebra's `gemm`), also in a portable
-/// build.
-fn minus_minv_times(model: &Model, minv: &DMatrix<f64>, x: &DMatrix<f64>, out: &mut DMatrix<f64>, rows: &[usize], starts: &[usize]) {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-        // SAFETY: the CPU has the features the function is compiled for.
-        unsafe { minus_minv_times_avx2_fma(model, minv, x, out, rows, starts) };
-        return;
-    }
-    minus_minv_times_impl::<false>(model, minv, x, out, rows, starts);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn minus_minv_times_avx2_fma(model: &Model, minv: &DMatrix<f64>, x: &DMatrix<f64>, out: &mut DMatrix<f64>, rows: &[usize], starts: &[usize]) {
-    minus_minv_times_impl::<true>(model, minv, x, out, rows, starts);
-}
-
-#[inline(always)]
-fn minus_minv_times_impl<const FMA: bool>(model: &Model, minv: &DMatrix<f64>, x: &DMatrix<f64>, out: &mut DMatrix<f64>, rows: &[usize], starts: &[usize]) {
-    let nv = model.nv;
-    let (minv, x, out) = (minv.as_slice(), x.as_slice(), out.as_mut_slice());
-    for (j, jnt) in model.joints.iter().enumerate().skip(1) {
-        let rows = &rows[starts[j]..starts[j + 1]];
-        for c in jnt.idx_v..jnt.idx_v + jnt.nv {
-            let xc = &x[c * nv..(c + 1) * nv];
-            let oc = &mut out[c * nv..(c + 1) * nv];
-            // Rows `lo..lo + W` of out[:, c] = -sum_r M^-1[:, r] X[r, c] (M^-1 symmetric:
-            // column r = row r), summed in registers over the rows r of the pattern.
-            let block = |lo: usize, acc: &mut [f64]| {
-                let w = acc.len();
-                let mut add = |r: usize| {
-                    let a = xc[r];
-                    if a != 0.0 {
-                        let m = &minv[r * nv + lo..r * nv + lo + w];
-                        for (s, &mr) in acc.iter_mut().zip(m) {
-                            *s = if FMA { mr.mul_add(a, *s) } else { *s + mr * a };
-                        }
-                    }
-                };
-                for &r in rows {
-                    add(r);
-                }
-            };
-            let mut lo = 0;
-            while lo + 16 <= nv {
-                let mut acc = [0.0; 16];
-                block(lo, &mut acc);
-                for (o, s) in oc[lo..lo + 16].iter_mut().zip(acc) {
-                    *o = -s;
-                }
-                lo += 16;
-            }
-            // The last rows: one block of 4 ending at nv (overlapping the previous block,
-            // whose rows it recomputes identically), else one row at a time.
-            if lo < nv && nv >= 4 {
-                let lo = nv - 4;
-                let mut acc = [0.0; 4];
-                block(lo, &mut acc);
-                for (o, s) in oc[lo..].iter_mut().zip(acc) {
-                    *o = -s;
-                }
-            } else {
-                while lo < nv {
-                    let mut acc = [0.0; 1];
-                    block(lo, &mut acc);
-                    oc[lo] = -acc[0];
-                    lo += 1;
-                }
-            }
-        }
-    }
-}
-
 /// Partial derivatives of forward dynamics `qdd = ABA(q, v, tau)`: `data.ddq_dq`,
 /// `data.ddq_dv` (tangent-space convention of `shared/fixtures/README.md`) and
 /// `data.minv` (`= d qdd / d tau`). Also sets `data.ddq`.
-///
-/// ```text
-/// qdd = ABA(q, v, tau);  M^-1 from ABA's articulated inertias (minverse.rs)
-/// d qdd / dq = -M^-1 d RNEA/dq (q, v, qdd),   d qdd / dv = -M^-1 d RNEA/dv (q, v, qdd)
-/// ```
 pub fn compute_aba_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, tau: &DVector<f64>) {
     aba(model, data, q, v, tau);
-    minverse_from_articulated_inertias(model, data);
-    rnea_derivatives_after_aba(model, data);
-    minus_minv_times(model, &data.minv, &data.dtau_dq, &mut data.ddq_dq, &data.dtau_rows, &data.dtau_rows_start);
-    minus_minv_times(model, &data.minv, &data.dtau_dv, &mut data.ddq_dv, &data.dtau_rows, &data.dtau_rows_start);
+    let qdd = std::mem::replace(&mut data.ddq, DVector::zeros(0));
+    compute_rnea_derivatives(model, data, q, v, &qdd);
+    data.ddq = qdd;
+    invert_mass_matrix(model, data);
+    data.ddq_dq.gemm(-1.0, &data.minv, &data.dtau_dq, 0.0);
+    data.ddq_dv.gemm(-1.0, &data.minv, &data.dtau_dv, 0.0);
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dynamics::{compute_minverse, crba, random_configuration};
+    use crate::dynamics::random_configuration;
 
     /// `mass_matrix_solve` against `M^-1 x` of the inverse (A1, random configurations).
     #[test]
@@ -204,7 +181,6 @@ mod tests {
             let q = random_configuration(&model, &mut uniform);
             let x = DVector::from_fn(model.nv, |i, _| (i as f64 * 0.7).sin() * 3.0);
             let expected = compute_minverse(&model, &mut data, &q) * &x;
-            crba(&model, &mut data, &q);
             let mut solved = x.clone();
             mass_matrix_solve(&model, &mut data, solved.as_mut_slice());
             let err = (&solved - &expected).amax();

@@ -98,15 +98,8 @@ pub struct Data {
     pub(crate) w_dytj: Vec<Vector3<f64>>,
     /// `L^T D L` factor of `M` (Featherstone 2008, §6.5).
     pub(crate) ltdl: DMatrix<f64>,
-    /// Of [`super::compute_minverse`]: the bias forces `F` of the unit torques (6 x nv) and
-    /// the accelerations `A_i` (6 x nv per joint, joint `i` at `6 i nv`).
-    pub(crate) minv_f: Matrix6xX<f64>,
-    pub(crate) minv_a: Vec<f64>,
-    /// The rows where a column of joint `j` of the RNEA derivatives can be nonzero (the
-    /// degrees of freedom of `j`'s ancestors, then of its subtree):
-    /// `dtau_rows[dtau_rows_start[j]..dtau_rows_start[j + 1]]`.
-    pub(crate) dtau_rows: Vec<usize>,
-    pub(crate) dtau_rows_start: Vec<usize>,
+    /// `L^-1`.
+    pub(crate) linv: DMatrix<f64>,
 }
 
 impl Data {
@@ -177,33 +170,7 @@ impl Data {
             w_dfda: vec![Force::zero(); n],
             w_dytj: vec![Vector3::zeros(); n],
             ltdl: DMatrix::zeros(nv, nv),
-            minv_f: Matrix6xX::zeros(nv),
-            minv_a: vec![0.0; 6 * n * nv],
-            dtau_rows: (0..n).flat_map(|j| dtau_rows(model, j)).collect(),
-            dtau_rows_start: std::iter::once(0)
-                .chain((0..n).scan(0, |acc, j| {
-                    *acc += dtau_rows(model, j).len();
-                    Some(*acc)
-                }))
-                .collect(),
+            linv: DMatrix::zeros(nv, nv),
         }
     }
-}
-
-/// The rows where a column of joint `j` of `d tau / dq` or `d tau / dv` can be nonzero: the
-/// degrees of freedom of `j`'s ancestors (nearest first), then of `j`'s subtree (none for
-/// the universe).
-fn dtau_rows(model: &Model, j: usize) -> Vec<usize> {
-    if j == 0 {
-        return Vec::new();
-    }
-    let jnt = &model.joints[j];
-    let mut rows = Vec::new();
-    let mut r = model.dof_parent[jnt.idx_v];
-    while r != usize::MAX {
-        rows.push(r);
-        r = model.dof_parent[r];
-    }
-    rows.extend(jnt.idx_v..jnt.idx_v + model.nv_subtree[j]);
-    rows
 }

@@ -13,7 +13,6 @@
 //! | RNEA, non-linear effects, gravity | `rnea.rs` | Featherstone 2008, Table 5.1 |
 //! | ABA (with external forces) | `aba.rs` | Featherstone 2008, Table 7.1 |
 //! | CRBA | `crba.rs` | Featherstone 2008, Table 6.2 |
-//! | `M^-1` (articulated-body recursion) | `minverse.rs` | Carpentier & Mansard 2018, §IV |
 //! | centroidal momentum and its matrix | `centroidal.rs` | Orin, Goswami & Lee 2013 |
 //! | integrate / difference on the configuration manifold | `configuration.rs` | Sola et al. 2018 |
 //! | RNEA derivatives | `rnea_derivatives.rs` | Carpentier & Mansard 2018, Alg. 1 |
@@ -29,12 +28,11 @@ mod data;
 mod frames;
 mod jacobian;
 mod kinematics;
-mod minverse;
 mod rnea;
 mod rnea_derivatives;
 
 pub use aba::{aba, aba_with_external_forces};
-pub use aba_derivatives::{compute_aba_derivatives, mass_matrix_factor, mass_matrix_factored_solve, mass_matrix_solve};
+pub use aba_derivatives::{compute_aba_derivatives, compute_minverse, mass_matrix_factor, mass_matrix_factored_solve, mass_matrix_solve};
 pub use centroidal::{centroidal_map, centroidal_momentum};
 pub use com::{center_of_mass, com_jacobian};
 pub use configuration::{
@@ -45,7 +43,6 @@ pub use crba::crba;
 pub use data::Data;
 pub use frames::{frame_placement, frame_position, update_frame_placements};
 pub use jacobian::{compute_joint_jacobians, frame_jacobian, ReferenceFrame};
-pub use minverse::compute_minverse;
 pub use kinematics::{forward_kinematics, forward_kinematics_velocity, joint_transform};
 pub use rnea::{generalized_gravity, nonlinear_effects, rnea};
 pub use rnea_derivatives::{compute_rnea_derivatives, rnea_derivatives_forward, rnea_derivatives_tr_mul};

@@ -122,11 +122,6 @@ fn add_to_parent(data: &mut Data, i: usize, parent: usize) {
 /// ```
 pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>) {
     forward_pass(model, data, q, v, a);
-    backward_pass::<true>(model, data);
-}
-
-/// The backward pass of [`compute_rnea_derivatives`]; with `MASS`, also `M` and `tau`.
-fn backward_pass<const MASS: bool>(model: &Model, data: &mut Data) {
     let n = model.njoints();
     // ---- backward pass
     let nv = model.nv;
@@ -140,9 +135,7 @@ fn backward_pass<const MASS: bool>(model: &Model, data: &mut Data) {
         let of = data.of[i];
         for k in iv..iv + nvj {
             let jc = col(&data.jacobian, k);
-            if MASS {
-                data.tau[k] = jc.dot(&of);
-            }
+            data.tau[k] = jc.dot(&of);
             // dF/da = oYc J (the A_g column at the world origin); dY^T J = [0; -t x J_v + B^T J_w]
             set_col_f(&mut data.dfda, k, &oyc.mul_motion(&jc));
             let yt = dy_transpose_j((&t, &b), &jc);
@@ -160,9 +153,7 @@ fn backward_pass<const MASS: bool>(model: &Model, data: &mut Data) {
             let (fa, fq, fv) = (col6(dfda, c), col6(dfdq, c), col6(dfdv, c));
             for k in iv..iv + nvj {
                 let jc = col6(js, k);
-                if MASS {
-                    mm[k + c * nv] = dot6(&jc, &fa);
-                }
+                mm[k + c * nv] = dot6(&jc, &fa);
                 dq[k + c * nv] = dot6(&jc, &fq);
                 dv[k + c * nv] = dot6(&jc, &fv);
             }
@@ -186,14 +177,13 @@ fn backward_pass<const MASS: bool>(model: &Model, data: &mut Data) {
         }
         add_to_parent(data, i, p);
     }
-    if MASS {
-        // M: mirror the upper triangle.
-        data.mass_matrix.fill_lower_triangle_with_upper_triangle();
-    }
+    // M: mirror the upper triangle.
+    data.mass_matrix.fill_lower_triangle_with_upper_triangle();
 }
 
 /// The forward pass of [`compute_rnea_derivatives`]: placements, world velocities and
-/// accelerations, the bodies' world inertias `oY_i`, then [`forward_columns`].
+/// accelerations, the bodies' world inertias `oY_i`, forces `f_i` and inertia variations
+/// `dY_i` (not yet summed over the subtrees), and the columns `J`, `dV/dq`, `dA/dq`, `dA/dv`.
 fn forward_pass(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>) {
     let n = model.njoints();
     let minus_g = -model.gravity;
@@ -213,60 +203,38 @@ fn forward_pass(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f6
         data.o_m_i[i] = omi;
         data.v[i] = vi;
         data.a[i] = ai;
-        data.o_y_crb[i] = data.body_moments[i].transformed(&omi);
-        data.ov[i] = omi.act(&vi);
-        data.oa[i] = omi.act(&ai) + minus_g;
-        forward_columns(model, data, i);
+        let oy = data.body_moments[i].transformed(&omi);
+        let ov = omi.act(&vi);
+        let oa_gf = omi.act(&ai) + minus_g;
+        let oh = oy.mul_motion(&ov);
+        data.of[i] = oy.mul_motion(&oa_gf) + ov.cross_force(&oh);
+        data.o_y_crb[i] = oy;
+        data.ov[i] = ov;
+        data.oa[i] = oa_gf;
+        data.oh[i] = oh;
+        let (ov_p, oa_gf_p) = if p > 0 { (data.ov[p], data.oa[p]) } else { (Motion::zero(), minus_g) };
+        for k in jnt.idx_v..jnt.idx_v + jnt.nv {
+            let s_local = match jnt.kind {
+                JointKind::FreeFlyer => {
+                    let mut e = Vector6::zeros();
+                    e[k - jnt.idx_v] = 1.0;
+                    Motion::from_vector(&e)
+                }
+                kind => kind.subspace(),
+            };
+            let jc = omi.act(&s_local);
+            let dvdq = ov_p.cross(&jc);
+            let dadq = oa_gf_p.cross(&jc) + ov_p.cross(&dvdq);
+            let dadv = ov.cross(&jc) + dvdq; // dJ + dV/dq
+            set_col(&mut data.jacobian, k, &jc);
+            set_col(&mut data.dvdq, k, &dvdq);
+            set_col(&mut data.dadq, k, &dadq);
+            set_col(&mut data.dadv, k, &dadv);
+        }
+        let (t, b) = inertia_variation(&oy, &ov, &oh);
+        data.do_y_top[i] = t;
+        data.do_y_b[i] = b;
     }
-}
-
-/// The rest of the forward pass for joint `i`, from its world placement `oMi`, velocity
-/// `ov_i`, acceleration `oa^gf_i` (gravity included) and inertia `oY_i` (as [`super::aba`]
-/// leaves them too): the force `f_i`, the inertia variation `dY_i` (not yet summed over the
-/// subtree) and the columns `J`, `dV/dq`, `dA/dq`, `dA/dv` of the joint.
-#[inline(always)]
-fn forward_columns(model: &Model, data: &mut Data, i: usize) {
-    let jnt = &model.joints[i];
-    let p = jnt.parent;
-    let minus_g = -model.gravity;
-    let omi = data.o_m_i[i];
-    let (oy, ov, oa_gf) = (data.o_y_crb[i], data.ov[i], data.oa[i]);
-    let oh = oy.mul_motion(&ov);
-    data.of[i] = oy.mul_motion(&oa_gf) + ov.cross_force(&oh);
-    data.oh[i] = oh;
-    let (ov_p, oa_gf_p) = if p > 0 { (data.ov[p], data.oa[p]) } else { (Motion::zero(), minus_g) };
-    for k in jnt.idx_v..jnt.idx_v + jnt.nv {
-        let s_local = match jnt.kind {
-            JointKind::FreeFlyer => {
-                let mut e = Vector6::zeros();
-                e[k - jnt.idx_v] = 1.0;
-                Motion::from_vector(&e)
-            }
-            kind => kind.subspace(),
-        };
-        let jc = omi.act(&s_local);
-        let dvdq = ov_p.cross(&jc);
-        let dadq = oa_gf_p.cross(&jc) + ov_p.cross(&dvdq);
-        let dadv = ov.cross(&jc) + dvdq; // dJ + dV/dq
-        set_col(&mut data.jacobian, k, &jc);
-        set_col(&mut data.dvdq, k, &dvdq);
-        set_col(&mut data.dadq, k, &dadq);
-        set_col(&mut data.dadv, k, &dadv);
-    }
-    let (t, b) = inertia_variation(&oy, &ov, &oh);
-    data.do_y_top[i] = t;
-    data.do_y_b[i] = b;
-}
-
-/// `d tau / dq` and `d tau / dv` of RNEA at `(q, v, qdd)` right after [`super::aba`] at
-/// `(q, v, tau)` (so `qdd = data.ddq`): ABA's world placements, velocities, accelerations
-/// (`oa`, gravity included) and inertias are those of the forward pass, so only
-/// [`forward_columns`] and the backward pass run, without `M` and `tau`.
-pub(crate) fn rnea_derivatives_after_aba(model: &Model, data: &mut Data) {
-    for i in 1..model.njoints() {
-        forward_columns(model, data, i);
-    }
-    backward_pass::<false>(model, data);
 }
 
 /// The first half of [`rnea_derivatives_tr_mul`]: the forward pass of
