@@ -105,6 +105,7 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
         "pushes": job.pushes.iter().map(|p| json!({ "force_n": [p.force.x, p.force.y, p.force.z], "start_s": p.start, "duration_s": p.duration })).collect::<Vec<_>>(),
         "ticks": run.ticks.len(),
         "failed_ticks": run.ticks.iter().filter(|t| t.failure.is_some()).count(),
+        "restarted_ticks": run.ticks.iter().filter(|t| t.restarted).count(),
         "ticks_over_period": times.iter().filter(|t| **t > period).count(),
         "tick_time_p50_s": percentile(times.clone(), 50.0),
         "tick_time_p99_s": percentile(times.clone(), 99.0),

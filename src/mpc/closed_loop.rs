@@ -45,6 +45,8 @@ pub struct TickRecord {
     /// The Levenberg-Marquardt regularization of `H` after the tick.
     pub regularization: Option<f64>,
     pub iterations: usize,
+    /// The tick restarted from the plan's policy (the shifted solution had failed).
+    pub restarted: bool,
     /// Seconds in the tick's linearizations, backward passes (overlapped with them on two
     /// or more threads: the pass's own time) and trial rollouts.
     pub linearization_time: f64,
@@ -155,11 +157,11 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut Simulator<'_>, duration: 
                             PolicyLatency::Measured => report.solve_time,
                             PolicyLatency::Fixed(l) => l,
                         };
-                        (TickRecord { t: t_tick, solve_time: report.solve_time, latency: wait, cost: Some(report.cost), alpha: last.map(|i| i.alpha), regularization: last.map(|i| i.regularization), iterations: report.iterations.len(), linearization_time: report.iterations.iter().map(|i| i.timing.linearization).sum(), backward_pass_time: report.iterations.iter().map(|i| i.timing.backward_pass).sum(), rollout_time: report.iterations.iter().map(|i| i.timing.line_search).sum(), failure: None }, Some(reply.policy))
+                        (TickRecord { t: t_tick, solve_time: report.solve_time, latency: wait, cost: Some(report.cost), alpha: last.map(|i| i.alpha), regularization: last.map(|i| i.regularization), iterations: report.iterations.len(), restarted: report.restarted, linearization_time: report.iterations.iter().map(|i| i.timing.linearization).sum(), backward_pass_time: report.iterations.iter().map(|i| i.timing.backward_pass).sum(), rollout_time: report.iterations.iter().map(|i| i.timing.line_search).sum(), failure: None }, Some(reply.policy))
                     }
                     Err(e) => {
                         spare = Some(reply.policy);
-                        (TickRecord { t: t_tick, solve_time: 0.0, latency: 0.0, cost: None, alpha: None, regularization: None, iterations: 0, linearization_time: 0.0, backward_pass_time: 0.0, rollout_time: 0.0, failure: Some(e.to_string()) }, None)
+                        (TickRecord { t: t_tick, solve_time: 0.0, latency: 0.0, cost: None, alpha: None, regularization: None, iterations: 0, restarted: false, linearization_time: 0.0, backward_pass_time: 0.0, rollout_time: 0.0, failure: Some(e.to_string()) }, None)
                     }
                 };
                 step_until(sim, &mut controller, &mut trajectory, t_tick + record.latency)?;

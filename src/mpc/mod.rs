@@ -363,6 +363,8 @@ pub struct TickReport {
     /// The kept trajectory's cost and the iterations' records.
     pub cost: f64,
     pub iterations: Vec<RealTimeIteration>,
+    /// Whether the tick restarted from the plan's policy (the shifted solution failed).
+    pub restarted: bool,
 }
 
 impl<'p, 'a> Mpc<'p, 'a> {
@@ -411,12 +413,26 @@ impl<'p, 'a> Mpc<'p, 'a> {
         self.last_start = start;
         self.slq.shift(knots, &self.plan_policy);
         let mut iterations = Vec::with_capacity(self.settings.iterations_per_tick);
+        let mut restarted = false;
         for i in 0..self.settings.iterations_per_tick {
-            let it = self.slq.real_time_iteration(x, (i > 0).then_some(self.cost)).map_err(|source| MpcError::Tick { t, source })?;
+            let it = match self.slq.real_time_iteration(x, (i > 0).then_some(self.cost)) {
+                Ok(it) => it,
+                // The shifted solution is no longer a usable model (its backward pass found
+                // no positive-definite H, or none of its steps stayed valid from the new
+                // state): start the window again from the plan's own policy, rolled out
+                // from the measured state, and iterate on that.
+                Err(_) if !restarted => {
+                    restarted = true;
+                    self.slq.reset_regularization();
+                    self.slq.start_from(x, &self.plan_policy).map_err(|_| MpcError::Tick { t, source: RealTimeIterationError::NoValidTrial })?;
+                    self.slq.real_time_iteration(x, None).map_err(|source| MpcError::Tick { t, source })?
+                }
+                Err(source) => return Err(MpcError::Tick { t, source }),
+            };
             self.cost = it.cost;
             iterations.push(it);
         }
-        Ok(TickReport { t: start, solve_time: started.elapsed().as_secs_f64(), cost: self.cost, iterations })
+        Ok(TickReport { t: start, solve_time: started.elapsed().as_secs_f64(), cost: self.cost, iterations, restarted })
     }
 
     /// The current solution as the policy the robot runs.

@@ -65,6 +65,12 @@ impl<'p, P: Problem> Slq<'p, P> {
         self.rollout(policy)
     }
 
+    /// Back to the initial regularization (after the trajectory was replaced: the
+    /// regularization an old one needed says nothing of the new).
+    pub fn reset_regularization(&mut self) {
+        self.regularization = self.settings.initial_regularization;
+    }
+
     /// Moves the solution `knots` knots earlier (the window has moved on by as much): knot
     /// `k` takes knot `k + knots`'s state, input and gain; the last `knots` inputs come from
     /// `tail` (the gains repeat the last shifted one) and their states are rolled out with
@@ -111,8 +117,6 @@ impl<'p, P: Problem> Slq<'p, P> {
     pub fn real_time_iteration(&mut self, x0: &P::State, must_improve: Option<f64>) -> Result<RealTimeIteration, RealTimeIterationError> {
         let mut timing = IterationTiming::default();
         if !self.linearize_and_backward_pass(&mut timing) {
-            // Start the next tick's pass less regularized than the failed one ended.
-            self.regularization = self.settings.max_regularization / 10.0;
             return Err(RealTimeIterationError::BackwardPass);
         }
         let feedforward_norm = self.feedforward_norm();
