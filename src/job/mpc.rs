@@ -58,7 +58,13 @@ impl MpcJob<'_> {
         let solution = &plan.run.solution;
         let problem = window_problem(spec, model, &terrain, solution, spec.dt, &self.settings, origin).map_err(JobError::bad_input)?;
         let mpc = Mpc::new(&problem, solution, spec.dt, self.settings.clone()).or_could_not_finish()?;
-        let mut sim = Simulator::from_plan(model, &terrain, &plan.run.plan, SimConfig::default()).or_could_not_finish()?;
+        // The robot's world at the window's integration step (1 ms), the policy applied every
+        // step: the gains are those of that discrete system (as the plan's SLQ-policy re-run;
+        // at 0.5 ms physics the stiff contact is another system at touch-down, and the
+        // gallop's closed loop spun a free leg past 200 rad/s within 0.4-2 s).
+        let step = problem.dt / problem.substeps as f64;
+        let config = SimConfig { physics_dt: step, control_dt: step, ..SimConfig::default() };
+        let mut sim = Simulator::from_plan(model, &terrain, &plan.run.plan, config).or_could_not_finish()?;
         for push in &self.pushes {
             sim.add_push(*push);
         }

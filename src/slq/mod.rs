@@ -278,6 +278,8 @@ pub struct Slq<'p, P: Problem> {
     /// [`SlqSettings::record_value_function`]).
     value: Option<ValueFunction>,
     recording: bool,
+    /// The real-time iterations' step size, adapted tick to tick ([`Slq::real_time_iteration`]).
+    real_time_step: f64,
 }
 
 /// A line-search rollout: its trajectory, scratch and outcome.
@@ -570,6 +572,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             qp: BoxQp::new(nu, settings.box_qp),
             value: settings.record_value_function.then(|| ValueFunction { hessians: vec![DMatrix::zeros(nx, nx); n + 1], gradients: vec![DVector::zeros(nx); n + 1] }),
             recording: false,
+            real_time_step: 1.0,
             regularization: settings.initial_regularization,
             settings,
             pool,

@@ -6,7 +6,8 @@
 //! ```text
 //! linearize and backward pass around the shifted solution x_n, u_n   (Alg. 1, steps 2-3)
 //! roll out u = clamp(u_n + alpha l + K (x (-) x_n)) from the measured x_0 for one step
-//!   size per thread, alpha = 1, 1/alpha_d, ...; keep the cheapest        (step 4)
+//!   size per thread: the adapted step, 0 (the shifted policy), the step halved, ...;
+//!   keep the cheapest                                                  (step 4)
 //! ```
 //!
 //! The first iteration of a tick starts from a state the shifted trajectory did not start
@@ -69,6 +70,7 @@ impl<'p, P: Problem> Slq<'p, P> {
     /// regularization an old one needed says nothing of the new).
     pub fn reset_regularization(&mut self) {
         self.regularization = self.settings.initial_regularization;
+        self.real_time_step = 1.0;
     }
 
     /// Moves the solution `knots` knots earlier (the window has moved on by as much): knot
@@ -126,10 +128,18 @@ impl<'p, P: Problem> Slq<'p, P> {
         let (states, inputs, feedforward, gains) = (&self.states, &self.inputs, &self.feedforward, &self.gains);
         let bounds = (&self.lower[..], &self.upper[..]);
         let round = self.trials.len();
+        // The step sizes of the round: the adapted step, then (with two or more threads)
+        // none (the shifted policy's own feedback), then the adapted step halved, ...
+        let step = self.real_time_step;
+        let alpha_of = move |j: usize| match j {
+            0 => step,
+            1 => 0.0,
+            j => divided(step, divisor, j - 1),
+        };
         let jobs = self.trials.iter_mut().zip(self.workspaces.iter_mut()).enumerate();
         for_each_job(self.pool.as_ref(), jobs, |(j, (trial, ws))| {
             trial.states[0].clone_from(x0);
-            trial.cost = Self::trial_rollout_from(problem, ws, states, inputs, feedforward, gains, bounds, divided(1.0, divisor, j), trial);
+            trial.cost = Self::trial_rollout_from(problem, ws, states, inputs, feedforward, gains, bounds, alpha_of(j), trial);
         });
         let best = (0..round).filter_map(|j| self.trials[j].cost.map(|c| (j, c))).filter(|&(_, c)| must_improve.is_none_or(|old| c < old)).min_by(|a, b| a.1.total_cmp(&b.1));
         timing.line_search = t.elapsed().as_secs_f64();
@@ -137,7 +147,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             (Some((j, c)), _) => {
                 std::mem::swap(&mut self.states, &mut self.trials[j].states);
                 std::mem::swap(&mut self.inputs, &mut self.trials[j].inputs);
-                (divided(1.0, divisor, j), c)
+                (alpha_of(j), c)
             }
             (None, Some(old)) => (0.0, old),
             (None, None) => {
@@ -159,13 +169,18 @@ impl<'p, P: Problem> Slq<'p, P> {
                 }
                 std::mem::swap(&mut self.states, &mut trial.states);
                 std::mem::swap(&mut self.inputs, &mut trial.inputs);
-                (divided(1.0, divisor, j), f64::INFINITY)
+                (alpha_of(j), f64::INFINITY)
             }
         };
         // The regularization only grows where the backward pass needs it (an H that is not
         // positive definite restarts the pass with more) and decays after every tick: a
         // half step is no reason for weaker gains, which the robot runs until the next tick.
         self.regularization = (self.regularization / 10.0).max(self.settings.min_regularization);
+        // The step adapts as a trust region: the full adapted step kept doubles it (up to
+        // 1), none or a shorter one kept halves it (down to 1e-3). The whole-body steps are
+        // short (the gallop's plan accepts alpha ~ 0.01-0.06): full Newton steps every
+        // tick drive the torques to their limits and spin free legs up.
+        self.real_time_step = if alpha == step { (2.0 * step).min(1.0) } else { (step / divisor).max(1e-3) };
         Ok(RealTimeIteration { cost, alpha, feedforward_norm, regularization: self.regularization, timing })
     }
 }
