@@ -7,11 +7,12 @@
 //! (200 Hz):
 //!
 //! - **window** ([`window_problem`]): the task's own costs at their absolute times (the
-//!   waypoints' Gaussian windows, the final cost at the task's end), a tracking cost toward
-//!   the offline plan at every knot and a terminal one at the window's end (the plan's
-//!   motion as the cost-to-go beyond the window, [`crate::ocp::RecedingHorizon`]), the
-//!   robot's own contact model and torque limits, knots spaced by the tick period (5 ms,
-//!   coarser than the plan's 2 ms; each integrated in steps of the contact's stable step);
+//!   waypoints' Gaussian windows, the final cost at the task's end), the plan's value
+//!   function (`P_k`, `p_k` of its last backward pass) as the cost beyond the window's end,
+//!   a light tracking cost toward the plan's states and torques
+//!   ([`crate::ocp::RecedingHorizon`]), the robot's own contact model and torque limits,
+//!   knots spaced by the tick period (5 ms, coarser than the plan's 2 ms; each integrated
+//!   in steps of the contact's stable step and linearized once, at its start);
 //! - **warm start**: the previous tick's solution shifted by the knots the window moved
 //!   ([`crate::slq::Slq::shift`]), its new last knots from the plan's own policy;
 //! - **iteration budget**: a fixed number of SLQ iterations per tick (one by default,

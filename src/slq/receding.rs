@@ -25,7 +25,8 @@ use std::time::Instant;
 pub struct RealTimeIteration {
     /// Cost of the kept trajectory (from the measured state).
     pub cost: f64,
-    /// Its step size; 0 if no trial lowered the cost of a later iteration (kept as it was).
+    /// Its step size: 0 for the no-step trial (the shifted policy's own feedback), or when a
+    /// later iteration of the tick kept the trajectory as it was.
     pub alpha: f64,
     /// RMS over knots of the feedforward increments `l_k`.
     pub feedforward_norm: f64,
