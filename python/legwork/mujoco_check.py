@@ -36,6 +36,18 @@ Commands:
       dynamics (mj_inverse) both in legwork's velocity coordinates: the test set's
       comparison with legwork's CRBA, RNEA and forward kinematics; and the ground's height
       under each of the input's `ground_points` [x, y] (a ray cast onto the `ground` geom).
+
+  plant    --mjcf M --start start.json
+      MuJoCo as the plant of a controller that runs elsewhere (`legwork mpc --sim mujoco`),
+      one JSON object per line on stdin/stdout. start.json holds the robot's joint_names,
+      foot_names and the first state {q, v} (legwork's conventions). The plant answers
+      first with {t, q, v, dt}; then, for every request {"tau": [nj], "push": [fx, fy, fz]}
+      (joint torques, clipped to the actuators' force range; a world-frame force on the base
+      at its frame's origin, as legwork's pushes), it takes one physics step and answers
+      {t, q, v, forces, touching, failed}: the new state and the contacts of the step's
+      start (the ground's force on each foot, world frame), `failed` a reason or null. A
+      request {"contacts": true} answers {forces, touching} of the current state. End of
+      input ends the plant.
 """
 
 import argparse
@@ -499,6 +511,57 @@ def torques(args):
     write_json(args.output, {"torques": out})
 
 
+def plant(args):
+    """MuJoCo stepped by a controller over a pipe (see the module docstring)."""
+    model = mujoco.MjModel.from_xml_path(args.mjcf)
+    data = mujoco.MjData(model)
+    start = load_json(args.start)
+    robot = Robot(model, start["joint_names"], start["foot_names"])
+    robot.set_state(data, start["q"], start["v"])
+    mujoco.mj_forward(model, data)
+    base = model.jnt_bodyid[0]
+    dt = model.opt.timestep
+    step = 0
+    out = sys.stdout
+
+    def answer(value):
+        out.write(json.dumps(value))
+        out.write("\n")
+        out.flush()
+
+    q, v = robot.state(data)
+    answer({"t": 0.0, "q": q.tolist(), "v": v.tolist(), "dt": dt})
+    for line in sys.stdin:
+        request = json.loads(line)
+        if request.get("contacts"):
+            mujoco.mj_forward(model, data)
+            forces, touching = robot.contact_forces(data)
+            answer({"forces": forces.tolist(), "touching": touching})
+            continue
+        tau = np.asarray(request["tau"], float)
+        if tau.shape != (robot.nj,) or not np.all(np.isfinite(tau)):
+            sys.exit(f"mujoco_check plant: request {step}: expected {robot.nj} finite torques, got {request['tau']}")
+        push = np.asarray(request.get("push", [0.0, 0.0, 0.0]), float)
+        # xfrc_applied acts at the body's centre of mass: the push at the base frame's
+        # origin is that force plus the moment (origin - com) x F.
+        data.xfrc_applied[base, :3] = push
+        data.xfrc_applied[base, 3:] = np.cross(data.xpos[base] - data.xipos[base], push)
+        data.ctrl[robot.actuator] = np.clip(tau, -robot.effort, robot.effort)
+        mujoco.mj_step(model, data)
+        step += 1
+        # After mj_step, the contacts and their forces are those of the step's start.
+        forces, touching = robot.contact_forces(data)
+        q, v = robot.state(data)
+        failed = None
+        if data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0:
+            failed = f"MuJoCo's accelerations are not finite (mjWARN_BADQACC) at step {step}"
+        elif not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            failed = f"the state is not finite at step {step}"
+        answer({"t": step * dt, "q": q.tolist(), "v": v.tolist(), "forces": forces.tolist(), "touching": touching, "failed": failed})
+        if failed:
+            return
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -521,8 +584,13 @@ def main():
     p.add_argument("--mjcf", required=True)
     p.add_argument("--input", required=True)
     p.add_argument("--output", required=True)
+    p = sub.add_parser("plant", help="MuJoCo stepped by a controller over stdin/stdout (JSON lines)")
+    p.add_argument("--mjcf", required=True)
+    p.add_argument("--start", required=True)
     args = parser.parse_args()
-    if args.command == "run":
+    if args.command == "plant":
+        plant(args)
+    elif args.command == "run":
         if args.controller in ("track", "stand") and not args.settings:
             parser.error(f"--controller {args.controller} needs --settings")
         run(args)

@@ -4,7 +4,7 @@ use super::outcome::Verdict;
 use super::solve::{job_error, load_task};
 use anyhow::Result;
 use clap::Args;
-use legwork::job::mpc::MpcJob;
+use legwork::job::mpc::{ClosedLoopSim, MpcJob};
 use legwork::job::solve::SolveJob;
 use legwork::mpc::{MpcSettings, PolicyLatency};
 use legwork::ocp::SolveOptions;
@@ -71,13 +71,23 @@ pub struct MpcArgs {
     /// Overrides one value of the task (`PATH=VALUE`, as `legwork solve --set`). Repeatable.
     #[arg(long = "set", value_name = "PATH=VALUE")]
     set: Vec<String>,
+    /// The physics of the closed loop: legwork's simulator, or MuJoCo (through the checker's
+    /// Python, `scripts/install-mujoco.sh`).
+    #[arg(long, value_enum, default_value_t = SimChoice::Legwork)]
+    sim: SimChoice,
     /// Also write every plot as PNG beside its SVG.
     #[arg(long)]
     png: bool,
 }
 
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SimChoice {
+    Legwork,
+    Mujoco,
+}
+
 /// `measured` or seconds.
-fn parse_latency(text: &str) -> Result<PolicyLatency> {
+pub fn parse_latency(text: &str) -> Result<PolicyLatency> {
     if text == "measured" {
         return Ok(PolicyLatency::Measured);
     }
@@ -101,6 +111,10 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
     let plan_out = out.join("plan");
     let threads = super::capped_threads(args.threads);
     let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, iterations_per_tick: args.iterations_per_tick, threads, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), ..MpcSettings::default() };
+    let sim = match args.sim {
+        SimChoice::Legwork => ClosedLoopSim::Legwork,
+        SimChoice::Mujoco => ClosedLoopSim::Mujoco(legwork::export::MujocoCheck::locate()?),
+    };
     let job = MpcJob {
         solve: SolveJob {
             spec: &spec,
@@ -113,21 +127,22 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
             png: args.png,
         },
         settings,
+        sim,
         latency,
         pushes,
         out: &out,
     };
     job.check().map_err(job_error)?;
     let s = &job.settings;
-    say!("Planning {} ({}) for {}: {} s, then MPC at {} Hz on a {} s window of {} knots of {} s, {} iteration(s) per tick, {} thread(s)", spec.name, spec.summary, model.name, spec.duration, s.rate, s.horizon, (s.horizon / s.knot_dt()).round(), s.knot_dt(), s.iterations_per_tick, s.threads);
-    let run = job.run(|_| {}, |_| {}).map_err(job_error)?;
+    say!("Planning {} ({}) for {}: {} s, then MPC in {} at {} Hz on a {} s window of {} knots of {} s, {} iteration(s) per tick, {} thread(s)", spec.name, spec.summary, model.name, spec.duration, if args.sim == SimChoice::Mujoco { "MuJoCo" } else { "legwork's simulator" }, s.rate, s.horizon, (s.horizon / s.knot_dt()).round(), s.knot_dt(), s.iterations_per_tick, s.threads);
+    let (plan, run) = job.run(|_| {}, |_| {}).map_err(job_error)?;
     let sum = &run.summary;
     let ms = |key: &str| sum[key].as_f64().unwrap_or(f64::NAN) * 1e3;
     say!("plan: {:.2} s to solve; closed loop: {} ticks, solve time per tick median {:.2} ms, p99 {:.2} ms, max {:.2} ms; {} over the {:.1} ms period, {} restarted from the plan, {} failed", sum["plan_solve_time_s"].as_f64().unwrap_or(0.0), sum["ticks"], ms("tick_time_p50_s"), ms("tick_time_p99_s"), ms("tick_time_max_s"), sum["ticks_over_period"], s.period() * 1e3, sum["restarted_ticks"], sum["failed_ticks"]);
     if let Some(reason) = &run.closed_loop.stopped {
         say!("the closed loop stopped: {reason}");
     }
-    let plan_checks = run.plan.checked.iter().find(|(n, _)| *n == "plan").and_then(|(_, r)| r.as_ref());
+    let plan_checks = plan.checked.iter().find(|(n, _)| *n == "plan").and_then(|(_, r)| r.as_ref());
     say!("  {:<46}  {:<14}  {:<14}", "target", "plan", "MPC (2x tol)");
     if let Some(plan_checks) = plan_checks {
         for (i, p) in plan_checks.iter().enumerate() {

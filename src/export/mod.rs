@@ -9,8 +9,10 @@
 
 pub mod mjcf;
 pub mod mujoco_check;
+pub mod mujoco_plant;
 pub mod standing_figures;
 
 pub use mjcf::{mjcf_model, mujoco_qpos, mujoco_qvel, MjcfError, MjcfSettings};
 pub use standing_figures::StandingFigures;
+pub use mujoco_plant::MujocoPlant;
 pub use mujoco_check::{check_plan_in_mujoco, replay_in_mujoco, stand_in_mujoco, CheckController, CheckRun, ControllerSettings, MujocoCheck, MujocoCheckError, MujocoReruns, StandingPd, TrackingGains};

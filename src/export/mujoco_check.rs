@@ -177,6 +177,11 @@ impl MujocoCheck {
         Ok(Self { python })
     }
 
+    /// The checker's Python.
+    pub fn python(&self) -> &Path {
+        &self.python
+    }
+
     /// MuJoCo's version as the checker's Python reports it.
     pub fn version(&self) -> Result<String, MujocoCheckError> {
         let out = Command::new(&self.python).args(["-c", "import mujoco; print(mujoco.__version__)"]).output().map_err(|error| MujocoCheckError::Io { path: self.python.display().to_string(), error })?;

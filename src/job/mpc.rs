@@ -1,6 +1,6 @@
 //! The receding-horizon job (`legwork mpc`): the task's plan (the solve job, its folder in
-//! `plan/`), then the task in closed loop under [`crate::mpc`] in legwork's simulator, with
-//! pushes if asked; the task's targets on the closed-loop motion at twice their tolerances
+//! `plan/`), then the task in closed loop under [`crate::mpc`] in legwork's simulator or in
+//! MuJoCo ([`crate::export::MujocoPlant`], its files in `mujoco/`), with pushes if asked; the task's targets on the closed-loop motion at twice their tolerances
 //! (as every re-run of a plan), and the folder: `trajectory.json` (the closed-loop motion
 //! and the summary), `summary.json`, `ticks.json` (every tick), `replay.html` and the plots
 //! (`plots/tick_times.svg` the per-tick solve times).
@@ -10,15 +10,25 @@ use super::{JobError, OrCouldNotFinish, Verdict};
 use crate::io::Trajectory;
 use crate::mpc::{run_closed_loop, window_problem, ClosedLoopRun, Mpc, MpcSettings, PolicyLatency, TickRecord};
 use crate::ocp::{all_met, MotionMetrics, SolveProgress, TargetResult};
+use crate::export::{MujocoCheck, MujocoPlant};
 use crate::sim::{Push, SimConfig, Simulator};
 use crate::terrain::Plane;
 use serde_json::json;
 
+/// The physics the closed loop runs in.
+pub enum ClosedLoopSim {
+    /// legwork's simulator: the optimizer's own world.
+    Legwork,
+    /// MuJoCo through the checker's Python (physics nobody on the team wrote).
+    Mujoco(MujocoCheck),
+}
+
 /// A closed-loop run to make: the plan's solve job (its `out` is the plan's folder), the
-/// controller's settings, the pushes and where the files go.
+/// controller's settings, the physics, the pushes and where the files go.
 pub struct MpcJob<'a> {
     pub solve: SolveJob<'a>,
     pub settings: MpcSettings,
+    pub sim: ClosedLoopSim,
     pub latency: PolicyLatency,
     pub pushes: Vec<Push>,
     pub out: &'a std::path::Path,
@@ -26,7 +36,6 @@ pub struct MpcJob<'a> {
 
 /// A finished closed-loop run and what it wrote.
 pub struct MpcRun {
-    pub plan: SolvedTask,
     pub closed_loop: ClosedLoopRun,
     /// The closed-loop motion's figures (`None` if it stopped early).
     pub metrics: Option<MotionMetrics>,
@@ -50,10 +59,19 @@ impl MpcJob<'_> {
 
     /// Solves the plan, runs the closed loop, checks the targets and writes the folder;
     /// `on_iteration` sees the plan's SLQ iterations, `on_tick` every tick.
-    pub fn run(&self, on_iteration: impl FnMut(SolveProgress) + Send, on_tick: impl FnMut(&TickRecord)) -> Result<MpcRun, JobError> {
+    pub fn run(&self, on_iteration: impl FnMut(SolveProgress) + Send, on_tick: impl FnMut(&TickRecord)) -> Result<(SolvedTask, MpcRun), JobError> {
+        self.check()?;
+        let plan = self.solve.run(on_iteration)?;
+        let run = self.run_on_plan(&plan, on_tick)?;
+        Ok((plan, run))
+    }
+
+    /// The closed loop on a plan already solved by this job's solve job (its value
+    /// function recorded, [`crate::ocp::SolveOptions::value_function`]): one plan, several
+    /// controllers or pushes (`legwork bench mpc`).
+    pub fn run_on_plan(&self, plan: &SolvedTask, on_tick: impl FnMut(&TickRecord)) -> Result<MpcRun, JobError> {
         self.check()?;
         let (spec, model, origin) = (self.solve.spec, self.solve.model, self.solve.origin);
-        let plan = self.solve.run(on_iteration)?;
         let terrain = Plane::flat(0.0);
         let solution = &plan.run.solution;
         let problem = window_problem(spec, model, &terrain, solution, spec.dt, &self.settings, origin).map_err(JobError::bad_input)?;
@@ -64,11 +82,22 @@ impl MpcJob<'_> {
         // gallop's closed loop spun a free leg past 200 rad/s within 0.4-2 s).
         let step = problem.dt / problem.substeps as f64;
         let config = SimConfig { physics_dt: step, control_dt: step, ..SimConfig::default() };
-        let mut sim = Simulator::from_plan(model, &terrain, &plan.run.plan, config).or_could_not_finish()?;
-        for push in &self.pushes {
-            sim.add_push(*push);
-        }
-        let mut closed_loop = run_closed_loop(mpc, &mut sim, spec.duration, self.latency, on_tick).or_could_not_finish()?;
+        let mut closed_loop = match &self.sim {
+            ClosedLoopSim::Legwork => {
+                let mut sim = Simulator::from_plan(model, &terrain, &plan.run.plan, config).or_could_not_finish()?;
+                for push in &self.pushes {
+                    sim.add_push(*push);
+                }
+                run_closed_loop(mpc, &mut sim, spec.duration, self.latency, on_tick).or_could_not_finish()?
+            }
+            ClosedLoopSim::Mujoco(check) => {
+                let mut plant = MujocoPlant::from_plan(check, model, &terrain, &plan.run.plan, config, &self.out.join("mujoco")).or_could_not_finish()?;
+                for push in &self.pushes {
+                    plant.add_push(*push);
+                }
+                run_closed_loop(mpc, &mut plant, spec.duration, self.latency, on_tick).or_could_not_finish()?
+            }
+        };
         closed_loop.trajectory.metadata.scenario = format!("mpc {} at {} Hz, {} s horizon", spec.name, self.settings.rate, self.settings.horizon);
         let (metrics, checked) = match closed_loop.stopped {
             None => (Some(MotionMetrics::of(model, &closed_loop.trajectory, model.contact.friction)), Some(plan.target.check(model, &closed_loop.trajectory, 2.0))),
@@ -76,8 +105,8 @@ impl MpcJob<'_> {
         };
         let met = checked.as_deref().is_some_and(all_met);
         let verdict = if plan.target.is_empty() && closed_loop.stopped.is_none() { Verdict::Met } else { Verdict::from_met(met) };
-        let summary = summary(self, &plan, &closed_loop, metrics.as_ref(), checked.as_deref(), verdict);
-        let mut run = MpcRun { plan, closed_loop, metrics, checked, verdict, summary };
+        let summary = summary(self, plan, &closed_loop, metrics.as_ref(), checked.as_deref(), verdict);
+        let mut run = MpcRun { closed_loop, metrics, checked, verdict, summary };
         write_files(self, model, &mut run).or_could_not_finish()?;
         Ok(run)
     }
@@ -99,7 +128,7 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
         "robot": job.solve.model.name,
         "verdict": verdict.as_str(),
         "exit_code": verdict.exit_code(),
-        "sim": "legwork",
+        "sim": match &job.sim { ClosedLoopSim::Legwork => json!("legwork"), ClosedLoopSim::Mujoco(check) => json!(format!("MuJoCo {}", check.version().unwrap_or_default())) },
         "horizon_s": s.horizon,
         "rate_hz": s.rate,
         "knot_dt_s": s.knot_dt(),

@@ -1,24 +1,25 @@
-//! The receding-horizon controller in closed loop with legwork's simulator.
+//! The receding-horizon controller in closed loop with a plant: legwork's simulator or
+//! MuJoCo ([`crate::sim::Plant`]).
 //!
-//! The solver runs in its own thread; the simulator in the calling thread, in simulated
+//! The solver runs in its own thread; the plant in the calling thread, in simulated
 //! time, in lock step with it as a robot's control loop is with the wall clock:
 //!
 //! ```text
-//! tick i at t_i: the simulator's state goes to the solver (the "measurement")
+//! tick i at t_i: the plant's state goes to the solver (the "measurement")
 //! the solve takes L_i seconds (measured wall time, or a fixed latency)
 //! [t_i, t_i + L_i): the robot runs the previous policy
 //! from t_i + L_i: the new one
 //! t_{i+1} = t_i + period * max(1, ceil(L_i / period))   (an overrun skips ticks)
 //! ```
 //!
-//! While the solver works the simulator waits (its steps take microseconds; a robot's
+//! While the solver works the plant waits (its steps take microseconds; a robot's
 //! physics would not wait, which the latency above accounts for): the solver has the
 //! machine's cores to itself, as it would on the robot's computer.
 
 use super::{Mpc, MpcError, MpcPolicy, MpcPolicyController, TickReport};
 use crate::io::Trajectory;
 use crate::ocp::RobotState;
-use crate::sim::{SimError, Simulator};
+use crate::sim::{Plant, SimError};
 use std::sync::mpsc;
 
 /// When a tick's solution reaches the robot.
@@ -95,7 +96,7 @@ struct Reply {
 
 /// Runs `mpc` on `sim` for `duration` seconds (module docs), recording the motion at the
 /// simulator's recording rate; `on_tick` sees every tick.
-pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut Simulator<'_>, duration: f64, latency: PolicyLatency, mut on_tick: impl FnMut(&TickRecord)) -> Result<ClosedLoopRun, MpcError> {
+pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64, latency: PolicyLatency, mut on_tick: impl FnMut(&TickRecord)) -> Result<ClosedLoopRun, MpcError> {
     if !(duration.is_finite() && duration > 0.0) {
         return Err(MpcError::Settings { field: "duration", problem: format!("expected a positive number of seconds, got {duration}") });
     }
@@ -106,17 +107,17 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut Simulator<'_>, duration: 
     }
     let problem = mpc.problem();
     let period = mpc.settings().period();
-    let physics_dt = sim.config().physics_dt;
+    let physics_dt = sim.physics_dt();
     let mut first = MpcPolicy::for_problem(problem);
     mpc.write_policy(&mut first);
     let mut controller = MpcPolicyController::new(problem, first);
     let mut spare = Some(MpcPolicy::for_problem(problem));
     let mut measured = Some(problem.initial.clone());
-    let mut trajectory = Trajectory::new(problem.model, format!("mpc at {} Hz", mpc.settings().rate), sim.config().record_dt, problem.terrain.spec());
+    let mut trajectory = Trajectory::new(problem.model, format!("mpc at {} Hz", mpc.settings().rate), sim.record_dt(), problem.terrain.spec());
     let mut ticks = Vec::new();
     let mut stopped = None;
     // Steps until the simulator's time reaches `t` (within half a physics step).
-    let step_until = |sim: &mut Simulator<'_>, controller: &mut MpcPolicyController<'_, '_>, trajectory: &mut Trajectory, t: f64| -> Result<(), SimError> {
+    let step_until = |sim: &mut dyn Plant, controller: &mut MpcPolicyController<'_, '_>, trajectory: &mut Trajectory, t: f64| -> Result<(), SimError> {
         while sim.state().t < t.min(duration) - 0.5 * physics_dt {
             sim.step_recorded(controller, trajectory)?;
         }
@@ -181,13 +182,14 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut Simulator<'_>, duration: 
         if let Err(e) = result {
             stopped = Some(match e {
                 SimError::Diverged { step, t, reason, .. } => format!("diverged at t = {t:.3} s (step {step}): {reason}"),
+                SimError::External { .. } => return Err(MpcError::Plant(e)),
                 e => e.to_string(),
             });
         }
         Ok(())
     })?;
     if stopped.is_none() {
-        sim.record_final(&mut trajectory);
+        sim.record_final(&mut trajectory).map_err(MpcError::Plant)?;
     }
     Ok(ClosedLoopRun { trajectory, ticks, stopped })
 }

@@ -199,6 +199,9 @@ pub enum MpcError {
     Slq(#[from] SlqError),
     #[error("the plan to track has no knots")]
     EmptyPlan,
+    /// The plant (another simulator's process) failed; not the motion.
+    #[error("the closed loop's plant: {0}")]
+    Plant(#[source] crate::sim::SimError),
     #[error("tick at t = {t:.3} s: {source}")]
     Tick {
         t: f64,

@@ -99,7 +99,7 @@ impl Default for SimConfig {
 impl SimConfig {
     /// Physics steps per control period and per recorded knot, for a robot whose contact
     /// model is `contact` (the physics step may not exceed its stable step).
-    fn ratios(&self, contact: &ContactParams) -> Result<(usize, usize), SimError> {
+    pub fn ratios(&self, contact: &ContactParams) -> Result<(usize, usize), SimError> {
         let ratio = |field: &'static str, value: f64| -> Result<usize, SimError> {
             if !(value > 0.0 && value.is_finite()) {
                 return Err(SimError::Config { field, problem: format!("expected a positive time in seconds, got {value}") });
@@ -163,7 +163,8 @@ impl Push {
         Ok(push)
     }
 
-    fn active(&self, t: f64) -> bool {
+    /// The push acts at time `t` (s): `start <= t < start + duration`.
+    pub fn active(&self, t: f64) -> bool {
         t >= self.start && t < self.start + self.duration
     }
 }
@@ -185,6 +186,81 @@ pub trait Controller {
     /// Writes the generalized torques (`nv` entries; the six base entries are ignored, the
     /// base is not actuated) for `state`.
     fn compute(&mut self, model: &Model, state: &SimState, tau: &mut DVector<f64>) -> Result<(), ControlError>;
+}
+
+/// What [`controller_torques`] applied.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AppliedTorques {
+    /// Some torque was clipped to its joint's effort limit.
+    pub saturated: bool,
+    /// The largest absolute joint torque applied (N m).
+    pub max_torque: f64,
+}
+
+/// The torques a robot's joints apply under `controller` at `state`, into `tau` (`nv`
+/// entries): the base's six zeroed (it is not actuated), a non-finite torque an error
+/// naming the joint, each torque clipped to its joint's effort limit when
+/// `enforce_effort_limits`. Every plant ([`Plant`]) applies a controller through it.
+pub fn controller_torques(model: &Model, controller: &mut dyn Controller, state: &SimState, tau: &mut DVector<f64>, enforce_effort_limits: bool) -> Result<AppliedTorques, SimError> {
+    controller.compute(model, state, tau).map_err(|source| SimError::Controller { t: state.t, source })?;
+    let mut applied = AppliedTorques { saturated: false, max_torque: 0.0 };
+    for j in &model.joints[1..] {
+        for k in 0..j.nv {
+            let i = j.idx_v + k;
+            if j.kind == crate::model::JointKind::FreeFlyer {
+                tau[i] = 0.0;
+                continue;
+            }
+            if !tau[i].is_finite() {
+                return Err(SimError::Controller { t: state.t, source: ControlError { controller: controller.name().into(), problem: format!("torque of joint '{}' is {}", j.name, tau[i]) } });
+            }
+            let limit = j.limits.effort[k];
+            if enforce_effort_limits && limit.is_finite() && tau[i].abs() > limit {
+                tau[i] = tau[i].clamp(-limit, limit);
+                applied.saturated = true;
+            }
+            applied.max_torque = applied.max_torque.max(tau[i].abs());
+        }
+    }
+    Ok(applied)
+}
+
+/// A physics that a controller steps one physics step at a time, recording the motion as
+/// it goes: legwork's [`Simulator`], or another simulator behind a pipe
+/// ([`crate::export::MujocoPlant`]). A receding-horizon controller's closed loop
+/// ([`crate::mpc::run_closed_loop`]) runs on either.
+pub trait Plant {
+    /// The measured state; its contact anchors are legwork's contact model's (a plant that
+    /// has none estimates them from the measured feet).
+    fn state(&self) -> &SimState;
+    /// The physics step (s).
+    fn physics_dt(&self) -> f64;
+    /// Time between recorded knots (s).
+    fn record_dt(&self) -> f64;
+    /// One physics step (the controller asked at control instants), recording the knot of
+    /// the step's start on the recording grid.
+    fn step_recorded(&mut self, controller: &mut dyn Controller, trajectory: &mut Trajectory) -> Result<(), SimError>;
+    /// Appends the current state to `trajectory` if it falls on the recording grid.
+    fn record_final(&mut self, trajectory: &mut Trajectory) -> Result<(), SimError>;
+}
+
+impl Plant for Simulator<'_> {
+    fn state(&self) -> &SimState {
+        Simulator::state(self)
+    }
+    fn physics_dt(&self) -> f64 {
+        self.config.physics_dt
+    }
+    fn record_dt(&self) -> f64 {
+        self.config.record_dt
+    }
+    fn step_recorded(&mut self, controller: &mut dyn Controller, trajectory: &mut Trajectory) -> Result<(), SimError> {
+        Simulator::step_recorded(self, controller, trajectory)
+    }
+    fn record_final(&mut self, trajectory: &mut Trajectory) -> Result<(), SimError> {
+        Simulator::record_final(self, trajectory);
+        Ok(())
+    }
 }
 
 /// A controller that cannot produce torques.
@@ -210,6 +286,9 @@ pub enum SimError {
     Diverged { step: u64, t: f64, reason: String, q: Vec<f64>, v: Vec<f64> },
     #[error("at t = {t:.4} s: {source}")]
     Controller { t: f64, source: ControlError },
+    /// Another simulator behind a pipe failed (not the motion: the process, its files).
+    #[error("{simulator}: {problem}")]
+    External { simulator: String, problem: String },
 }
 
 /// What a run reports besides its trajectory.
@@ -414,32 +493,9 @@ impl<'a> Simulator<'a> {
 
     fn control(&mut self, controller: &mut dyn Controller) -> Result<(), SimError> {
         self.last_control_step = Some(self.step);
-        controller
-            .compute(self.model, &self.state, &mut self.tau)
-            .map_err(|source| SimError::Controller { t: self.state.t, source })?;
-        let mut saturated = false;
-        for j in &self.model.joints[1..] {
-            for k in 0..j.nv {
-                let i = j.idx_v + k;
-                if j.kind == crate::model::JointKind::FreeFlyer {
-                    self.tau[i] = 0.0; // the base is not actuated
-                    continue;
-                }
-                if !self.tau[i].is_finite() {
-                    return Err(SimError::Controller {
-                        t: self.state.t,
-                        source: ControlError { controller: controller.name().into(), problem: format!("torque of joint '{}' is {}", j.name, self.tau[i]) },
-                    });
-                }
-                let limit = j.limits.effort[k];
-                if self.config.enforce_effort_limits && limit.is_finite() && self.tau[i].abs() > limit {
-                    self.tau[i] = self.tau[i].clamp(-limit, limit);
-                    saturated = true;
-                }
-                self.stats.max_torque = self.stats.max_torque.max(self.tau[i].abs());
-            }
-        }
-        self.stats.saturated_controls += saturated as u64;
+        let applied = controller_torques(self.model, controller, &self.state, &mut self.tau, self.config.enforce_effort_limits)?;
+        self.stats.max_torque = self.stats.max_torque.max(applied.max_torque);
+        self.stats.saturated_controls += applied.saturated as u64;
         Ok(())
     }
 

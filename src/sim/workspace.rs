@@ -232,7 +232,10 @@ impl<'a> ContactModelWorkspace<'a> {
         self.update_anchors(anchors);
     }
 
-    fn update_anchors(&self, anchors: &mut [Option<Vector3<f64>>]) {
+    /// Moves each foot's anchor as its contact of the last [`Self::evaluate_contacts`]
+    /// says ([`update_anchor`]): set at touch-down, dragged along while slipping, dropped
+    /// at lift-off.
+    pub fn update_anchors(&self, anchors: &mut [Option<Vector3<f64>>]) {
         for (foot, anchor) in self.feet.iter().zip(anchors.iter_mut()) {
             update_anchor(&self.params, &foot.contact, anchor);
         }
