@@ -2,6 +2,7 @@
 //! the number of knots, which must be linear) and every embedded task solved in full.
 //! `legwork bench terrain`: Winkler 2015's Table I (forward speed and success rate per
 //! terrain) over randomized walk trials, beside the paper's.
+//! `legwork bench mpc`: the receding-horizon controller (`super::bench_mpc`).
 
 use anyhow::{bail, Context, Result};
 use clap::Subcommand;
@@ -60,6 +61,40 @@ pub enum BenchCommand {
         /// Output folder: `report.html` (the paper's Table I beside legwork's, every trial)
         /// and `summary.json` (the benchmark as --json prints it).
         #[arg(long, default_value = "out/bench/terrain")]
+        out: std::path::PathBuf,
+    },
+    /// Receding-horizon SLQ (issue 21): tick time against horizon and threads (the latency
+    /// measured), then every task in closed loop and again under a lateral push.
+    Mpc {
+        /// Tasks, comma-separated (embedded names or .toml files; default: every embedded task).
+        #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+        tasks: Vec<String>,
+        /// The task of the tick-time table.
+        #[arg(long, default_value = "sidestep")]
+        timing_task: String,
+        /// Horizons of the tick-time table (s), comma-separated.
+        #[arg(long, value_delimiter = ',', default_values_t = [0.25, 0.5, 1.0])]
+        horizons: Vec<f64>,
+        /// Thread counts of the tick-time table, comma-separated; the task runs use the largest.
+        #[arg(long, value_delimiter = ',', default_values_t = [1, 2])]
+        thread_counts: Vec<usize>,
+        /// Lateral force (N, +y) of each task's pushed run, for 0.2 s from the task's middle; 0: no pushed runs.
+        #[arg(long, default_value_t = 100.0)]
+        push: f64,
+        /// Ticks per second.
+        #[arg(long, default_value_t = 200.0)]
+        rate: f64,
+        /// The task runs' latency: `measured` (the solve's wall time) or seconds.
+        #[arg(long, default_value = "measured")]
+        latency: String,
+        /// The physics of the closed loops.
+        #[arg(long, value_enum, default_value_t = super::mpc::SimChoice::Legwork)]
+        sim: super::mpc::SimChoice,
+        /// Print the results as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Output folder: every closed loop's folder (as `legwork mpc` writes it) and `summary.json`.
+        #[arg(long, default_value = "out/bench/mpc")]
         out: std::path::PathBuf,
     },
     /// Nguyen 2022's Table I beside legwork's: phase timings, contact-timing and full-body
@@ -172,7 +207,7 @@ fn say_verdict(verdict: Verdict, missed: &[&str]) {
 }
 
 /// The CPU's model name (Linux), for the record.
-fn cpu_name() -> String {
+pub(super) fn cpu_name() -> String {
     std::fs::read_to_string("/proc/cpuinfo").ok().and_then(|s| s.lines().find(|l| l.starts_with("model name")).and_then(|l| l.split(':').nth(1)).map(|s| s.trim().to_string())).unwrap_or_else(|| "unknown".into())
 }
 
@@ -182,6 +217,11 @@ pub fn run(cmd: BenchCommand) -> Result<Verdict> {
         BenchCommand::Jumps { json, repeats, knots, trials, jumps: names, barrier_contact_timing, barrier_full_body, barrier_curvature, threads } => jumps(json, repeats, knots, trials, &names, [barrier_contact_timing, barrier_full_body, barrier_curvature], super::capped_threads(threads)),
         BenchCommand::Slq { json, threads, iterations, check, out } => slq(json, super::capped_threads(threads), iterations, check.is_some(), &out),
         BenchCommand::Terrain { trials, json, threads, scenarios, out } => terrain(trials, json, super::capped_threads(threads), &scenarios, &out),
+        BenchCommand::Mpc { tasks, timing_task, horizons, thread_counts, push, rate, latency, sim, json, out } => {
+            let thread_counts: Vec<usize> = thread_counts.iter().map(|&t| super::capped_threads(t)).collect();
+            let latency = super::mpc::parse_latency(&latency)?;
+            super::bench_mpc::run(&super::bench_mpc::MpcBench { tasks: &tasks, timing_task: &timing_task, horizons: &horizons, thread_counts: &thread_counts, push, mujoco: sim == super::mpc::SimChoice::Mujoco, latency, rate, as_json: json, out: &out })
+        }
     }
 }
 

@@ -24,6 +24,7 @@ pub(crate) fn emit(args: std::fmt::Arguments) {
 }
 
 mod bench;
+mod bench_mpc;
 mod check;
 mod control;
 mod export;
