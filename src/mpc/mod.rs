@@ -270,38 +270,52 @@ pub fn window_problem<'a>(spec: &TaskSpec, model: &'a Model, terrain: &'a dyn Te
     Ok(problem)
 }
 
-/// The plan's own policy at absolute times, `u = u_k + K_k (x (-) x_k)` with `k` the plan's
-/// knot at the window knot's time: the warm start of the first window and of every new last
-/// knot. Past the plan's end, its last input and gain around its last state.
+/// The plan's own policy at absolute times, as the plan runs it: at a window knot's time
+/// `t`, the plan's knot `i` whose interval holds `t` (`i = floor(t / plan_dt)`),
+/// `u = u_i + K_i (x (-) y_i)`. The warm start of the first window and of every new last
+/// knot, and the restart of a failed tick. Past the plan's end, its last input and gain
+/// around its last state.
 struct PlanPolicy<'s> {
     plan: &'s SlqSolution<RobotState>,
     plan_dt: f64,
+    /// `x (-) y_i` on the plan's own state.
     dx: Mutex<DVector<f64>>,
+}
+
+impl<'s> PlanPolicy<'s> {
+    fn new(plan: &'s SlqSolution<RobotState>, plan_dt: f64) -> Self {
+        Self { plan, plan_dt, dx: Mutex::new(DVector::zeros(plan.gains[0].ncols())) }
+    }
+
+    /// `x (-) y` on the plan's own state (its gains have anchor columns when it was solved
+    /// with the anchors as states, whatever the window's state is), into `out`.
+    fn deviation(model: &Model, y: &RobotState, x: &RobotState, out: &mut DVector<f64>) {
+        let nv = model.nv;
+        crate::dynamics::difference_into(model, &y.q, &x.q, &mut out.as_mut_slice()[..nv]);
+        for j in 0..nv {
+            out[nv + j] = x.v[j] - y.v[j];
+        }
+        for (f, (ay, ax)) in y.anchors.iter().zip(&x.anchors).enumerate() {
+            let at = 2 * nv + crate::sim::ANCHOR_DIM * f;
+            if at + crate::sim::ANCHOR_DIM <= out.len() {
+                let d = match (ay, ax) {
+                    (Some(ay), Some(ax)) => ax - ay,
+                    _ => nalgebra::Vector3::zeros(),
+                };
+                out.fixed_rows_mut::<3>(at).copy_from(&d);
+            }
+        }
+    }
 }
 
 impl<'a> Policy<WholeBodyProblem<'a>> for PlanPolicy<'_> {
     fn control(&self, problem: &WholeBodyProblem<'a>, k: usize, x: &RobotState, u: &mut DVector<f64>) {
         let last = self.plan.inputs.len() - 1;
-        let i = ((problem.knot_time(k) / self.plan_dt).round().max(0.0) as usize).min(last);
+        // The knot holding t (not the nearest: a window knot at 5 ms is in the plan's
+        // [4, 6) ms knot, whose state is at 4 ms).
+        let i = ((problem.knot_time(k) / self.plan_dt + 1e-9).floor().max(0.0) as usize).min(last);
         let mut dx = self.dx.lock().unwrap_or_else(|e| e.into_inner());
-        // On the plan's own state (its gains have anchor columns when it was solved with
-        // the anchors as states, whatever the window's state is).
-        let (model, y) = (problem.model, &self.plan.states[i]);
-        let nv = model.nv;
-        crate::dynamics::difference_into(model, &y.q, &x.q, &mut dx.as_mut_slice()[..nv]);
-        for j in 0..nv {
-            dx[nv + j] = x.v[j] - y.v[j];
-        }
-        for (f, (ay, ax)) in y.anchors.iter().zip(&x.anchors).enumerate() {
-            let at = 2 * nv + crate::sim::ANCHOR_DIM * f;
-            if at + crate::sim::ANCHOR_DIM <= dx.len() {
-                let d = match (ay, ax) {
-                    (Some(ay), Some(ax)) => ax - ay,
-                    _ => nalgebra::Vector3::zeros(),
-                };
-                dx.fixed_rows_mut::<3>(at).copy_from(&d);
-            }
-        }
+        Self::deviation(problem.model, &self.plan.states[i], x, &mut dx);
         u.copy_from(&self.plan.inputs[i]);
         u.gemv(1.0, &self.plan.gains[i], &dx, 1.0);
     }
@@ -385,7 +399,7 @@ impl<'p, 'a> Mpc<'p, 'a> {
         receding.set_start(0.0);
         let slq_settings = SlqSettings { threads: settings.threads, min_regularization: settings.regularization, initial_regularization: settings.regularization, ..SlqSettings::default() };
         let mut slq = Slq::new(problem, slq_settings)?;
-        let plan_policy = PlanPolicy { plan, plan_dt, dx: Mutex::new(DVector::zeros(plan.gains[0].ncols())) };
+        let plan_policy = PlanPolicy::new(plan, plan_dt);
         let initial = problem.initial.clone();
         let mut cost = slq.start_from(&initial, &plan_policy)?;
         for i in 0..settings.initial_iterations {
@@ -445,19 +459,24 @@ impl<'p, 'a> Mpc<'p, 'a> {
     }
 }
 
-/// A [`MpcPolicy`] as a simulator controller: `u = u_k + K_k (x (-) x_k)` at the knot of
-/// the simulator's time.
+/// A [`MpcPolicy`] as a simulator controller, called every control period (1 ms) inside
+/// the window's knots (5 ms): `u = u_k + K_k (x(t) (-) x*(t))` with `k` the knot of time `t`
+/// and the reference `x*(t)` interpolated along the knot,
+/// `x (-) x*(t) ~ (x (-) x_k) - s (x_{k+1} (-) x_k)`, `s = (t - t_k) / dt` (to first order on
+/// the base's SE(3)). Against `x_k` itself the feedback would read the knot's own planned
+/// motion as an error: 4 ms into a 5 ms knot of a take-off, several rad/s on a knee.
 pub struct MpcPolicyController<'p, 'a> {
     problem: &'p WholeBodyProblem<'a>,
     pub policy: MpcPolicy,
     x: RobotState,
     dx: DVector<f64>,
+    knot_step: DVector<f64>,
     u: DVector<f64>,
 }
 
 impl<'p, 'a> MpcPolicyController<'p, 'a> {
     pub fn new(problem: &'p WholeBodyProblem<'a>, policy: MpcPolicy) -> Self {
-        Self { problem, policy, x: problem.initial.clone(), dx: DVector::zeros(problem.nx()), u: DVector::zeros(problem.nu()) }
+        Self { problem, policy, x: problem.initial.clone(), dx: DVector::zeros(problem.nx()), knot_step: DVector::zeros(problem.nx()), u: DVector::zeros(problem.nu()) }
     }
 }
 
@@ -467,10 +486,15 @@ impl Controller for MpcPolicyController<'_, '_> {
     }
     fn compute(&mut self, _model: &Model, state: &SimState, tau: &mut DVector<f64>) -> Result<(), ControlError> {
         let k = self.policy.knot_at(state.t);
+        let along = ((state.t - self.policy.start) / self.policy.dt - k as f64).clamp(0.0, 1.0);
         self.x.q.copy_from(&state.q);
         self.x.v.copy_from(&state.v);
         self.x.anchors.clone_from(&state.anchors);
         self.problem.difference(&self.policy.states[k], &self.x, &mut self.dx);
+        if along > 0.0 {
+            self.problem.difference(&self.policy.states[k], &self.policy.states[k + 1], &mut self.knot_step);
+            self.dx.axpy(-along, &self.knot_step, 1.0);
+        }
         self.u.copy_from(&self.policy.inputs[k]);
         self.u.gemv(1.0, &self.policy.gains[k], &self.dx, 1.0);
         tau.rows_mut(6, self.u.len()).copy_from(&self.u);
