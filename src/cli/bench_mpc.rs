@@ -27,6 +27,10 @@ pub struct MpcBench<'a> {
     pub mujoco: bool,
     pub latency: PolicyLatency,
     pub rate: f64,
+    /// Knot spacing of every window (s; `None`: the tick period).
+    pub knot_dt: Option<f64>,
+    /// Horizon of the task runs (s).
+    pub horizon: f64,
     pub as_json: bool,
     pub out: &'a Path,
 }
@@ -99,7 +103,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
     let sim = if bench.mujoco { ClosedLoopSim::Mujoco(MujocoCheck::locate().or_could_not_finish()?) } else { ClosedLoopSim::Legwork };
     let sim_name = if bench.mujoco { "MuJoCo" } else { "legwork" };
     let max_threads = *bench.thread_counts.iter().max().unwrap_or(&1);
-    let base = MpcSettings { rate: bench.rate, ..MpcSettings::default() };
+    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, ..MpcSettings::default() };
 
     // The tick time against horizon and threads, on one task, the latency measured.
     let timing_out = bench.out.join("timing");
@@ -127,7 +131,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
     for name in &names {
         let task_out = bench.out.join(name);
         let plan = Planned::solve(name, max_threads, &task_out)?;
-        let settings = MpcSettings { threads: max_threads, ..base.clone() };
+        let settings = MpcSettings { threads: max_threads, horizon: bench.horizon, ..base.clone() };
         let nominal = plan.closed_loop(settings.clone(), &sim, bench.latency, Vec::new(), &task_out.join("nominal"))?;
         let push = (bench.push > 0.0).then(|| Push { force: nalgebra::Vector3::new(0.0, bench.push, 0.0), start: 0.5 * plan.spec.duration, duration: 0.2 });
         let pushed = match push {
@@ -148,7 +152,8 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         }));
     }
     let period = 1.0 / bench.rate;
-    let p99_met = timing.iter().filter(|r| r["horizon_s"] == json!(0.5) && r["threads"] == json!(2)).all(|r| r["tick_time_p99_s"].as_f64().is_some_and(|p| p <= period));
+    // The target row (0.5 s, two threads); not measured counts as missed.
+    let p99_met = timing.iter().find(|r| r["horizon_s"] == json!(0.5) && r["threads"] == json!(2)).is_some_and(|r| r["tick_time_p99_s"].as_f64().is_some_and(|p| p <= period));
     let all_met = tasks.iter().all(|t| t["nominal"]["met"] == true && t["pushed"].get("met").is_none_or(|m| m == true));
     let verdict = Verdict::from_met(p99_met && all_met);
     let report = json!({
@@ -156,6 +161,8 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         "exit_code": verdict.exit_code(),
         "sim": sim_name,
         "rate_hz": bench.rate,
+        "knot_dt_s": base.knot_dt(),
+        "task_horizon_s": bench.horizon,
         "latency": match bench.latency { PolicyLatency::Measured => json!("measured"), PolicyLatency::Fixed(l) => json!(l) },
         "cpu": super::bench::cpu_name(),
         "timing_task": bench.timing_task,
@@ -167,7 +174,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
     if bench.as_json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        say!("p99 tick time <= {:.1} ms at a 0.5 s horizon on 2 threads: {}; closed loops met: {} of {}; wrote {}", period * 1e3, if p99_met { "met" } else { "MISSED" }, tasks.iter().map(|t| (t["nominal"]["met"] == true) as usize + (t["pushed"]["met"] == true) as usize).sum::<usize>(), tasks.iter().map(|t| 1 + t["pushed"].is_object() as usize).sum::<usize>(), bench.out.join("summary.json").display());
+        say!("p99 tick time <= {:.1} ms at a 0.5 s horizon on 2 threads: {} (missed if not measured); closed loops met: {} of {}; wrote {}", period * 1e3, if p99_met { "met" } else { "MISSED" }, tasks.iter().map(|t| (t["nominal"]["met"] == true) as usize + (t["pushed"]["met"] == true) as usize).sum::<usize>(), tasks.iter().map(|t| 1 + t["pushed"].is_object() as usize).sum::<usize>(), bench.out.join("summary.json").display());
     }
     Ok(verdict)
 }
