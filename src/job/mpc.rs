@@ -1,7 +1,8 @@
 //! The receding-horizon job (`legwork mpc`): the task's plan (the solve job, its folder in
 //! `plan/`), then the task in closed loop under [`crate::mpc`] in legwork's simulator or in
-//! MuJoCo ([`crate::export::MujocoPlant`], its files in `mujoco/`), with pushes if asked; the task's targets on the closed-loop motion at twice their tolerances
-//! (as every re-run of a plan), and the folder: `trajectory.json` (the closed-loop motion
+//! MuJoCo ([`crate::export::MujocoPlant`], its files in `mujoco/`), with pushes if asked;
+//! the task's targets on the closed-loop motion at twice their tolerances (as every re-run
+//! of a plan), and the folder: `trajectory.json` (the closed-loop motion
 //! and the summary), `summary.json`, `ticks.json` (every tick), `replay.html` and the plots
 //! (`plots/tick_times.svg` the per-tick solve times).
 
