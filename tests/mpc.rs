@@ -92,6 +92,63 @@ fn the_shift_moves_every_knot_earlier_and_rolls_out_the_new_tail() {
 }
 
 #[test]
+fn a_coarse_tail_moves_into_the_fine_head_one_tick_at_a_time() {
+    let model = embedded::load("hyq").unwrap();
+    let spec = stand(0.3);
+    let run = plan(&spec, &model);
+    // 0.1 s: 10 knots of 1 ms, then 18 of the 5 ms tick period, each five 1 ms steps.
+    let settings = MpcSettings { horizon: 0.1, knot_dt: Some(0.001), fine_head: Some(0.01), ..MpcSettings::default() };
+    assert_eq!(settings.knot_counts(), (10, 18));
+    let ground = Plane::flat(0.0);
+    let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
+    let n = problem.horizon();
+    assert_eq!(n, 28);
+    assert!((problem.knot_time(n) - 0.1).abs() < 1e-12 && (problem.knot_time(11) - 0.015).abs() < 1e-12);
+    let pd = legwork::control::JointPd::standing(&model, problem.dt).unwrap();
+    let mut slq = Slq::new(&problem, SlqSettings { threads: 1, ..SlqSettings::default() }).unwrap();
+    slq.start_from(&problem.initial, &PdPolicy(&pd)).unwrap();
+    slq.real_time_iteration(&problem.initial, None).unwrap();
+    let (states, inputs, gains): (Vec<RobotState>, Vec<_>, Vec<_>) = (slq.states().to_vec(), slq.inputs().to_vec(), slq.gains().to_vec());
+    let (head, m) = (10, 5);
+    problem.receding.as_ref().unwrap().set_start(0.005);
+    assert_eq!(slq.shift_head(head, m, &PdPolicy(&pd)), 0, "the standing tail stays valid");
+    // The head's last five knots moved up; the first tail knot split into five of the head.
+    for k in 0..head - m {
+        assert_eq!(slq.states()[k], states[k + m], "state {k}");
+        assert_eq!(slq.inputs()[k], inputs[k + m], "input {k}");
+        assert_eq!(slq.gains()[k], gains[k + m], "gain {k}");
+    }
+    for k in head - m..head {
+        assert_eq!(slq.inputs()[k], inputs[head], "split input {k}");
+        assert_eq!(slq.gains()[k], gains[head], "split gain {k}");
+    }
+    // Five 1 ms knots with the tail knot's input are the tail knot: the same end state.
+    let end = &slq.states()[head];
+    assert_eq!(end, &states[head + 1]);
+    let mut ws = problem.workspace();
+    let mut x = slq.states()[head - m].clone();
+    let mut next = x.clone();
+    for k in head - m..head {
+        problem.step(&mut ws, k, &x, &slq.inputs()[k], &mut next);
+        assert!((&next.q - &slq.states()[k + 1].q).amax() < 1e-12 && (&next.v - &slq.states()[k + 1].v).amax() < 1e-9, "split state {}", k + 1);
+        std::mem::swap(&mut x, &mut next);
+    }
+    assert!((&x.q - &end.q).amax() < 1e-9 && (&x.v - &end.v).amax() < 1e-6, "the split knots end where the tail knot ended");
+    // The tail moved up by one knot; its new last knot from the PD.
+    for k in head..n - 1 {
+        assert_eq!(slq.states()[k], states[k + 1], "tail state {k}");
+        assert_eq!(slq.inputs()[k], inputs[k + 1], "tail input {k}");
+    }
+    let mut u = nalgebra::DVector::zeros(problem.nu());
+    pd.actuated_torques(&model, &slq.states()[n - 1].q, &slq.states()[n - 1].v, &mut u);
+    assert_eq!(slq.inputs()[n - 1], u);
+    problem.step(&mut ws, n - 1, &slq.states()[n - 1], &slq.inputs()[n - 1], &mut next);
+    assert_eq!(next, slq.states()[n]);
+    assert!(MpcSettings { fine_head: Some(0.0125), ..settings.clone() }.check().is_err(), "a head of a fractional knot count is refused");
+    assert!(MpcSettings { fine_head: Some(0.002), ..settings }.check().is_err(), "a head shorter than a tick is refused");
+}
+
+#[test]
 fn standing_hyq_rejects_a_100_n_lateral_push_and_ticks_on_schedule() {
     let model = embedded::load("hyq").unwrap();
     let spec = stand(1.0);

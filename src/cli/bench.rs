@@ -87,6 +87,10 @@ pub enum BenchCommand {
         /// Knot spacing of every window (s); default the tick period.
         #[arg(long)]
         knot_dt: Option<f64>,
+        /// With --knot-dt finer than the tick period: the windows' first seconds in knots of
+        /// --knot-dt, the rest in knots of the tick period (`legwork mpc --fine-head`).
+        #[arg(long)]
+        fine_head: Option<f64>,
         /// Horizon of the task runs (s).
         #[arg(long, default_value_t = 0.5)]
         horizon: f64,
@@ -223,10 +227,10 @@ pub fn run(cmd: BenchCommand) -> Result<Verdict> {
         BenchCommand::Jumps { json, repeats, knots, trials, jumps: names, barrier_contact_timing, barrier_full_body, barrier_curvature, threads } => jumps(json, repeats, knots, trials, &names, [barrier_contact_timing, barrier_full_body, barrier_curvature], super::capped_threads(threads)),
         BenchCommand::Slq { json, threads, iterations, check, out } => slq(json, super::capped_threads(threads), iterations, check.is_some(), &out),
         BenchCommand::Terrain { trials, json, threads, scenarios, out } => terrain(trials, json, super::capped_threads(threads), &scenarios, &out),
-        BenchCommand::Mpc { tasks, timing_task, horizons, thread_counts, push, rate, knot_dt, horizon, latency, sim, json, out } => {
+        BenchCommand::Mpc { tasks, timing_task, horizons, thread_counts, push, rate, knot_dt, fine_head, horizon, latency, sim, json, out } => {
             let thread_counts: Vec<usize> = thread_counts.iter().map(|&t| super::capped_threads(t)).collect();
             let latency = super::mpc::parse_latency(&latency)?;
-            super::bench_mpc::run(&super::bench_mpc::MpcBench { tasks: &tasks, timing_task: &timing_task, horizons: &horizons, thread_counts: &thread_counts, push, mujoco: sim == super::mpc::SimChoice::Mujoco, latency, rate, knot_dt, horizon, as_json: json, out: &out })
+            super::bench_mpc::run(&super::bench_mpc::MpcBench { tasks: &tasks, timing_task: &timing_task, horizons: &horizons, thread_counts: &thread_counts, push, mujoco: sim == super::mpc::SimChoice::Mujoco, latency, rate, knot_dt, fine_head, horizon, as_json: json, out: &out })
         }
     }
 }

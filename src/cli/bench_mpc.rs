@@ -29,6 +29,7 @@ pub struct MpcBench<'a> {
     pub rate: f64,
     /// Knot spacing of every window (s; `None`: the tick period).
     pub knot_dt: Option<f64>,
+    pub fine_head: Option<f64>,
     /// Horizon of the task runs (s).
     pub horizon: f64,
     pub as_json: bool,
@@ -103,7 +104,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
     let sim = if bench.mujoco { ClosedLoopSim::Mujoco(MujocoCheck::locate().or_could_not_finish()?) } else { ClosedLoopSim::Legwork };
     let sim_name = if bench.mujoco { "MuJoCo" } else { "legwork" };
     let max_threads = *bench.thread_counts.iter().max().unwrap_or(&1);
-    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, ..MpcSettings::default() };
+    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, ..MpcSettings::default() };
 
     // The tick time against horizon and threads, on one task, the latency measured.
     let timing_out = bench.out.join("timing");
@@ -162,6 +163,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         "sim": sim_name,
         "rate_hz": bench.rate,
         "knot_dt_s": base.knot_dt(),
+        "fine_head_s": base.fine_head,
         "task_horizon_s": bench.horizon,
         "latency": match bench.latency { PolicyLatency::Measured => json!("measured"), PolicyLatency::Fixed(l) => json!(l) },
         "cpu": super::bench::cpu_name(),

@@ -29,7 +29,7 @@ pub mod closed_loop;
 pub use closed_loop::{run_closed_loop, ClosedLoopRun, PolicyLatency, TickRecord};
 
 use crate::model::Model;
-use crate::ocp::{KnotLinearization, PlanValue, RecedingHorizon, ReferenceMotion, RobotState, TaskError, TaskSpec, WholeBodyProblem};
+use crate::ocp::{CoarseTail, KnotLinearization, PlanValue, RecedingHorizon, ReferenceMotion, RobotState, TaskError, TaskSpec, WholeBodyProblem};
 use crate::sim::{ControlError, Controller, SimState};
 use crate::slq::{Policy, Problem, RealTimeIteration, RealTimeIterationError, Slq, SlqError, SlqSettings, SlqSolution};
 use crate::terrain::Terrain;
@@ -92,6 +92,12 @@ pub struct MpcSettings {
     /// Knot spacing of the window (`None`: the tick period, so a tick moves the window by
     /// one knot). The tick period must be a whole number of knots.
     pub knot_dt: Option<f64>,
+    /// With `knot_dt` finer than the tick period: only the window's first `fine_head`
+    /// seconds in knots of `knot_dt`, the rest in knots of the tick period, each integrated
+    /// in the head's steps (`None`: the whole window in knots of `knot_dt`). The robot runs
+    /// the head's first knots before the next tick; the coarse rest carries the cost-to-go
+    /// at a fraction of the knots ([`crate::ocp::CoarseTail`]).
+    pub fine_head: Option<f64>,
     /// SLQ iterations per tick (1: the real-time iteration scheme).
     pub iterations_per_tick: usize,
     /// SLQ iterations on the first window before the robot starts (10): the robot waits
@@ -125,7 +131,7 @@ pub struct MpcSettings {
 
 impl Default for MpcSettings {
     fn default() -> Self {
-        Self { horizon: 0.5, rate: 200.0, knot_dt: None, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default() }
+        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default() }
     }
 }
 
@@ -143,6 +149,19 @@ impl MpcSettings {
     /// Knots per tick period.
     pub fn knots_per_tick(&self) -> usize {
         (self.period() / self.knot_dt()).round() as usize
+    }
+
+    /// The window's knots: `(head, tail)`, the first `head` of `knot_dt` and `tail` of the
+    /// tick period after them ([`Self::fine_head`]; `tail` 0 without one).
+    pub fn knot_counts(&self) -> (usize, usize) {
+        let dt = self.knot_dt();
+        match self.fine_head.filter(|_| self.knots_per_tick() > 1) {
+            Some(head) => {
+                let fine = (head / dt).round() as usize;
+                (fine, ((self.horizon - fine as f64 * dt) / self.period()).round().max(0.0) as usize)
+            }
+            None => ((self.horizon / dt).round() as usize, 0),
+        }
     }
 
     /// Checks every setting: a clear error naming the one that is wrong.
@@ -168,6 +187,12 @@ impl MpcSettings {
         }
         if knots > 100_000.0 {
             return bad("horizon", format!("{} s is {knots:.0} knots of {dt} s: at most 100000", self.horizon));
+        }
+        if let Some(head) = self.fine_head {
+            let fine = head / dt;
+            if !(head.is_finite() && (fine - fine.round()).abs() < 1e-6 && fine.round() as usize >= self.knots_per_tick() && head < self.horizon) {
+                return bad("fine_head", format!("expected a whole number of knots of {dt} s, at least a tick period ({} s) and shorter than the horizon ({} s), got {head}", self.period(), self.horizon));
+            }
         }
         if self.iterations_per_tick == 0 {
             return bad("iterations_per_tick", "expected at least 1".into());
@@ -221,8 +246,11 @@ pub fn window_problem<'a>(spec: &TaskSpec, model: &'a Model, terrain: &'a dyn Te
     }
     let initial = plan.states[0].clone();
     let mut window = spec.clone();
+    let (head, tail) = settings.knot_counts();
     window.dt = settings.knot_dt();
-    window.duration = settings.knot_dt() * (settings.horizon / settings.knot_dt()).round();
+    // The knots' count (the feasibility rows are per knot); a coarse tail spaces the last
+    // `tail` of them by the tick period below.
+    window.duration = settings.knot_dt() * (head + tail) as f64;
     window.substeps = None;
     window.continuation = None;
     window.exploration = None;
@@ -249,6 +277,9 @@ pub fn window_problem<'a>(spec: &TaskSpec, model: &'a Model, terrain: &'a dyn Te
     }
     problem.anchor_states = settings.anchor_states;
     problem.linearization = settings.linearization;
+    if tail > 0 {
+        problem.tail = Some(CoarseTail { from: head, dt: settings.period(), substeps: problem.substeps * settings.knots_per_tick() });
+    }
     let mut receding = RecedingHorizon::new(0.0, spec.duration, reference);
     if settings.plan_value {
         let mut value = plan.value_function.clone().ok_or(MpcError::Settings { field: "plan_value", problem: "the plan has no value function: solve it with record_value_function".into() })?;
@@ -321,13 +352,14 @@ impl<'a> Policy<WholeBodyProblem<'a>> for PlanPolicy<'_> {
     }
 }
 
-/// A solution of the window as the robot runs it until the next one arrives: from the
-/// window's start `start`, knot `k` over `[start + k dt, start + (k + 1) dt)`,
-/// `u = u_k + K_k (x (-) x_k)`; past the window's end, its last knot's law.
+/// A solution of the window as the robot runs it until the next one arrives: knot `k`
+/// over `[t_k, t_{k+1})`, `u = u_k + K_k (x (-) x_k)`; past the window's end, its last
+/// knot's law.
 #[derive(Clone, Debug)]
 pub struct MpcPolicy {
+    /// The window's start (s) and its knots' spacing.
     pub start: f64,
-    pub dt: f64,
+    pub grid: crate::ocp::KnotGrid,
     pub states: Vec<RobotState>,
     pub inputs: Vec<DVector<f64>>,
     pub gains: Vec<DMatrix<f64>>,
@@ -337,12 +369,13 @@ impl MpcPolicy {
     /// A policy with room for `problem`'s window (all zero).
     pub fn for_problem(problem: &WholeBodyProblem<'_>) -> Self {
         let (n, nx, nu) = (problem.horizon(), problem.nx(), problem.nu());
-        Self { start: 0.0, dt: problem.dt, states: vec![problem.initial.clone(); n + 1], inputs: vec![DVector::zeros(nu); n], gains: vec![DMatrix::zeros(nu, nx); n] }
+        Self { start: 0.0, grid: problem.grid(), states: vec![problem.initial.clone(); n + 1], inputs: vec![DVector::zeros(nu); n], gains: vec![DMatrix::zeros(nu, nx); n] }
     }
 
     /// Copies the solver's current solution in (no allocation).
     fn copy_from(&mut self, start: f64, slq: &Slq<'_, WholeBodyProblem<'_>>) {
         self.start = start;
+        self.grid = slq.problem().grid();
         for (to, from) in self.states.iter_mut().zip(slq.states()) {
             to.clone_from(from);
         }
@@ -354,9 +387,10 @@ impl MpcPolicy {
         }
     }
 
-    /// The knot acting at time `t`.
-    pub fn knot_at(&self, t: f64) -> usize {
-        (((t - self.start) / self.dt + 1e-9).floor().max(0.0) as usize).min(self.inputs.len() - 1)
+    /// The knot acting at time `t` (the first before the window, the last after it) and how
+    /// far into it `t` is, as a fraction of the knot.
+    pub fn knot_at(&self, t: f64) -> (usize, f64) {
+        self.grid.interval_at(t - self.start)
     }
 }
 
@@ -422,14 +456,29 @@ impl<'p, 'a> Mpc<'p, 'a> {
     /// budget spent. The new policy is then in [`Self::write_policy`].
     pub fn tick(&mut self, t: f64, x: &RobotState) -> Result<TickReport, MpcError> {
         let started = Instant::now();
-        let dt = self.problem.dt;
-        let knots = ((t - self.last_start) / dt).round().max(0.0) as usize;
-        let start = self.last_start + knots as f64 * dt;
-        if let Some(r) = &self.problem.receding {
-            r.set_start(start);
+        if let Some(tail) = self.problem.tail {
+            // A coarse tail: the window moves by whole tick periods, one tail knot each.
+            let period = self.settings.period();
+            let ticks = ((t - self.last_start) / period).round().max(0.0) as usize;
+            let m = self.settings.knots_per_tick();
+            for i in 1..=ticks {
+                if let Some(r) = &self.problem.receding {
+                    r.set_start(self.last_start + i as f64 * period);
+                }
+                self.slq.shift_head(tail.from, m, &self.plan_policy);
+            }
+            self.last_start += ticks as f64 * period;
+        } else {
+            let dt = self.problem.dt;
+            let knots = ((t - self.last_start) / dt).round().max(0.0) as usize;
+            let start = self.last_start + knots as f64 * dt;
+            if let Some(r) = &self.problem.receding {
+                r.set_start(start);
+            }
+            self.last_start = start;
+            self.slq.shift(knots, &self.plan_policy);
         }
-        self.last_start = start;
-        self.slq.shift(knots, &self.plan_policy);
+        let start = self.last_start;
         let mut iterations = Vec::with_capacity(self.settings.iterations_per_tick);
         let mut restarted = false;
         for i in 0..self.settings.iterations_per_tick {
@@ -485,8 +534,7 @@ impl Controller for MpcPolicyController<'_, '_> {
         "mpc"
     }
     fn compute(&mut self, _model: &Model, state: &SimState, tau: &mut DVector<f64>) -> Result<(), ControlError> {
-        let k = self.policy.knot_at(state.t);
-        let along = ((state.t - self.policy.start) / self.policy.dt - k as f64).clamp(0.0, 1.0);
+        let (k, along) = self.policy.knot_at(state.t);
         self.x.q.copy_from(&state.q);
         self.x.v.copy_from(&state.v);
         self.x.anchors.clone_from(&state.anchors);

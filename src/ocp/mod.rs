@@ -39,7 +39,7 @@ pub use exploration::{explore, start_seed, survivors, Exploration, ExplorationSp
 pub use limit_cost::{JointLimitCost, JointLimitCostSpec};
 pub use metrics::{joint_limit_excess, Feasibility, LimitExcess, MotionMetrics, Snapshot, FRICTION_MARGIN, SLIDE_SPEED};
 pub use physical_gains::{physical_gain, PhysicalGainWorkspace};
-pub use receding::{PlanValue, RecedingHorizon, ReferenceMotion};
+pub use receding::{CoarseTail, KnotGrid, PlanValue, RecedingHorizon, ReferenceMotion};
 
 pub use run::{solution_trajectory, solve_task, ExplorationReport, Rerun, SingleStartFinal, SlqPolicyController, SolveError, SolveOptions, SolveProgress, StageReport, TaskRun};
 pub use target::{all_met, CheckTime, Target, TargetCoordinate, TargetResult, TargetSpec, TargetTime};
@@ -150,6 +150,9 @@ pub struct WholeBodyProblem<'a> {
     pub substeps: usize,
     /// Number of transitions.
     pub knots: usize,
+    /// A receding window's coarser knots after its first ones (`None`: every knot `dt`;
+    /// [`Self::knot_dt`], [`Self::knot_time`]).
+    pub tail: Option<CoarseTail>,
     pub initial: RobotState,
     /// `Q` with the desired state of the running cost.
     pub running: StateCost,
@@ -317,9 +320,28 @@ impl<'a> WholeBodyProblem<'a> {
         scale * ws.e.dot(&ws.we) + self.add_foot_cost_derivatives(ws, feet, scale, x, l_x, l_xx)
     }
 
-    /// The absolute time of knot `k` (s): `k dt`, from the window's start in a receding horizon.
+    /// Where the knots fall ([`KnotGrid`]).
+    pub fn grid(&self) -> KnotGrid {
+        KnotGrid { dt: self.dt, knots: self.knots, tail: self.tail }
+    }
+
+    /// The length of knot `k`'s interval (s): `dt`, or the coarse tail's.
+    pub fn knot_dt(&self, k: usize) -> f64 {
+        self.grid().dt_of(k)
+    }
+
+    /// Integration steps of knot `k` (each `knot_dt(k) / knot_substeps(k)`).
+    pub fn knot_substeps(&self, k: usize) -> usize {
+        match self.tail {
+            Some(tail) if k >= tail.from => tail.substeps,
+            _ => self.substeps,
+        }
+    }
+
+    /// The absolute time of knot `k` (s): `k dt` (with a coarse tail, its knots' spacing
+    /// after `tail.from`), from the window's start in a receding horizon.
     pub fn knot_time(&self, k: usize) -> f64 {
-        self.receding.as_ref().map_or(0.0, RecedingHorizon::start) + k as f64 * self.dt
+        self.receding.as_ref().map_or(0.0, RecedingHorizon::start) + self.grid().offset(k)
     }
 
     /// The knot whose state carries the task's final cost `H` (the last, but in a receding
@@ -327,7 +349,7 @@ impl<'a> WholeBodyProblem<'a> {
     fn final_knot(&self) -> Option<usize> {
         match &self.receding {
             None => Some(self.knots),
-            Some(r) => r.final_knot(self.dt, self.knots),
+            Some(r) => r.final_knot(&self.grid()),
         }
     }
 
@@ -339,7 +361,7 @@ impl<'a> WholeBodyProblem<'a> {
         if k < self.knots && self.final_knot() == Some(k) {
             cost += self.state_cost(ws, &self.terminal, 1.0, x);
         }
-        let (weights, scale) = if k < self.knots { (&r.reference.weights, self.dt) } else { (&r.reference.terminal_weights, 1.0) };
+        let (weights, scale) = if k < self.knots { (&r.reference.weights, self.knot_dt(k)) } else { (&r.reference.terminal_weights, 1.0) };
         cost += self.deviation_cost(ws, r.reference.at(self.knot_time(k)), weights, &[], scale, x);
         if k == self.knots {
             cost += self.plan_value(ws, x, None);
@@ -376,7 +398,7 @@ impl<'a> WholeBodyProblem<'a> {
         if k < self.knots && self.final_knot() == Some(k) {
             cost += self.add_state_cost_derivatives(ws, &self.terminal, 1.0, x, l_x, l_xx);
         }
-        let (weights, scale) = if k < self.knots { (&r.reference.weights, self.dt) } else { (&r.reference.terminal_weights, 1.0) };
+        let (weights, scale) = if k < self.knots { (&r.reference.weights, self.knot_dt(k)) } else { (&r.reference.terminal_weights, 1.0) };
         cost += self.add_deviation_cost_derivatives(ws, r.reference.at(self.knot_time(k)), weights, &[], scale, x, l_x, l_xx);
         if k == self.knots {
             cost += self.plan_value(ws, x, Some((l_x, l_xx)));
@@ -385,22 +407,22 @@ impl<'a> WholeBodyProblem<'a> {
     }
 
     fn running_cost(&self, ws: &mut WholeBodyWorkspace<'a>, k: usize, x: &RobotState, u: &DVector<f64>) -> f64 {
-        let t = self.knot_time(k);
-        let mut cost = self.state_cost(ws, &self.running, self.dt, x) + self.receding_cost(ws, k, x);
+        let (t, dt) = (self.knot_time(k), self.knot_dt(k));
+        let mut cost = self.state_cost(ws, &self.running, dt, x) + self.receding_cost(ws, k, x);
         for w in &self.waypoints {
-            cost += self.state_cost(ws, &w.cost, self.dt * w.window(t), x);
+            cost += self.state_cost(ws, &w.cost, dt * w.window(t), x);
         }
         if let Some(limits) = &self.joint_limit_cost {
-            cost += limits.cost(self.dt, &x.q);
+            cost += limits.cost(dt, &x.q);
         }
-        cost + self.dt * u.iter().zip(&self.input_desired).zip(&self.input_weights).map(|((u, d), r)| r * (u - d) * (u - d)).sum::<f64>() + self.reference_input_cost(k, u, None)
+        cost + dt * u.iter().zip(&self.input_desired).zip(&self.input_weights).map(|((u, d), r)| r * (u - d) * (u - d)).sum::<f64>() + self.reference_input_cost(k, u, None)
     }
 
     /// A receding horizon's `dt w_u |u - u_ref(t_k)|^2`, with its gradient and Hessian
     /// added to `derivatives = (l_u, l_uu)` if given.
     fn reference_input_cost(&self, k: usize, u: &DVector<f64>, derivatives: Option<(&mut DVector<f64>, &mut DMatrix<f64>)>) -> f64 {
         let Some(r) = self.receding.as_ref().filter(|r| r.reference.input_weight > 0.0 && !r.reference.tau.is_empty()) else { return 0.0 };
-        let w = self.dt * r.reference.input_weight;
+        let w = self.knot_dt(k) * r.reference.input_weight;
         let reference = r.reference.torque_at(self.knot_time(k));
         let cost = w * u.iter().zip(reference.iter()).map(|(u, d)| (u - d) * (u - d)).sum::<f64>();
         if let Some((l_u, l_uu)) = derivatives {
@@ -532,13 +554,14 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         next.q.copy_from(&x.q);
         next.v.copy_from(&x.v);
         next.anchors.clone_from(&x.anchors);
-        let h = self.dt / self.substeps as f64;
-        for substep in 0..self.substeps {
+        let (dt, substeps) = (self.knot_dt(k), self.knot_substeps(k));
+        let h = dt / substeps as f64;
+        for substep in 0..substeps {
             ws.dynamics.step(&mut next.q, &mut next.v, &mut next.anchors, &ws.tau, h);
             // The first substep evaluated the contacts at x: the constraints' forces.
             if let (0, Some(constraints)) = (substep, &self.feasibility) {
                 let at = KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params: ws.dynamics.params(), feet: ws.dynamics.feet() };
-                cost += constraints.cost(k, self.dt, at);
+                cost += constraints.cost(k, dt, at);
             }
         }
         cost
@@ -556,9 +579,10 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         let mut cost = 0.0;
         // Each substep's A_i, B_i (the anchor-extended ones with anchor states), chained
         // with the input held: A <- A_i A, B <- A_i B + B_i.
-        let h = self.dt / self.substeps as f64;
+        let (dt, substeps) = (self.knot_dt(k), self.knot_substeps(k));
+        let h = dt / substeps as f64;
         let frozen = self.linearization == KnotLinearization::FirstSubstep;
-        for substep in 0..self.substeps {
+        for substep in 0..substeps {
             if frozen && substep > 0 {
                 // The state exactly, the model the first substep's: A <- A_1 A, B <- A_1 B + B_1.
                 ws.dynamics.step(&mut next.q, &mut next.v, &mut next.anchors, &ws.tau, h);
@@ -574,7 +598,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             // The first substep evaluated the contacts and foot Jacobians at x.
             if let (0, Some(constraints)) = (substep, &self.feasibility) {
                 let at = KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params: ws.dynamics.params(), feet: ws.dynamics.feet() };
-                cost += constraints.add_derivatives(k, self.dt, at, &ws.derivatives, self.anchor_states, &mut ws.constraint_row, (&mut d.l_x, &mut d.l_xx));
+                cost += constraints.add_derivatives(k, dt, at, &ws.derivatives, self.anchor_states, &mut ws.constraint_row, (&mut d.l_x, &mut d.l_xx));
             }
             let (a, b) = if substep == 0 { (&mut d.a, &mut d.b) } else { (&mut ws.step_a, &mut ws.step_b) };
             if self.anchor_states {
@@ -605,24 +629,24 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             }
         }
         let t = self.knot_time(k);
-        cost += self.add_state_cost_derivatives(ws, &self.running, self.dt, x, &mut d.l_x, &mut d.l_xx);
+        cost += self.add_state_cost_derivatives(ws, &self.running, dt, x, &mut d.l_x, &mut d.l_xx);
         cost += self.add_receding_cost_derivatives(ws, k, x, &mut d.l_x, &mut d.l_xx);
         for w in &self.waypoints {
-            let scale = self.dt * w.window(t);
-            if scale > 1e-12 * self.dt {
+            let scale = dt * w.window(t);
+            if scale > 1e-12 * dt {
                 cost += self.add_state_cost_derivatives(ws, &w.cost, scale, x, &mut d.l_x, &mut d.l_xx);
             }
         }
         if let Some(limits) = &self.joint_limit_cost {
-            cost += limits.add_derivatives(self.dt, &x.q, &mut d.l_x, &mut d.l_xx);
+            cost += limits.add_derivatives(dt, &x.q, &mut d.l_x, &mut d.l_xx);
         }
         d.l_uu.as_mut_slice().fill(0.0);
         for i in 0..self.nu_() {
             let r = self.input_weights[i];
             let du = u[i] - self.input_desired[i];
-            d.l_u[i] = 2.0 * self.dt * r * du;
-            d.l_uu[(i, i)] = 2.0 * self.dt * r;
-            cost += self.dt * r * du * du;
+            d.l_u[i] = 2.0 * dt * r * du;
+            d.l_uu[(i, i)] = 2.0 * dt * r;
+            cost += dt * r * du * du;
         }
         cost + self.reference_input_cost(k, u, Some((&mut d.l_u, &mut d.l_uu)))
     }
@@ -636,7 +660,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         if let Some(constraints) = self.feasibility.as_ref().filter(|c| c.settings.terminal_knot) {
             ws.dynamics.evaluate_contacts(&x.q, &x.v, &x.anchors);
             let at = KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params: ws.dynamics.params(), feet: ws.dynamics.feet() };
-            cost += constraints.cost(self.knots, self.dt, at);
+            cost += constraints.cost(self.knots, self.knot_dt(self.knots.saturating_sub(1)), at);
         }
         cost
     }
@@ -652,8 +676,9 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             ws.tau.fill(0.0);
             let s = &mut ws.terminal_scratch;
             ws.derivatives.step(&mut ws.dynamics, &mut s.q, &mut s.v, &mut s.anchors, &ws.tau, self.dt / self.substeps as f64);
+            let dt = self.knot_dt(self.knots.saturating_sub(1));
             let at = KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params: ws.dynamics.params(), feet: ws.dynamics.feet() };
-            cost += constraints.add_derivatives(self.knots, self.dt, at, &ws.derivatives, self.anchor_states, &mut ws.constraint_row, (h_x, h_xx));
+            cost += constraints.add_derivatives(self.knots, dt, at, &ws.derivatives, self.anchor_states, &mut ws.constraint_row, (h_x, h_xx));
         }
         if self.final_knot() == Some(self.knots) {
             cost += self.add_state_cost_derivatives(ws, &self.terminal, 1.0, x, h_x, h_xx);

@@ -57,6 +57,83 @@ impl ReferenceMotion {
     }
 }
 
+/// A window's coarse tail: from knot `from` on, knots of `dt` seconds integrated in
+/// `substeps` steps, after the finer head knots of the problem's own `dt` (the part of the
+/// window the robot runs before the next tick is exact; the rest only has to carry the
+/// cost-to-go). [`crate::slq::Slq::shift_head`] moves such a window.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CoarseTail {
+    pub from: usize,
+    pub dt: f64,
+    pub substeps: usize,
+}
+
+/// Where a problem's knots fall: `knots` transitions of `dt` seconds, or with a
+/// [`CoarseTail`] the first `tail.from` of `dt` and the rest of `tail.dt`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct KnotGrid {
+    pub dt: f64,
+    pub knots: usize,
+    pub tail: Option<CoarseTail>,
+}
+
+impl KnotGrid {
+    /// Knots every `dt`.
+    pub fn uniform(dt: f64, knots: usize) -> Self {
+        Self { dt, knots, tail: None }
+    }
+
+    /// The length of knot `k`'s interval (s).
+    pub fn dt_of(&self, k: usize) -> f64 {
+        match self.tail {
+            Some(tail) if k >= tail.from => tail.dt,
+            _ => self.dt,
+        }
+    }
+
+    /// The time of knot `k` from the grid's start (s).
+    pub fn offset(&self, k: usize) -> f64 {
+        match self.tail {
+            Some(tail) if k > tail.from => tail.from as f64 * self.dt + (k - tail.from) as f64 * tail.dt,
+            _ => k as f64 * self.dt,
+        }
+    }
+
+    /// The knot whose interval holds `offset` seconds from the grid's start (the first
+    /// before it, the last, `knots - 1`, after its end) and how far into the interval
+    /// `offset` is, as a fraction of it (0 to 1).
+    pub fn interval_at(&self, offset: f64) -> (usize, f64) {
+        let last = self.knots.saturating_sub(1);
+        let in_units = |offset: f64, dt: f64| (offset / dt + 1e-9).floor().max(0.0);
+        let (k, fraction) = match self.tail {
+            Some(tail) if offset >= tail.from as f64 * self.dt => {
+                let local = offset - tail.from as f64 * self.dt;
+                let j = in_units(local, tail.dt);
+                (tail.from + j as usize, local / tail.dt - j)
+            }
+            _ => {
+                let j = in_units(offset, self.dt);
+                (j as usize, offset / self.dt - j)
+            }
+        };
+        if k > last {
+            (last, 1.0)
+        } else {
+            (k, fraction.clamp(0.0, 1.0))
+        }
+    }
+
+    /// The index of the knot nearest `offset` seconds from the grid's start, as if the grid
+    /// went on past its end and before its start (a whole number; may lie outside
+    /// `0..=knots`).
+    pub fn nearest(&self, offset: f64) -> f64 {
+        match self.tail {
+            Some(tail) if offset > tail.from as f64 * self.dt => tail.from as f64 + ((offset - tail.from as f64 * self.dt) / tail.dt).round(),
+            _ => (offset / self.dt).round(),
+        }
+    }
+}
+
 /// What makes a [`super::WholeBodyProblem`] a receding-horizon window (module docs).
 #[derive(Debug)]
 pub struct RecedingHorizon {
@@ -110,14 +187,17 @@ impl RecedingHorizon {
         self.start.store(t.to_bits(), Ordering::Relaxed);
     }
 
-    /// The knot of `knots` (spaced `dt`) that carries the task's final cost: the one nearest
-    /// the task's end, the last once the end has passed, none before the window reaches it.
-    pub fn final_knot(&self, dt: f64, knots: usize) -> Option<usize> {
-        let k = ((self.final_time - self.start()) / dt).round();
+    /// The knot of `grid` that carries the task's final cost: the one nearest the task's
+    /// end, the last once the end has passed, none before the window reaches it.
+    pub fn final_knot(&self, grid: &KnotGrid) -> Option<usize> {
+        let knots = grid.knots;
+        let k = grid.nearest(self.final_time - self.start());
         if k > knots as f64 {
             None
+        } else if self.final_time <= self.start() {
+            Some(knots)
         } else {
-            Some((k.max(0.0) as usize).min(knots)).map(|k| if self.final_time <= self.start() { knots } else { k })
+            Some((k.max(0.0) as usize).min(knots))
         }
     }
 }
@@ -161,15 +241,40 @@ mod tests {
     fn the_final_cost_moves_into_the_window_and_stays_at_its_end_afterwards() {
         let h = RecedingHorizon::new(0.0, 1.0, reference());
         // A 0.5 s window of 50 knots: the end at 1 s is beyond it.
-        assert_eq!(h.final_knot(0.01, 50), None);
+        let grid = KnotGrid::uniform(0.01, 50);
+        assert_eq!(h.final_knot(&grid), None);
         h.set_start(0.6);
-        assert_eq!(h.final_knot(0.01, 50), Some(40));
+        assert_eq!(h.final_knot(&grid), Some(40));
         h.set_start(0.99);
-        assert_eq!(h.final_knot(0.01, 50), Some(1));
+        assert_eq!(h.final_knot(&grid), Some(1));
         h.set_start(1.0);
-        assert_eq!(h.final_knot(0.01, 50), Some(50));
+        assert_eq!(h.final_knot(&grid), Some(50));
         h.set_start(2.0);
-        assert_eq!(h.final_knot(0.01, 50), Some(50));
+        assert_eq!(h.final_knot(&grid), Some(50));
         assert_eq!(h.clone(), h);
+    }
+
+    #[test]
+    fn a_coarse_tail_spaces_the_knots_after_the_head() {
+        // 0.5 s: 20 knots of 1 ms, then 96 of 5 ms.
+        let grid = KnotGrid { dt: 0.001, knots: 116, tail: Some(CoarseTail { from: 20, dt: 0.005, substeps: 5 }) };
+        assert!((grid.offset(20) - 0.02).abs() < 1e-12);
+        assert!((grid.offset(21) - 0.025).abs() < 1e-12);
+        assert!((grid.offset(116) - 0.5).abs() < 1e-12);
+        assert_eq!((grid.dt_of(19), grid.dt_of(20)), (0.001, 0.005));
+        assert_eq!(grid.nearest(0.0194), 19.0);
+        assert_eq!(grid.interval_at(0.0194).0, 19);
+        assert_eq!(grid.interval_at(0.0224).0, 20);
+        assert!((grid.interval_at(0.0224).1 - 0.48).abs() < 1e-9);
+        assert_eq!(grid.interval_at(-1.0), (0, 0.0));
+        assert_eq!(grid.interval_at(0.7), (115, 1.0));
+        assert_eq!(grid.nearest(0.0224), 20.0);
+        assert_eq!(grid.nearest(0.0226), 21.0);
+        let h = RecedingHorizon::new(0.0, 0.3, reference());
+        assert_eq!(h.final_knot(&grid), Some(76));
+        h.set_start(0.29);
+        assert_eq!(h.final_knot(&grid), Some(10));
+        h.set_start(-0.3);
+        assert_eq!(h.final_knot(&grid), None);
     }
 }

@@ -425,6 +425,7 @@ impl TaskSpec {
             dt: self.dt,
             substeps: self.substeps(model, origin)?,
             knots: self.knots(),
+            tail: None,
             initial,
             running,
             terminal,

@@ -44,6 +44,11 @@ pub enum RealTimeIterationError {
 }
 
 impl<'p, P: Problem> Slq<'p, P> {
+    /// The problem being solved.
+    pub fn problem(&self) -> &'p P {
+        self.problem
+    }
+
     /// The states `x_0 .. x_N` of the current solution.
     pub fn states(&self) -> &[P::State] {
         &self.states
@@ -111,6 +116,59 @@ impl<'p, P: Problem> Slq<'p, P> {
             }
         }
         held_states
+    }
+
+    /// [`Self::shift`] for a window whose first `head` knots are finer than the rest, each
+    /// later knot `m` head knots long and the window moved by `m` head knots (one later
+    /// knot; [`crate::ocp::CoarseTail`]): head knot `k` takes head knot `k + m`'s state,
+    /// input and gain; the first later knot, now in the head, becomes the head's last `m`
+    /// knots with its input and gain held (its states stepped; the same trajectory when a
+    /// later knot integrates the head's steps), the later knots move up by one and the last
+    /// comes from `tail` as in [`Self::shift`]. Returns how many tail steps held their state.
+    pub fn shift_head(&mut self, head: usize, m: usize, tail: &dyn Policy<P>) -> usize {
+        let n = self.problem.horizon();
+        if m == 0 || head < m || head >= n {
+            return self.shift(m, tail);
+        }
+        // Head: knots m..head move to 0..head - m; the first later knot (index head)
+        // fills head - m..head.
+        for v in [&mut self.inputs, &mut self.feedforward] {
+            v[..head].rotate_left(m);
+            let (front, split) = v.split_at_mut(head);
+            for to in &mut front[head - m..] {
+                to.copy_from(&split[0]);
+            }
+            v[head..].rotate_left(1);
+        }
+        self.gains[..head].rotate_left(m);
+        let (front, split) = self.gains.split_at_mut(head);
+        for to in &mut front[head - m..] {
+            to.copy_from(&split[0]);
+        }
+        self.gains[head..].rotate_left(1);
+        // States: x_{k+m} for k <= head - m, then the later knots' x_{j+1} from head on;
+        // the split knot's inner states are stepped with its input.
+        self.states[..=head].rotate_left(m);
+        self.states[head..].rotate_left(1);
+        for k in head - m..head - 1 {
+            let (before, next) = self.states.split_at_mut(k + 1);
+            self.problem.step(&mut self.workspaces[0], k, &before[k], &self.inputs[k], &mut next[0]);
+        }
+        // The new last knot: its gain the one before it, its input and state from `tail`.
+        let k = n - 1;
+        let (before, last) = self.gains.split_at_mut(k);
+        last[0].copy_from(&before[k - 1]);
+        self.feedforward[k].fill(0.0);
+        tail.control(self.problem, k, &self.states[k], &mut self.inputs[k]);
+        super::project(&mut self.inputs[k], &self.lower[k], &self.upper[k]);
+        let (before, next) = self.states.split_at_mut(k + 1);
+        self.problem.step(&mut self.workspaces[0], k, &before[k], &self.inputs[k], &mut next[0]);
+        if self.problem.is_valid(&next[0]) {
+            0
+        } else {
+            next[0].clone_from(&before[k]);
+            1
+        }
     }
 
     /// One real-time iteration from the measured state `x0` (module docs): the model
