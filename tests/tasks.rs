@@ -252,10 +252,11 @@ fn pallet_push_reaches_the_push_point_on_three_feet() {
     eprintln!("pallet_push: front-left foot {:?} (miss {:.1} mm), tracking {:?} (miss {:.1} mm)", plan.feet[0], miss(&plan) * 1e3, tracking.feet[0], miss(&tracking) * 1e3);
     assert!(miss(&plan) < 0.03, "plan misses the push point by {} m", miss(&plan));
     assert!(miss(&tracking) < 0.06, "tracking misses the push point by {} m", miss(&tracking));
-    // The three other feet stay on the ground: at least 99 % of the plan's knots. In the
-    // tracking re-run RH, the tripod's diagonal foot (about 20 N), is down 95.8 % of the time
-    // since the feasibility polish's two rounds (99.7 % with one round at the targets' bounds;
-    // the plan 99.4 %; MuJoCo keeps 0111 at the waypoint): docs/experiments/feasible-slq-4.md.
+    // The three other feet stay on the ground: at least 99 % of the plan's knots. RH, the
+    // tripod's least loaded foot, is down 99.8-100 % of the knots in the plan and both re-runs
+    // since the task holds the stance feet in place (it was 98.8-99.4 % in the plan, 95.8 % in
+    // the tracking re-run, while the joint-position cost had it dragged unloaded along the
+    // ground: tasks/pallet_push.toml, docs/experiments/deriv-rounding.md).
     let traj = match &run.tracking_rerun {
         Rerun::Completed { trajectory, .. } => trajectory.as_ref(),
         Rerun::Failed { reason } => panic!("tracking re-run failed: {reason}"),
