@@ -12,7 +12,9 @@
 //!   a light tracking cost toward the plan's states and torques
 //!   ([`crate::ocp::RecedingHorizon`]), the robot's own contact model and torque limits,
 //!   knots spaced by the tick period (5 ms, coarser than the plan's 2 ms; each integrated
-//!   in steps of the contact's stable step and linearized once, at its start);
+//!   in steps of the contact's stable step and linearized once, at its start), or finer
+//!   ([`MpcSettings::knot_dt`]), or finer only over the window's first part
+//!   ([`MpcSettings::fine_head`]);
 //! - **warm start**: the previous tick's solution shifted by the knots the window moved
 //!   ([`crate::slq::Slq::shift`]), its new last knots from the plan's own policy;
 //! - **iteration budget**: a fixed number of SLQ iterations per tick (one by default,
@@ -357,8 +359,9 @@ impl<'a> Policy<WholeBodyProblem<'a>> for PlanPolicy<'_> {
 /// knot's law.
 #[derive(Clone, Debug)]
 pub struct MpcPolicy {
-    /// The window's start (s) and its knots' spacing.
+    /// The window's start (s).
     pub start: f64,
+    /// Where its knots fall from the start ([`crate::ocp::KnotGrid`]).
     pub grid: crate::ocp::KnotGrid,
     pub states: Vec<RobotState>,
     pub inputs: Vec<DVector<f64>>,
