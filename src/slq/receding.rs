@@ -43,6 +43,18 @@ pub enum RealTimeIterationError {
     NoValidTrial,
 }
 
+/// Per-knot values of a window with a coarse tail from knot `head`, moved by `m` head knots
+/// ([`Slq::shift_head`]): `v_k <- v_{k+m}` in the head, the first tail value copied into the
+/// head's last `m`, the tail moved up by one (its last entry left for the caller).
+fn shift_into_head<T>(v: &mut [T], head: usize, m: usize, copy: impl Fn(&mut T, &T)) {
+    v[..head].rotate_left(m);
+    let (front, split) = v.split_at_mut(head);
+    for to in &mut front[head - m..] {
+        copy(to, &split[0]);
+    }
+    v[head..].rotate_left(1);
+}
+
 impl<'p, P: Problem> Slq<'p, P> {
     /// The problem being solved.
     pub fn problem(&self) -> &'p P {
@@ -97,25 +109,32 @@ impl<'p, P: Problem> Slq<'p, P> {
         self.gains.rotate_left(m);
         self.feedforward.rotate_left(m);
         // The old last state is now at n - m: the new tail starts from it.
-        let last_gain = (n - m).saturating_sub(1);
         for k in n - m..n {
-            if k > 0 && last_gain < k {
-                let (head, tail_gains) = self.gains.split_at_mut(k);
-                tail_gains[0].copy_from(&head[last_gain]);
-            }
-            self.feedforward[k].fill(0.0);
-            tail.control(self.problem, k, &self.states[k], &mut self.inputs[k]);
-            super::project(&mut self.inputs[k], &self.lower[k], &self.upper[k]);
-            let (head, next) = self.states.split_at_mut(k + 1);
-            self.problem.step(&mut self.workspaces[0], k, &head[k], &self.inputs[k], &mut next[0]);
-            if !self.problem.is_valid(&next[0]) {
-                // A tail that leaves the valid states holds its last valid one (the next
-                // iteration's trials start from the measured state, not from it).
-                next[0].clone_from(&head[k]);
-                held_states += 1;
-            }
+            held_states += usize::from(self.roll_out_tail_knot(k, tail));
         }
         held_states
+    }
+
+    /// A new last knot `k` after a shift: its gain the one before it (the last shifted one,
+    /// repeated), no feedforward increment, its input from `tail` at `x_k` (projected on
+    /// the box) and `x_{k+1}` stepped with it. A step that leaves the valid states holds
+    /// `x_k` (the next iteration's trials start from the measured state, not from it);
+    /// returns whether it did.
+    fn roll_out_tail_knot(&mut self, k: usize, tail: &dyn Policy<P>) -> bool {
+        if k > 0 {
+            let (before, gains) = self.gains.split_at_mut(k);
+            gains[0].copy_from(&before[k - 1]);
+        }
+        self.feedforward[k].fill(0.0);
+        tail.control(self.problem, k, &self.states[k], &mut self.inputs[k]);
+        super::project(&mut self.inputs[k], &self.lower[k], &self.upper[k]);
+        let (before, next) = self.states.split_at_mut(k + 1);
+        self.problem.step(&mut self.workspaces[0], k, &before[k], &self.inputs[k], &mut next[0]);
+        let held = !self.problem.is_valid(&next[0]);
+        if held {
+            next[0].clone_from(&before[k]);
+        }
+        held
     }
 
     /// [`Self::shift`] for a window whose first `head` knots are finer than the rest, each
@@ -132,20 +151,9 @@ impl<'p, P: Problem> Slq<'p, P> {
         }
         // Head: knots m..head move to 0..head - m; the first later knot (index head)
         // fills head - m..head.
-        for v in [&mut self.inputs, &mut self.feedforward] {
-            v[..head].rotate_left(m);
-            let (front, split) = v.split_at_mut(head);
-            for to in &mut front[head - m..] {
-                to.copy_from(&split[0]);
-            }
-            v[head..].rotate_left(1);
-        }
-        self.gains[..head].rotate_left(m);
-        let (front, split) = self.gains.split_at_mut(head);
-        for to in &mut front[head - m..] {
-            to.copy_from(&split[0]);
-        }
-        self.gains[head..].rotate_left(1);
+        shift_into_head(&mut self.inputs, head, m, DVector::copy_from);
+        shift_into_head(&mut self.feedforward, head, m, DVector::copy_from);
+        shift_into_head(&mut self.gains, head, m, DMatrix::copy_from);
         // States: x_{k+m} for k <= head - m, then the later knots' x_{j+1} from head on;
         // the split knot's inner states are stepped with its input.
         self.states[..=head].rotate_left(m);
@@ -154,21 +162,8 @@ impl<'p, P: Problem> Slq<'p, P> {
             let (before, next) = self.states.split_at_mut(k + 1);
             self.problem.step(&mut self.workspaces[0], k, &before[k], &self.inputs[k], &mut next[0]);
         }
-        // The new last knot: its gain the one before it, its input and state from `tail`.
-        let k = n - 1;
-        let (before, last) = self.gains.split_at_mut(k);
-        last[0].copy_from(&before[k - 1]);
-        self.feedforward[k].fill(0.0);
-        tail.control(self.problem, k, &self.states[k], &mut self.inputs[k]);
-        super::project(&mut self.inputs[k], &self.lower[k], &self.upper[k]);
-        let (before, next) = self.states.split_at_mut(k + 1);
-        self.problem.step(&mut self.workspaces[0], k, &before[k], &self.inputs[k], &mut next[0]);
-        if self.problem.is_valid(&next[0]) {
-            0
-        } else {
-            next[0].clone_from(&before[k]);
-            1
-        }
+        // The new last knot from `tail`.
+        usize::from(self.roll_out_tail_knot(n - 1, tail))
     }
 
     /// One real-time iteration from the measured state `x0` (module docs): the model
