@@ -14,7 +14,7 @@
 
 use legwork::dynamics::*;
 use legwork::model::{urdf, Model};
-use legwork::spatial::{Motion, SE3};
+use legwork::spatial::{Force, Motion, SE3, Vector3};
 use nalgebra::DVector;
 use proptest::prelude::*;
 use std::sync::OnceLock;
@@ -89,6 +89,28 @@ proptest! {
             let tau = rnea(model, &mut data, &q, &v, &qdd).clone();
             let back = aba(model, &mut data, &q, &v, &tau).clone();
             close(&back, &qdd, 1e-9)?;
+        }
+    }
+
+    #[test]
+    fn aba_after_the_kinematics_is_aba_to_the_bit(seed in any::<u64>()) {
+        // The simulator's ABA reuses the placements of its contacts' forward kinematics at
+        // the same q: the same acceleration, bit for bit, with external forces.
+        for model in robots() {
+            let mut rng = Rng::new(seed);
+            let mut data = Data::new(model);
+            let q = rng.configuration(model);
+            let v = rng.vector(model.nv, 2.0);
+            let tau = rng.vector(model.nv, 20.0);
+            let f_ext: Vec<Force> = (0..model.njoints()).map(|_| {
+                let x = rng.vector(6, 30.0);
+                Force::new(Vector3::new(x[0], x[1], x[2]), Vector3::new(x[3], x[4], x[5]))
+            }).collect();
+            let want = aba_with_external_forces(model, &mut data, &q, &v, &tau, &f_ext).clone();
+            let mut other = Data::new(model);
+            forward_kinematics_velocity(model, &mut other, &q, &v);
+            let got = aba_with_external_forces_after_kinematics(model, &mut other, &q, &v, &tau, &f_ext).clone();
+            prop_assert!(got == want, "after the kinematics {got}\nwithout {want}");
         }
     }
 

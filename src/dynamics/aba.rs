@@ -24,7 +24,7 @@ use nalgebra::DVector;
 /// assert!((m * qdd + nle - tau).norm() < 1e-9);
 /// ```
 pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &DVector<f64>, v: &DVector<f64>, tau: &DVector<f64>) -> &'d DVector<f64> {
-    aba_impl(model, data, q, v, tau, None)
+    aba_impl(model, data, q, v, tau, None, Placements::Compute)
 }
 
 /// ABA with an external spatial force on each joint's body, expressed in that joint's
@@ -38,7 +38,31 @@ pub fn aba_with_external_forces<'d>(
     f_ext: &[Force],
 ) -> &'d DVector<f64> {
     assert_eq!(f_ext.len(), model.njoints(), "f_ext needs one force per joint (including the universe)");
-    aba_impl(model, data, q, v, tau, Some(f_ext))
+    aba_impl(model, data, q, v, tau, Some(f_ext), Placements::Compute)
+}
+
+/// [`aba_with_external_forces`] after a forward kinematics at the same `q`
+/// ([`super::forward_kinematics_velocity`]): the joints' placements `data.li_m_i`,
+/// `data.o_m_i` are taken as they are, not recomputed (the same products in the same order:
+/// the same result to the bit, without the first pass's trigonometry). The simulator's
+/// step evaluates its contacts by that kinematics just before.
+pub fn aba_with_external_forces_after_kinematics<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &DVector<f64>,
+    v: &DVector<f64>,
+    tau: &DVector<f64>,
+    f_ext: &[Force],
+) -> &'d DVector<f64> {
+    assert_eq!(f_ext.len(), model.njoints(), "f_ext needs one force per joint (including the universe)");
+    aba_impl(model, data, q, v, tau, Some(f_ext), Placements::Known)
+}
+
+/// Whether ABA's first pass computes the joint placements or finds them in `data`.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Placements {
+    Compute,
+    Known,
 }
 
 fn aba_impl<'d>(
@@ -48,6 +72,7 @@ fn aba_impl<'d>(
     v: &DVector<f64>,
     tau: &DVector<f64>,
     f_ext: Option<&[Force]>,
+    placements: Placements,
 ) -> &'d DVector<f64> {
     let n = model.njoints();
     // Pass 1 (world frame): joint axes, velocities, bias accelerations, inertias, bias forces.
@@ -56,8 +81,13 @@ fn aba_impl<'d>(
     for i in 1..n {
         let jnt = &model.joints[i];
         let p = jnt.parent;
-        let li = local_placement(model, data, i, q);
-        let omi = if p > 0 { data.o_m_i[p] * li } else { li };
+        let (li, omi) = match placements {
+            Placements::Known => (data.li_m_i[i], data.o_m_i[i]),
+            Placements::Compute => {
+                let li = local_placement(model, data, i, q);
+                (li, if p > 0 { data.o_m_i[p] * li } else { li })
+            }
+        };
         let ov_p = if p > 0 { data.ov[p] } else { Motion::zero() };
         let ov = match jnt.kind {
             JointKind::FreeFlyer => {

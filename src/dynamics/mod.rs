@@ -31,7 +31,7 @@ mod kinematics;
 mod rnea;
 mod rnea_derivatives;
 
-pub use aba::{aba, aba_with_external_forces};
+pub use aba::{aba, aba_with_external_forces, aba_with_external_forces_after_kinematics};
 pub use aba_derivatives::{compute_aba_derivatives, compute_minverse, mass_matrix_factor, mass_matrix_factored_solve, mass_matrix_solve};
 pub use centroidal::{centroidal_map, centroidal_momentum};
 pub use com::{center_of_mass, com_jacobian};

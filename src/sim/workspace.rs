@@ -4,7 +4,7 @@
 
 use super::joint_limits::{JointLimitParams, JointStops};
 use crate::contact::{contact_force, update_anchor, ContactForce, ContactParams, Surface};
-use crate::dynamics::{aba_with_external_forces, forward_kinematics_velocity, integrate, Data};
+use crate::dynamics::{aba_with_external_forces, aba_with_external_forces_after_kinematics, forward_kinematics_velocity, integrate, Data};
 use crate::model::Model;
 use crate::spatial::Force;
 use crate::terrain::Terrain;
@@ -29,6 +29,9 @@ pub struct ContactModelWorkspace<'a> {
     pub(super) terrain: &'a dyn Terrain,
     pub(super) params: ContactParams,
     pub(super) data: Data,
+    /// The configuration of the last [`Self::evaluate_contacts`], whose joint placements
+    /// are in `data` (ABA reuses them at the same `q`).
+    kinematics_q: DVector<f64>,
     pub(super) f_ext: Vec<Force>,
     pub(super) feet: Vec<FootState>,
     feet_at_start: Vec<FootState>,
@@ -63,6 +66,7 @@ impl<'a> ContactModelWorkspace<'a> {
             terrain,
             params,
             data: Data::new(model),
+            kinematics_q: DVector::from_element(model.nq, f64::NAN),
             f_ext: vec![Force::zero(); model.njoints()],
             feet: vec![no_contact; model.feet.len()],
             feet_at_start: vec![no_contact; model.feet.len()],
@@ -107,6 +111,7 @@ impl<'a> ContactModelWorkspace<'a> {
     pub fn evaluate_contacts(&mut self, q: &DVector<f64>, v: &DVector<f64>, anchors: &[Option<Vector3<f64>>]) {
         let model = self.model;
         forward_kinematics_velocity(model, &mut self.data, q, v);
+        self.kinematics_q.copy_from(q);
         for f in self.f_ext.iter_mut() {
             *f = Force::zero();
         }
@@ -155,7 +160,12 @@ impl<'a> ContactModelWorkspace<'a> {
         self.add_base_push(q, push);
         self.tau_total.copy_from(tau);
         self.stops.add_torques(q, v, &mut self.tau_total);
-        let ddq = aba_with_external_forces(self.model, &mut self.data, q, v, &self.tau_total, &self.f_ext);
+        // The contacts' kinematics at this q left its placements in `data`: ABA reuses them.
+        let ddq = if *q == self.kinematics_q {
+            aba_with_external_forces_after_kinematics(self.model, &mut self.data, q, v, &self.tau_total, &self.f_ext)
+        } else {
+            aba_with_external_forces(self.model, &mut self.data, q, v, &self.tau_total, &self.f_ext)
+        };
         self.dv[out_index].copy_from(ddq);
     }
 
