@@ -3,11 +3,11 @@
 //! step, anchor update included, with feet sticking, slipping and touching down.
 
 use legwork::model::embedded;
-use legwork::ocp::{settled_stance, RobotState, TaskSpec, WholeBodyProblem};
+use legwork::ocp::{settled_stance, KnotLinearization, RobotState, TaskSpec, WholeBodyProblem};
 use legwork::sim::{ContactModelWorkspace, ANCHOR_DIM};
 use legwork::slq::{KnotDerivatives, Problem};
 use legwork::terrain::Plane;
-use nalgebra::DVector;
+use nalgebra::{DMatrix, DVector};
 
 /// `x (+) dx` for the extended state: configuration, velocity, and the anchors a foot has.
 fn perturbed(problem: &WholeBodyProblem<'_>, x: &RobotState, dx: &DVector<f64>) -> RobotState {
@@ -143,4 +143,64 @@ fn extended_linearization_with_joints_past_their_stops() {
     free.step_with_derivatives(&mut ws_free, 0, &x, &u, &mut x.clone(), &mut d_free);
     let knee = 6 + 2;
     assert!((d.a[(nv + knee, knee)] - d_free.a[(nv + knee, knee)]).abs() > 1.0, "dv'/dq of the LF knee: {} with stops, {} without", d.a[(nv + knee, knee)], d_free.a[(nv + knee, knee)]);
+}
+
+/// A receding window's 5 ms knot held at its first substep's model
+/// (`KnotLinearization::FirstSubstep`, chained on `A_1`'s structure by `SubstepProduct`):
+/// `A = A_1^5` and `B = sum_i A_1^i B_1` as dense products of the 1 ms substep's own
+/// linearization, whichever way each foot's anchor rows go (touching down, slipping,
+/// sticking, in the air). The backward pass's `linearize_knot`, which does not integrate the
+/// later substeps, gives the same model, cost and derivatives as `step_with_derivatives` to
+/// the bit, and `step_with_derivatives` still the exact next state.
+#[test]
+fn first_substep_knot_is_the_first_substeps_model_chained() {
+    let model = embedded::load("hyq").unwrap();
+    let ground = Plane::flat(0.0);
+    let settled = settled_stance(&model, &ground, 0.3).unwrap();
+    let spec = TaskSpec::embedded("turn").unwrap();
+    let window = |dt: f64, substeps: usize| {
+        let mut p = spec.problem(&model, &ground, settled.clone(), "test").unwrap();
+        p.anchor_states = true;
+        p.linearization = KnotLinearization::FirstSubstep;
+        p.dt = dt;
+        p.substeps = substeps;
+        p
+    };
+    let (knot, substep) = (window(0.005, 5), window(0.001, 1));
+    let (nx, nu) = (knot.nx(), knot.nu());
+
+    let mut moving = settled.clone();
+    moving.v[0] = 0.3;
+    moving.v[6] = 0.5;
+    moving.anchors[0] = None;
+    moving.anchors[1] = moving.anchors[1].map(|a| a - nalgebra::Vector3::new(0.05, 0.0, 0.0));
+    let mut flying = settled.clone();
+    flying.q[2] += 0.3;
+    flying.anchors.iter_mut().for_each(|a| *a = None);
+    let u = DVector::from_fn(nu, |i, _| 10.0 * (i as f64 - 5.5));
+    let (mut ws_knot, mut ws_substep) = (knot.workspace(), substep.workspace());
+    for (name, x) in [("touch-down and slip", &moving), ("standing", &settled), ("in the air", &flying)] {
+        let mut one = KnotDerivatives::zeros(nx, nu);
+        substep.step_with_derivatives(&mut ws_substep, 0, x, &u, &mut x.clone(), &mut one);
+        let (mut a_ref, mut b_ref) = (DMatrix::<f64>::identity(nx, nx), DMatrix::<f64>::zeros(nx, nu));
+        for _ in 0..5 {
+            b_ref = &one.a * &b_ref + &one.b;
+            a_ref = &one.a * &a_ref;
+        }
+        let mut d = KnotDerivatives::zeros(nx, nu);
+        let mut scratch = x.clone();
+        let cost = knot.linearize_knot(&mut ws_knot, 0, x, &u, &mut scratch, &mut d);
+        let a_err = (&d.a - &a_ref).norm() / a_ref.norm();
+        let b_err = (&d.b - &b_ref).norm() / b_ref.norm();
+        assert!(a_err < 1e-12 && b_err < 1e-12, "{name}: A off by {a_err:.1e}, B by {b_err:.1e} (relative)");
+
+        let mut exact = KnotDerivatives::zeros(nx, nu);
+        let mut next = x.clone();
+        let exact_cost = knot.step_with_derivatives(&mut ws_knot, 0, x, &u, &mut next, &mut exact);
+        assert_eq!(cost, exact_cost, "{name}: cost");
+        assert!(d.a == exact.a && d.b == exact.b && d.l_x == exact.l_x && d.l_xx == exact.l_xx && d.l_u == exact.l_u && d.l_uu == exact.l_uu && d.l_ux == exact.l_ux, "{name}: linearize_knot and step_with_derivatives differ");
+        let mut stepped = x.clone();
+        knot.step(&mut ws_knot, 0, x, &u, &mut stepped);
+        assert!(next.q == stepped.q && next.v == stepped.v && next.anchors == stepped.anchors, "{name}: step_with_derivatives' next state is not the step's");
+    }
 }

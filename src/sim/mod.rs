@@ -31,11 +31,13 @@
 mod anchor_states;
 pub(crate) mod joint_limits;
 mod step_derivatives;
+mod substep_product;
 mod workspace;
 
 pub use anchor_states::{AnchorStepDerivatives, ANCHOR_DIM};
 pub use joint_limits::{JointLimitParams, JointLimitParamsError, JointStops, StopForce};
 pub use step_derivatives::StepDerivatives;
+pub use substep_product::SubstepProduct;
 pub use workspace::{ContactModelWorkspace, FootState};
 
 use crate::contact::{ContactParams, ContactParamsError};

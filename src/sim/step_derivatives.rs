@@ -60,7 +60,7 @@ pub struct StepDerivatives {
     dtau_c_dv: DMatrix<f64>,
     a_q: DMatrix<f64>,
     a_v: DMatrix<f64>,
-    jq: DMatrix<f64>,
+    pub(super) jq: DMatrix<f64>,
     pub(super) jv: DMatrix<f64>,
     tmp: DMatrix<f64>,
     b_lower: DMatrix<f64>,

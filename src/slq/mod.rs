@@ -597,7 +597,7 @@ impl<'p, P: Problem> Slq<'p, P> {
         for_each_job(self.pool.as_ref(), jobs, |(c, (derivs, (ws, scratch)))| {
             for (i, d) in derivs.iter_mut().enumerate() {
                 let k = c * chunk + i;
-                problem.step_with_derivatives(ws, k, &states[k], &inputs[k], scratch, knot_mut(d));
+                problem.linearize_knot(ws, k, &states[k], &inputs[k], scratch, knot_mut(d));
             }
         });
         let ws = &mut self.workspaces[0];
@@ -639,7 +639,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             let Ok(k) = usize::try_from(next.fetch_sub(1, Ordering::Relaxed)) else { return false };
             let _flag = FlagOnPanic(&abandoned);
             let mut d = derivatives[k].lock().unwrap_or_else(PoisonError::into_inner);
-            problem.step_with_derivatives(ws, k, &states[k], &inputs[k], scratch, &mut d);
+            problem.linearize_knot(ws, k, &states[k], &inputs[k], scratch, &mut d);
             drop(d);
             ready[k].store(true, Ordering::Release);
             true

@@ -34,6 +34,13 @@ pub trait Problem: Sync {
     /// As [`Problem::step`], and the linearization of `f_k` and quadratization of `l_k`
     /// at `(x, u)` into `d`.
     fn step_with_derivatives(&self, ws: &mut Self::Workspace, k: usize, x: &Self::State, u: &DVector<f64>, x_next: &mut Self::State, d: &mut KnotDerivatives) -> f64;
+    /// The linearization of `f_k` and quadratization of `l_k` at `(x, u)` into `d`, with
+    /// `l_k(x, u)`, for the backward pass, which has `x_{k+1}` from its rollout already:
+    /// `scratch` holds whatever the linearization needed of the step (not necessarily
+    /// `f_k(x, u)`). By default [`Problem::step_with_derivatives`].
+    fn linearize_knot(&self, ws: &mut Self::Workspace, k: usize, x: &Self::State, u: &DVector<f64>, scratch: &mut Self::State, d: &mut KnotDerivatives) -> f64 {
+        self.step_with_derivatives(ws, k, x, u, scratch, d)
+    }
     /// `h(x_N)`.
     fn terminal_cost(&self, ws: &mut Self::Workspace, x: &Self::State) -> f64;
     /// `h(x_N)` with its gradient `h_x` and Hessian `h_xx` (tangent space).

@@ -1,0 +1,130 @@
+//! `A_i X` for one substep's linearization on its structure, for the chain rule over a
+//! knot's substeps (`A <- A_i A`, `B <- A_i B + B_i`, [`crate::ocp::KnotLinearization`]).
+//!
+//! The semi-implicit step of [`StepDerivatives`] (with the anchor rows of
+//! [`super::AnchorStepDerivatives`]) has, with `V` the velocity rows of `A_i` (`nv x n`):
+//!
+//! ```text
+//! dv'  = V dx                                  V = [h a_q, I + h a_v, h a_anchor]
+//! dq'  = Jq dq + h Jv dv'                      so  (A_i X)_q = Jq X_q + h Jv (V X)
+//! da'_f = R_f dx   per foot: zero (off the ground), da_f (sticking: R_f = [0 0 I]), or dense
+//! ```
+//!
+//! `Jq`, `Jv` are the identity but on a free flyer's `6 x 6` block
+//! ([`crate::dynamics::integrate_jacobians`]). So `A_i X` costs one `nv x n x m` product
+//! (`V X`) and `O(n m)` besides, against the dense `n x n x m`: at HyQ's `n = 48`,
+//! `nv = 18` with the anchors, 2.7x fewer multiplications. The result equals the dense
+//! product up to round-off.
+
+use super::StepDerivatives;
+use crate::model::{JointKind, Model};
+use crate::spatial::Matrix6;
+use nalgebra::{DMatrix, DMatrixViewMut, Vector6};
+
+use super::ANCHOR_DIM;
+
+/// How a foot's anchor rows of `A_i` act.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum AnchorRows {
+    /// All zero: the foot is off the ground after the substep.
+    Zero,
+    /// `[0 0 I]`: the anchor is held (a sticking foot).
+    Held,
+    /// Anything else (touch-down, slip): multiplied densely.
+    Dense,
+}
+
+/// The structure of one substep's `A_i` ([`Self::capture`]) and the scratch of
+/// [`Self::mul`]; one per thread.
+pub struct SubstepProduct {
+    nv: usize,
+    /// `h`, the substep's length.
+    h: f64,
+    /// Per free flyer: its first velocity index, its `Jq` block and `h Jv` block.
+    free_flyers: Vec<(usize, Matrix6, Matrix6)>,
+    anchor_rows: Vec<AnchorRows>,
+    /// `V X`, `nv x m` in the first `nv m` entries.
+    vx: Vec<f64>,
+}
+
+impl SubstepProduct {
+    /// For `model`'s steps with `feet` anchor blocks (0 without anchor states) and
+    /// products with up to `max_cols` columns.
+    pub fn new(model: &Model, feet: usize, max_cols: usize) -> Self {
+        let free_flyers = model.joints.iter().filter(|j| j.kind == JointKind::FreeFlyer).map(|j| (j.idx_v, Matrix6::identity(), Matrix6::identity())).collect();
+        Self { nv: model.nv, h: 0.0, free_flyers, anchor_rows: vec![AnchorRows::Dense; feet], vx: vec![0.0; model.nv * max_cols] }
+    }
+
+    /// Records the structure of `a_i`, the linearization of the substep of length `h` that
+    /// `step` took last (its `Jq`, `Jv`), with `a_i`'s anchor rows (if any) as
+    /// [`super::AnchorStepDerivatives::linearize`] wrote them.
+    pub fn capture(&mut self, step: &StepDerivatives, a_i: &DMatrix<f64>, h: f64) {
+        self.h = h;
+        for (iv, jq, h_jv) in &mut self.free_flyers {
+            jq.copy_from(&step.jq.fixed_view::<6, 6>(*iv, *iv));
+            h_jv.copy_from(&step.jv.fixed_view::<6, 6>(*iv, *iv));
+            *h_jv *= h;
+        }
+        let n = a_i.ncols();
+        let first = 2 * self.nv;
+        for (f, kind) in self.anchor_rows.iter_mut().enumerate() {
+            let r0 = first + ANCHOR_DIM * f;
+            if r0 + ANCHOR_DIM > a_i.nrows() {
+                *kind = AnchorRows::Dense;
+                continue;
+            }
+            let rows = a_i.rows(r0, ANCHOR_DIM);
+            let (mut zero, mut held) = (true, true);
+            for c in 0..n {
+                for r in 0..ANCHOR_DIM {
+                    let value = rows[(r, c)];
+                    zero &= value == 0.0;
+                    held &= value == if c == r0 + r { 1.0 } else { 0.0 };
+                }
+            }
+            *kind = if zero {
+                AnchorRows::Zero
+            } else if held {
+                AnchorRows::Held
+            } else {
+                AnchorRows::Dense
+            };
+        }
+    }
+
+    /// `out = A_i X` for the `a_i` of the last [`Self::capture`] (`n x n`, `X` and `out`
+    /// `n x m`, `m` at most the `max_cols` of [`Self::new`]).
+    pub fn mul(&mut self, a_i: &DMatrix<f64>, x: &DMatrix<f64>, out: &mut DMatrix<f64>) {
+        let (nv, n, m, h) = (self.nv, x.nrows(), x.ncols(), self.h);
+        // V X, the velocity rows: the one product of the size of the state.
+        DMatrixViewMut::from_slice(&mut self.vx[..nv * m], nv, m).gemm(1.0, &a_i.rows(nv, nv), x, 0.0);
+        // Column by column (column-major): dq' = Jq X_q + h Jv (V X) (the identity on
+        // the joints, the free flyers' blocks over it), dv' = V X, the held anchors copied.
+        let (xs, vxs) = (x.as_slice(), &self.vx[..nv * m]);
+        for (c, oc) in out.as_mut_slice().chunks_exact_mut(n).enumerate() {
+            let (xc, vc) = (&xs[c * n..(c + 1) * n], &vxs[c * nv..(c + 1) * nv]);
+            for ((o, xi), vi) in oc[..nv].iter_mut().zip(&xc[..nv]).zip(vc) {
+                *o = xi + h * vi;
+            }
+            for (iv, jq, h_jv) in &self.free_flyers {
+                let block = jq * Vector6::from_column_slice(&xc[*iv..iv + 6]) + h_jv * Vector6::from_column_slice(&vc[*iv..iv + 6]);
+                oc[*iv..iv + 6].copy_from_slice(block.as_slice());
+            }
+            oc[nv..2 * nv].copy_from_slice(vc);
+            for (f, kind) in self.anchor_rows.iter().enumerate() {
+                let r0 = 2 * nv + ANCHOR_DIM * f;
+                match kind {
+                    AnchorRows::Zero => oc[r0..r0 + ANCHOR_DIM].fill(0.0),
+                    AnchorRows::Held => oc[r0..r0 + ANCHOR_DIM].copy_from_slice(&xc[r0..r0 + ANCHOR_DIM]),
+                    AnchorRows::Dense => {}
+                }
+            }
+        }
+        for (f, kind) in self.anchor_rows.iter().enumerate() {
+            if *kind == AnchorRows::Dense {
+                let r0 = 2 * nv + ANCHOR_DIM * f;
+                out.rows_mut(r0, ANCHOR_DIM).gemm(1.0, &a_i.rows(r0, ANCHOR_DIM), x, 0.0);
+            }
+        }
+    }
+}
