@@ -4,7 +4,7 @@
 //! the plans do (every substep's).
 //!
 //! Run: `cargo bench --bench mpc_knot`. One criterion iteration = one knot's
-//! `step_with_derivatives` (dynamics, `A`, `B`, the cost's derivatives).
+//! `linearize_knot`, the backward pass's call (`A`, `B`, the cost's derivatives).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use legwork::model::embedded;

@@ -16,12 +16,10 @@
 //! `nv = 18` with the anchors, 2.7x fewer multiplications. The result equals the dense
 //! product up to round-off.
 
-use super::StepDerivatives;
+use super::{StepDerivatives, ANCHOR_DIM};
 use crate::model::{JointKind, Model};
 use crate::spatial::Matrix6;
 use nalgebra::{DMatrix, DMatrixViewMut, Vector6};
-
-use super::ANCHOR_DIM;
 
 /// How a foot's anchor rows of `A_i` act.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -66,13 +64,9 @@ impl SubstepProduct {
             *h_jv *= h;
         }
         let n = a_i.ncols();
-        let first = 2 * self.nv;
+        debug_assert_eq!(n, 2 * self.nv + ANCHOR_DIM * self.anchor_rows.len(), "A_i's size is the state's of SubstepProduct::new");
         for (f, kind) in self.anchor_rows.iter_mut().enumerate() {
-            let r0 = first + ANCHOR_DIM * f;
-            if r0 + ANCHOR_DIM > a_i.nrows() {
-                *kind = AnchorRows::Dense;
-                continue;
-            }
+            let r0 = 2 * self.nv + ANCHOR_DIM * f;
             let rows = a_i.rows(r0, ANCHOR_DIM);
             let (mut zero, mut held) = (true, true);
             for c in 0..n {
