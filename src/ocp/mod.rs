@@ -216,8 +216,8 @@ pub struct WholeBodyWorkspace<'a> {
     chain_tmp_a: DMatrix<f64>,
     /// `A_1 X` on the first substep's structure ([`KnotLinearization::FirstSubstep`]).
     substep_product: SubstepProduct,
-    /// The first substep's `A_1`, `B_1` ([`KnotLinearization::FirstSubstep`]).
-    frozen_a: DMatrix<f64>,
+    /// The first substep's `B_1` ([`KnotLinearization::FirstSubstep`]; its `A_1` is kept
+    /// by `substep_product`).
     frozen_b: DMatrix<f64>,
     e: DVector<f64>,
     we: DVector<f64>,
@@ -262,9 +262,9 @@ impl<'a> WholeBodyProblem<'a> {
                 if integrate_exactly {
                     ws.dynamics.step(&mut next.q, &mut next.v, &mut next.anchors, &ws.tau, h);
                 }
-                ws.substep_product.mul(&ws.frozen_a, &d.a, &mut ws.chain_tmp_a);
+                ws.substep_product.mul(&d.a, &mut ws.chain_tmp_a);
                 std::mem::swap(&mut d.a, &mut ws.chain_tmp_a);
-                ws.substep_product.mul(&ws.frozen_a, &d.b, &mut ws.step_b);
+                ws.substep_product.mul(&d.b, &mut ws.step_b);
                 ws.step_b += &ws.frozen_b;
                 std::mem::swap(&mut d.b, &mut ws.step_b);
                 continue;
@@ -286,7 +286,6 @@ impl<'a> WholeBodyProblem<'a> {
                 b.copy_from(&ws.derivatives.b);
             }
             if frozen && substeps > 1 {
-                ws.frozen_a.copy_from(&d.a);
                 ws.frozen_b.copy_from(&d.b);
                 ws.substep_product.capture(&ws.derivatives, &d.a, h);
             }
@@ -610,8 +609,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             step_a: DMatrix::zeros(self.nx(), self.nx()),
             step_b: DMatrix::zeros(self.nx(), self.nu()),
             chain_tmp_a: DMatrix::zeros(self.nx(), self.nx()),
-            substep_product: SubstepProduct::new(model, if self.anchor_states { model.feet.len() } else { 0 }, self.nx()),
-            frozen_a: DMatrix::zeros(self.nx(), self.nx()),
+            substep_product: SubstepProduct::new(model, if self.anchor_states { model.feet.len() } else { 0 }),
             frozen_b: DMatrix::zeros(self.nx(), self.nu()),
             e: DVector::zeros(2 * nv),
             we: DVector::zeros(2 * nv),

@@ -32,39 +32,54 @@ enum AnchorRows {
     Dense,
 }
 
-/// The structure of one substep's `A_i` ([`Self::capture`]) and the scratch of
-/// [`Self::mul`]; one per thread.
+/// What [`Self::mul`] needs of one substep's `A_i` ([`Self::capture`]), and its scratch;
+/// one per thread.
 pub struct SubstepProduct {
     nv: usize,
     /// `h`, the substep's length.
     h: f64,
     /// Per free flyer: its first velocity index, its `Jq` block and `h Jv` block.
     free_flyers: Vec<(usize, Matrix6, Matrix6)>,
+    /// `V`, the velocity rows of `A_i` (`nv x n`).
+    velocity_rows: DMatrix<f64>,
     anchor_rows: Vec<AnchorRows>,
+    /// The anchor rows of `A_i` (`3 nf x n`), kept for the [`AnchorRows::Dense`] feet only.
+    dense_anchor_rows: DMatrix<f64>,
     /// `V X`, `nv x m` in the first `nv m` entries.
     vx: Vec<f64>,
 }
 
 impl SubstepProduct {
-    /// For `model`'s steps with `feet` anchor blocks (0 without anchor states) and
-    /// products with up to `max_cols` columns.
-    pub fn new(model: &Model, feet: usize, max_cols: usize) -> Self {
+    /// For `model`'s steps with `feet` anchor blocks (0 without anchor states), the state
+    /// `n = 2 nv + 3 feet`, and products with up to `n` columns.
+    pub fn new(model: &Model, feet: usize) -> Self {
+        let (nv, n) = (model.nv, 2 * model.nv + ANCHOR_DIM * feet);
         let free_flyers = model.joints.iter().filter(|j| j.kind == JointKind::FreeFlyer).map(|j| (j.idx_v, Matrix6::identity(), Matrix6::identity())).collect();
-        Self { nv: model.nv, h: 0.0, free_flyers, anchor_rows: vec![AnchorRows::Dense; feet], vx: vec![0.0; model.nv * max_cols] }
+        Self {
+            nv,
+            h: 0.0,
+            free_flyers,
+            velocity_rows: DMatrix::zeros(nv, n),
+            anchor_rows: vec![AnchorRows::Dense; feet],
+            dense_anchor_rows: DMatrix::zeros(ANCHOR_DIM * feet, n),
+            vx: vec![0.0; nv * n],
+        }
     }
 
-    /// Records the structure of `a_i`, the linearization of the substep of length `h` that
-    /// `step` took last (its `Jq`, `Jv`), with `a_i`'s anchor rows (if any) as
+    /// Keeps what [`Self::mul`] needs of `a_i`, the linearization of the substep of length
+    /// `h` that `step` took last (its `Jq`, `Jv`), with `a_i`'s anchor rows (if any) as
     /// [`super::AnchorStepDerivatives::linearize`] wrote them.
     pub fn capture(&mut self, step: &StepDerivatives, a_i: &DMatrix<f64>, h: f64) {
+        let nv = self.nv;
         self.h = h;
         for (iv, jq, h_jv) in &mut self.free_flyers {
             jq.copy_from(&step.jq.fixed_view::<6, 6>(*iv, *iv));
             h_jv.copy_from(&step.jv.fixed_view::<6, 6>(*iv, *iv));
             *h_jv *= h;
         }
+        self.velocity_rows.copy_from(&a_i.rows(nv, nv));
         let n = a_i.ncols();
-        debug_assert_eq!(n, 2 * self.nv + ANCHOR_DIM * self.anchor_rows.len(), "A_i's size is the state's of SubstepProduct::new");
+        debug_assert_eq!(n, self.velocity_rows.ncols(), "A_i's size is the state's of SubstepProduct::new");
         for (f, kind) in self.anchor_rows.iter_mut().enumerate() {
             let r0 = 2 * self.nv + ANCHOR_DIM * f;
             let rows = a_i.rows(r0, ANCHOR_DIM);
@@ -81,17 +96,18 @@ impl SubstepProduct {
             } else if held {
                 AnchorRows::Held
             } else {
+                self.dense_anchor_rows.rows_mut(ANCHOR_DIM * f, ANCHOR_DIM).copy_from(&rows);
                 AnchorRows::Dense
             };
         }
     }
 
-    /// `out = A_i X` for the `a_i` of the last [`Self::capture`] (`n x n`, `X` and `out`
-    /// `n x m`, `m` at most the `max_cols` of [`Self::new`]).
-    pub fn mul(&mut self, a_i: &DMatrix<f64>, x: &DMatrix<f64>, out: &mut DMatrix<f64>) {
+    /// `out = A_i X` for the `a_i` of the last [`Self::capture`] (`X` and `out` `n x m`,
+    /// `m <= n`).
+    pub fn mul(&mut self, x: &DMatrix<f64>, out: &mut DMatrix<f64>) {
         let (nv, n, m, h) = (self.nv, x.nrows(), x.ncols(), self.h);
         // V X, the velocity rows: the one product of the size of the state.
-        DMatrixViewMut::from_slice(&mut self.vx[..nv * m], nv, m).gemm(1.0, &a_i.rows(nv, nv), x, 0.0);
+        DMatrixViewMut::from_slice(&mut self.vx[..nv * m], nv, m).gemm(1.0, &self.velocity_rows, x, 0.0);
         // Column by column (column-major): dq' = Jq X_q + h Jv (V X) (the identity on
         // the joints, the free flyers' blocks over it), dv' = V X, the held anchors copied.
         let (xs, vxs) = (x.as_slice(), &self.vx[..nv * m]);
@@ -117,7 +133,7 @@ impl SubstepProduct {
         for (f, kind) in self.anchor_rows.iter().enumerate() {
             if *kind == AnchorRows::Dense {
                 let r0 = 2 * nv + ANCHOR_DIM * f;
-                out.rows_mut(r0, ANCHOR_DIM).gemm(1.0, &a_i.rows(r0, ANCHOR_DIM), x, 0.0);
+                out.rows_mut(r0, ANCHOR_DIM).gemm(1.0, &self.dense_anchor_rows.rows(ANCHOR_DIM * f, ANCHOR_DIM), x, 0.0);
             }
         }
     }
