@@ -149,6 +149,40 @@ fn a_coarse_tail_moves_into_the_fine_head_one_tick_at_a_time() {
 }
 
 #[test]
+fn a_window_that_holds_the_tasks_end_counts_its_final_cost_once() {
+    // The plan's value function includes the task's final cost H (past the plan's end, its
+    // last knot's value is l_{N-1} + H): a window that holds the task's end has H at the
+    // knot nearest it, or at its end once the task is over, and ends without the value.
+    let model = embedded::load("hyq").unwrap();
+    let spec = stand(0.3);
+    let run = plan(&spec, &model);
+    let ground = Plane::flat(0.0);
+    let settings = MpcSettings { horizon: 0.1, ..MpcSettings::default() };
+    let with_value = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
+    let without_value = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &MpcSettings { plan_value: false, ..settings }, "stand.toml").unwrap();
+    // A state off the plan, so that the value, the tracking and H all see it.
+    let mut x = run.solution.states.last().unwrap().clone();
+    x.q[1] += 0.02;
+    x.v[7] += 0.3;
+    let (mut ws_with, mut ws_without) = (with_value.workspace(), without_value.workspace());
+    let nx = with_value.nx();
+    let (mut g_with, mut g_without) = (nalgebra::DVector::zeros(nx), nalgebra::DVector::zeros(nx));
+    let (mut h_with, mut h_without) = (nalgebra::DMatrix::zeros(nx, nx), nalgebra::DMatrix::zeros(nx, nx));
+    // Window end 0.2 s (the value stands for the rest), 0.35 s (H at the knot nearest 0.3 s),
+    // 0.45 s (the task over: H at the window's end).
+    for (start, ends_on_value) in [(0.1, true), (0.25, false), (0.35, false)] {
+        for problem in [&with_value, &without_value] {
+            problem.receding.as_ref().unwrap().set_start(start);
+        }
+        let (c_with, c_without) = (with_value.terminal_cost(&mut ws_with, &x), without_value.terminal_cost(&mut ws_without, &x));
+        with_value.terminal_cost_derivatives(&mut ws_with, &x, &mut g_with, &mut h_with);
+        without_value.terminal_cost_derivatives(&mut ws_without, &x, &mut g_without, &mut h_without);
+        assert_eq!(c_with != c_without, ends_on_value, "start {start}: cost {c_with} with the value, {c_without} without");
+        assert_eq!(g_with != g_without || h_with != h_without, ends_on_value, "start {start}: the derivatives");
+    }
+}
+
+#[test]
 fn standing_hyq_rejects_a_100_n_lateral_push_and_ticks_on_schedule() {
     let model = embedded::load("hyq").unwrap();
     let spec = stand(1.0);

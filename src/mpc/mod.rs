@@ -8,7 +8,8 @@
 //!
 //! - **window** ([`window_problem`]): the task's own costs at their absolute times (the
 //!   waypoints' Gaussian windows, the final cost at the task's end), the plan's value
-//!   function (`P_k`, `p_k` of its last backward pass) as the cost beyond the window's end,
+//!   function (`P_k`, `p_k` of its last backward pass) as the cost beyond the window's end
+//!   until the window reaches the task's end (from then on the final cost, counted once),
 //!   a light tracking cost toward the plan's states and torques
 //!   ([`crate::ocp::RecedingHorizon`]), the robot's own contact model and torque limits,
 //!   knots spaced by the tick period (5 ms, coarser than the plan's 2 ms; each integrated
@@ -113,8 +114,9 @@ pub struct MpcSettings {
     /// tracking cost (false: the plan already optimized them; a 0.5 s window that sees a
     /// waypoint coming re-plans toward it without the rest of the task).
     pub task_costs: bool,
-    /// End every window on the plan's value function (true; the plan must have one:
-    /// [`crate::slq::SlqSettings::record_value_function`]).
+    /// End every window that stops short of the task's end on the plan's value function
+    /// (true; the plan must have one: [`crate::slq::SlqSettings::record_value_function`]).
+    /// A window that reaches the task's end ends on the task's final cost, once.
     pub plan_value: bool,
     /// The feasibility constraints of the task's plan (friction, penetration, joint limits
     /// and speeds) in the window too, as penalties without the plan's multipliers (true).

@@ -458,10 +458,21 @@ impl<'a> WholeBodyProblem<'a> {
         }
         let (weights, scale) = if k < self.knots { (&r.reference.weights, self.knot_dt(k)) } else { (&r.reference.terminal_weights, 1.0) };
         cost += self.deviation_cost(ws, r.reference.at(self.knot_time(k)), weights, &[], scale, x);
-        if k == self.knots {
+        if k == self.knots && self.ends_on_plan_value() {
             cost += self.plan_value(ws, x, None);
         }
         cost
+    }
+
+    /// Whether a receding window ends on the plan's value function. The value stands for the
+    /// plan's cost from the window's end to the task's end, its final cost `H` included
+    /// (past the plan's end, its last knot's value: `l_{N-1} + H`). Once the window reaches
+    /// the task's end, `H` is in the window at [`Self::final_knot`], and the value would
+    /// count it a second time: the window then ends on `H` alone, as the plan does. A window
+    /// without the task's final cost (`--no-task-costs`) keeps the value, `H`'s only trace.
+    fn ends_on_plan_value(&self) -> bool {
+        let has_final_cost = self.terminal.weights.iter().any(|&w| w != 0.0) || !self.terminal.feet.is_empty();
+        self.final_knot().is_none() || !has_final_cost
     }
 
     /// A receding window's terminal cost from the plan's value function,
@@ -495,7 +506,7 @@ impl<'a> WholeBodyProblem<'a> {
         }
         let (weights, scale) = if k < self.knots { (&r.reference.weights, self.knot_dt(k)) } else { (&r.reference.terminal_weights, 1.0) };
         cost += self.add_deviation_cost_derivatives(ws, r.reference.at(self.knot_time(k)), weights, &[], scale, x, l_x, l_xx);
-        if k == self.knots {
+        if k == self.knots && self.ends_on_plan_value() {
             cost += self.plan_value(ws, x, Some((l_x, l_xx)));
         }
         cost

@@ -11,7 +11,10 @@
 //! ```
 //!
 //! The terminal term `H_r` stands in for the cost-to-go beyond the window: without it a
-//! 0.5 s window of a 3 s gallop sees no reason to keep moving.
+//! 0.5 s window of a 3 s gallop sees no reason to keep moving. With a [`PlanValue`] the
+//! plan's value function at the window's end adds to it while the task's end lies beyond
+//! the window; a window that holds the task's end has `H` in it, and the value (which
+//! includes `H`) would count it twice.
 
 use super::RobotState;
 use crate::slq::ValueFunction;
