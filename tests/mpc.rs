@@ -8,7 +8,7 @@ use legwork::model::{embedded, Model};
 use legwork::mpc::{run_closed_loop, window_problem, Mpc, MpcError, MpcSettings, PolicyLatency};
 use legwork::ocp::{solve_task, PdPolicy, RobotState, SolveOptions, TaskRun, TaskSpec};
 use legwork::sim::{Push, SimConfig, Simulator};
-use legwork::slq::{Problem, Slq, SlqSettings};
+use legwork::slq::{ModelReuse, Problem, Slq, SlqSettings};
 use legwork::terrain::Plane;
 
 /// HyQ holding its stance for `duration` seconds: the standing task of the push test.
@@ -278,6 +278,8 @@ fn bad_settings_and_a_plan_without_its_value_function_are_named() {
         (MpcSettings { horizon: f64::NAN, ..MpcSettings::default() }, "horizon"),
         (MpcSettings { iterations_per_tick: 0, ..MpcSettings::default() }, "iterations_per_tick"),
         (MpcSettings { regularization: -1.0, ..MpcSettings::default() }, "regularization"),
+        (MpcSettings { model_reuse: Some(ModelReuse { fresh_head: 10, refresh_period: 0 }), ..MpcSettings::default() }, "model_reuse"),
+        (MpcSettings { knot_dt: Some(0.001), fine_head: Some(0.05), model_reuse: Some(ModelReuse { fresh_head: 10, refresh_period: 5 }), ..MpcSettings::default() }, "model_reuse"),
     ] {
         let message = name(settings.check().unwrap_err());
         assert!(message.contains(&format!("`{field}`")), "{message}");

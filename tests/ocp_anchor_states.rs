@@ -88,6 +88,10 @@ fn extended_linearization_matches_central_differences_through_the_anchor_update(
     x.anchors[1] = x.anchors[1].map(|a| a - nalgebra::Vector3::new(0.05, 0.0, 0.0));
     let mut sticking = settled.clone();
     sticking.anchors[3] = sticking.anchors[3].map(|a| a - nalgebra::Vector3::new(0.001, 0.0, 0.0));
+    // A kept knot model serves only states with the same feet anchored (ModelReuse).
+    assert!(problem.same_model_piece(&settled, &sticking), "an anchor moved, the same feet down");
+    assert!(!problem.same_model_piece(&settled, &x), "foot 0 lost its anchor");
+    assert!(!problem.same_model_piece(&x, &settled), "foot 0 gained one");
     let mut ws_contacts = ContactModelWorkspace::new(&model, &ground);
     ws_contacts.evaluate_contacts(&x.q, &x.v, &x.anchors);
     assert!(ws_contacts.feet()[1].contact.slipping, "foot 1 slips");

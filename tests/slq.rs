@@ -370,3 +370,133 @@ fn a_solution_warm_starts_the_same_and_a_longer_horizon() {
     policy.control(&long, 200, &DVector::from_row_slice(&[2.5, 0.0]), &mut u);
     assert_eq!(u[0], -12.5);
 }
+
+/// A receding window on the double integrator whose state weight changes along absolute
+/// time: knot `k` of the window is absolute knot `k + offset` (moved on by the test, as an
+/// MPC moves its window). Counts the knots it linearizes.
+struct Window {
+    linear: Linear,
+    offset: std::sync::atomic::AtomicUsize,
+    linearized: std::sync::atomic::AtomicUsize,
+    /// What [`Problem::same_model_piece`] answers for any two states (false: a kept model
+    /// never serves).
+    one_piece: bool,
+}
+
+impl Window {
+    /// `Q_k = Q (1 + 0.3 ((k + offset) mod 7))`.
+    fn q(&self, k: usize) -> DMatrix<f64> {
+        let absolute = k + self.offset.load(std::sync::atomic::Ordering::Relaxed);
+        &self.linear.q * (1.0 + 0.3 * (absolute % 7) as f64)
+    }
+}
+
+impl Problem for Window {
+    type State = DVector<f64>;
+    type Workspace = ();
+    fn nx(&self) -> usize {
+        self.linear.nx()
+    }
+    fn nu(&self) -> usize {
+        self.linear.nu()
+    }
+    fn horizon(&self) -> usize {
+        self.linear.n
+    }
+    fn workspace(&self) {}
+    fn initial_state(&self) -> DVector<f64> {
+        self.linear.x0.clone()
+    }
+    fn difference(&self, y: &DVector<f64>, x: &DVector<f64>, dx: &mut DVector<f64>) {
+        dx.copy_from(&(x - y));
+    }
+    fn step(&self, _: &mut (), k: usize, x: &DVector<f64>, u: &DVector<f64>, next: &mut DVector<f64>) -> f64 {
+        next.copy_from(&(&self.linear.a * x + &self.linear.b * u));
+        (x.transpose() * self.q(k) * x)[0] + (u.transpose() * &self.linear.r * u)[0]
+    }
+    fn step_with_derivatives(&self, ws: &mut (), k: usize, x: &DVector<f64>, u: &DVector<f64>, next: &mut DVector<f64>, d: &mut KnotDerivatives) -> f64 {
+        self.linearized.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let q = self.q(k);
+        d.a.copy_from(&self.linear.a);
+        d.b.copy_from(&self.linear.b);
+        d.l_x.copy_from(&(&q * x * 2.0));
+        d.l_u.copy_from(&(&self.linear.r * u * 2.0));
+        d.l_xx.copy_from(&(&q * 2.0));
+        d.l_uu.copy_from(&(&self.linear.r * 2.0));
+        d.l_ux.fill(0.0);
+        self.step(ws, k, x, u, next)
+    }
+    fn terminal_cost(&self, ws: &mut (), x: &DVector<f64>) -> f64 {
+        self.linear.terminal_cost(ws, x)
+    }
+    fn terminal_cost_derivatives(&self, ws: &mut (), x: &DVector<f64>, h_x: &mut DVector<f64>, h_xx: &mut DMatrix<f64>) -> f64 {
+        self.linear.terminal_cost_derivatives(ws, x, h_x, h_xx)
+    }
+    fn is_valid(&self, x: &DVector<f64>) -> bool {
+        x.iter().all(|v| v.is_finite())
+    }
+    fn same_model_piece(&self, _: &DVector<f64>, _: &DVector<f64>) -> bool {
+        self.one_piece
+    }
+}
+
+#[test]
+fn real_time_iterations_that_keep_the_knots_models_take_the_same_steps_on_a_quadratic_problem() {
+    // ModelReuse: a kept model has its gradient moved to the new trajectory by its Hessian,
+    // which on a quadratic cost is the new gradient, and it moves with its knot when the
+    // window moves (the weights here change along absolute time). So over ticks that move
+    // the window and start from a disturbed state, a solver that keeps nearly every model
+    // takes the same steps as one that linearizes every knot (to round-off), while it
+    // linearizes only the knots its settings name: the first `fresh_head`, the new one and
+    // its turn of the rest. A knot whose state left its model's piece
+    // (Problem::same_model_piece) is linearized anew.
+    use legwork::slq::ModelReuse;
+    use std::sync::atomic::Ordering;
+    let n = 40;
+    for threads in [1, 2] {
+        let run = |reuse: Option<ModelReuse>, one_piece: bool| {
+            let window = Window { linear: double_integrator(n, f64::INFINITY), offset: 0.into(), linearized: 0.into(), one_piece };
+            let mut slq = Slq::new(&window, SlqSettings { threads, ..Default::default() }).unwrap();
+            let mut x0 = window.linear.x0.clone();
+            slq.start_from(&x0, &Zero).unwrap();
+            slq.real_time_iteration(&x0, None).unwrap();
+            slq.set_model_reuse(reuse).unwrap();
+            let mut per_tick = Vec::new();
+            let mut ticks = Vec::new();
+            for tick in 0..12 {
+                window.offset.fetch_add(1, Ordering::Relaxed);
+                slq.shift(1, &Zero);
+                // The measured state: where the solution said, pushed a little.
+                x0.copy_from(&slq.states()[0]);
+                x0[1] += 0.05 * (tick as f64 * 1.3).sin();
+                let before = window.linearized.load(Ordering::Relaxed);
+                let it = slq.real_time_iteration(&x0, None).unwrap();
+                per_tick.push(window.linearized.load(Ordering::Relaxed) - before);
+                ticks.push((it.cost, slq.inputs().to_vec(), slq.gains().to_vec()));
+            }
+            (ticks, per_tick)
+        };
+        let (fresh, fresh_count) = run(None, true);
+        let (head, period) = (3, 5);
+        let reuse = Some(ModelReuse { fresh_head: head, refresh_period: period });
+        let (kept, kept_count) = run(reuse, true);
+        // A problem whose states never share a model piece gets every knot linearized.
+        let (pieces, pieces_count) = run(reuse, false);
+        assert!(pieces_count.iter().all(|&c| c == n), "{pieces_count:?}");
+        assert_eq!(pieces, fresh, "{threads} threads: every knot linearized, the same steps to the bit");
+        assert!(fresh_count.iter().all(|&c| c == n), "{fresh_count:?}");
+        // Per tick: the head, the new last knot and every period-th of the rest (7 or 8 of
+        // 40 here; the first tick after turning it on linearizes every knot).
+        assert_eq!(kept_count[0], n, "{kept_count:?}");
+        for &c in &kept_count[1..] {
+            assert!((head + (n - head - 1) / period..=head + 1 + (n - head).div_ceil(period)).contains(&c), "{threads} threads: {kept_count:?}");
+        }
+        for (tick, ((cost_f, inputs_f, gains_f), (cost_k, inputs_k, gains_k))) in fresh.iter().zip(&kept).enumerate() {
+            assert!((cost_f - cost_k).abs() <= 1e-9 * cost_f.abs(), "tick {tick}: cost {cost_f} vs {cost_k}");
+            for k in 0..n {
+                assert!((&inputs_f[k] - &inputs_k[k]).amax() <= 1e-8 * (1.0 + inputs_f[k].amax()), "tick {tick} knot {k}: {} vs {}", inputs_f[k], inputs_k[k]);
+                assert!((&gains_f[k] - &gains_k[k]).amax() <= 1e-8 * (1.0 + gains_f[k].amax()), "tick {tick} knot {k} gains");
+            }
+        }
+    }
+}

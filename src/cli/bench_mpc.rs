@@ -32,6 +32,7 @@ pub struct MpcBench<'a> {
     pub fine_head: Option<f64>,
     /// Horizon of the task runs (s).
     pub horizon: f64,
+    pub model_reuse: Option<legwork::slq::ModelReuse>,
     pub as_json: bool,
     pub out: &'a Path,
 }
@@ -104,7 +105,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
     let sim = if bench.mujoco { ClosedLoopSim::Mujoco(MujocoCheck::locate().or_could_not_finish()?) } else { ClosedLoopSim::Legwork };
     let sim_name = if bench.mujoco { "MuJoCo" } else { "legwork" };
     let max_threads = *bench.thread_counts.iter().max().unwrap_or(&1);
-    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, ..MpcSettings::default() };
+    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, model_reuse: bench.model_reuse, ..MpcSettings::default() };
 
     // The tick time against horizon and threads, on one task, the latency measured.
     let timing_out = bench.out.join("timing");
@@ -164,6 +165,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         "rate_hz": bench.rate,
         "knot_dt_s": base.knot_dt(),
         "fine_head_s": base.fine_head,
+        "model_reuse": base.model_reuse.map(|r| json!({ "fresh_head": r.fresh_head, "refresh_period": r.refresh_period })),
         "task_horizon_s": bench.horizon,
         "latency": match bench.latency { PolicyLatency::Measured => json!("measured"), PolicyLatency::Fixed(l) => json!(l) },
         "cpu": super::bench::cpu_name(),

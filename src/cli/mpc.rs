@@ -64,6 +64,11 @@ pub struct MpcArgs {
     /// model held over the knot, one derivative evaluation per knot).
     #[arg(long)]
     exact_knots: bool,
+    /// Keep most knots' models from tick to tick: HEAD,PERIOD linearizes the first HEAD
+    /// knots, the new ones and every PERIOD-th other each tick (multi-level iteration);
+    /// the rest keep their models, their cost gradients moved to the new trajectory.
+    #[arg(long, value_name = "HEAD,PERIOD")]
+    reuse_models: Option<String>,
     /// The smallest regularization of the window's SLQ (1e-3).
     #[arg(long, default_value_t = 1e-3)]
     regularization: f64,
@@ -102,6 +107,15 @@ pub fn parse_latency(text: &str) -> Result<PolicyLatency> {
     }
 }
 
+/// `HEAD,PERIOD` of `--reuse-models`.
+pub fn parse_model_reuse(text: &str) -> Result<legwork::slq::ModelReuse> {
+    let parsed = text.split_once(',').and_then(|(head, period)| Some((head.trim().parse().ok()?, period.trim().parse().ok()?)));
+    match parsed {
+        Some((fresh_head, refresh_period)) if refresh_period >= 1 => Ok(legwork::slq::ModelReuse { fresh_head, refresh_period }),
+        _ => anyhow::bail!("--reuse-models {text}: expected HEAD,PERIOD (knots, whole numbers, PERIOD >= 1), e.g. 10,5"),
+    }
+}
+
 /// The exit code's verdict: the closed-loop motion meets the task's targets at twice
 /// their tolerances (as every re-run of a plan).
 pub fn run(args: MpcArgs) -> Result<Verdict> {
@@ -115,7 +129,7 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join("mpc").join(&spec.name));
     let plan_out = out.join("plan");
     let threads = super::capped_threads(args.threads);
-    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, fine_head: args.fine_head, iterations_per_tick: args.iterations_per_tick, threads, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), ..MpcSettings::default() };
+    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, fine_head: args.fine_head, iterations_per_tick: args.iterations_per_tick, threads, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), model_reuse: args.reuse_models.as_deref().map(parse_model_reuse).transpose()?, ..MpcSettings::default() };
     let sim = match args.sim {
         SimChoice::Legwork => ClosedLoopSim::Legwork,
         SimChoice::Mujoco => ClosedLoopSim::Mujoco(legwork::export::MujocoCheck::locate()?),
@@ -139,7 +153,7 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
     };
     job.check().map_err(job_error)?;
     let s = &job.settings;
-    say!("Planning {} ({}) for {}: {} s, then MPC in {} at {} Hz on a {} s window of {} knots of {} s{}, {} iteration(s) per tick, {} thread(s)", spec.name, spec.summary, model.name, spec.duration, if args.sim == SimChoice::Mujoco { "MuJoCo" } else { "legwork's simulator" }, s.rate, s.horizon, s.knot_counts().0, s.knot_dt(), if s.knot_counts().1 > 0 { format!(" and {} of {} s", s.knot_counts().1, s.period()) } else { String::new() }, s.iterations_per_tick, s.threads);
+    say!("Planning {} ({}) for {}: {} s, then MPC in {} at {} Hz on a {} s window of {} knots of {} s{}, {} iteration(s) per tick{}, {} thread(s)", spec.name, spec.summary, model.name, spec.duration, if args.sim == SimChoice::Mujoco { "MuJoCo" } else { "legwork's simulator" }, s.rate, s.horizon, s.knot_counts().0, s.knot_dt(), if s.knot_counts().1 > 0 { format!(" and {} of {} s", s.knot_counts().1, s.period()) } else { String::new() }, s.iterations_per_tick, s.model_reuse.map(|r| format!(" (models kept: the first {} knots, the new ones and every {}th other relinearized)", r.fresh_head, r.refresh_period)).unwrap_or_default(), s.threads);
     let (plan, run) = job.run(|_| {}, |_| {}).map_err(job_error)?;
     let sum = &run.summary;
     let ms = |key: &str| sum[key].as_f64().unwrap_or(f64::NAN) * 1e3;

@@ -137,6 +137,7 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
         "fine_head_s": s.fine_head,
         "tail_knots": s.knot_counts().1,
         "iterations_per_tick": s.iterations_per_tick,
+        "model_reuse": s.model_reuse.map(|r| json!({ "fresh_head": r.fresh_head, "refresh_period": r.refresh_period })),
         "threads": s.threads,
         "anchor_states": s.anchor_states,
         "latency": match job.latency { PolicyLatency::Measured => json!("measured"), PolicyLatency::Fixed(l) => json!(l) },

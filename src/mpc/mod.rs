@@ -34,7 +34,7 @@ pub use closed_loop::{run_closed_loop, ClosedLoopRun, PolicyLatency, TickRecord}
 use crate::model::Model;
 use crate::ocp::{CoarseTail, KnotLinearization, PlanValue, RecedingHorizon, ReferenceMotion, RobotState, TaskError, TaskSpec, WholeBodyProblem};
 use crate::sim::{ControlError, Controller, SimState};
-use crate::slq::{Policy, Problem, RealTimeIteration, RealTimeIterationError, Slq, SlqError, SlqSettings, SlqSolution};
+use crate::slq::{ModelReuse, Policy, Problem, RealTimeIteration, RealTimeIterationError, Slq, SlqError, SlqSettings, SlqSolution};
 use crate::terrain::Terrain;
 use nalgebra::{DMatrix, DVector};
 use std::sync::Mutex;
@@ -131,11 +131,14 @@ pub struct MpcSettings {
     /// derivative evaluation per knot).
     pub linearization: KnotLinearization,
     pub tracking: TrackingWeights,
+    /// Keep most knots' models from tick to tick ([`crate::slq::ModelReuse`]; `None`:
+    /// every knot linearized every tick). The initial iterations linearize every knot.
+    pub model_reuse: Option<ModelReuse>,
 }
 
 impl Default for MpcSettings {
     fn default() -> Self {
-        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default() }
+        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None }
     }
 }
 
@@ -196,6 +199,16 @@ impl MpcSettings {
             let fine = head / dt;
             if !(head.is_finite() && (fine - fine.round()).abs() < 1e-6 && fine.round() as usize >= self.knots_per_tick() && head < self.horizon) {
                 return bad("fine_head", format!("expected a whole number of knots of {dt} s, at least a tick period ({} s) and shorter than the horizon ({} s), got {head}", self.period(), self.horizon));
+            }
+        }
+        if let Some(reuse) = self.model_reuse {
+            if reuse.refresh_period == 0 {
+                return bad("model_reuse", "expected a refresh period of at least 1 knot".into());
+            }
+            if self.knot_counts().1 > 0 {
+                // Each tick splits the first coarse knot into fine ones (Slq::shift_head):
+                // the knots' models do not carry over.
+                return bad("model_reuse", "not with fine_head (its knots are resampled every tick, so no model carries over)".into());
             }
         }
         if self.iterations_per_tick == 0 {
@@ -445,6 +458,7 @@ impl<'p, 'a> Mpc<'p, 'a> {
             let it = slq.real_time_iteration(&initial, (i > 0).then_some(cost)).map_err(|source| MpcError::Tick { t: 0.0, source })?;
             cost = it.cost;
         }
+        slq.set_model_reuse(settings.model_reuse)?;
         Ok(Self { problem, slq, settings, plan_policy, last_start: 0.0, cost })
     }
 

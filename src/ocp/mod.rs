@@ -726,6 +726,12 @@ impl<'a> Problem for WholeBodyProblem<'a> {
     fn is_valid(&self, x: &RobotState) -> bool {
         x.q.iter().all(|v| v.is_finite()) && x.v.iter().all(|v| v.is_finite() && v.abs() < 200.0)
     }
+
+    /// The same feet anchored (in contact) in both states: a foot that landed or lifted
+    /// changes the knot's dynamics and its contact costs' derivatives.
+    fn same_model_piece(&self, y: &RobotState, x: &RobotState) -> bool {
+        y.anchors.iter().zip(&x.anchors).all(|(a, b)| a.is_some() == b.is_some())
+    }
 }
 
 /// The initial stable control law of Neunert 2017 (sec. V): joint PD around the default

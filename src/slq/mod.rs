@@ -84,6 +84,33 @@ pub struct SlqSettings {
     /// Return the local value function of the last backward pass
     /// ([`SlqSolution::value_function`]; false: none, no memory for it).
     pub record_value_function: bool,
+    /// Keep the knots' models across real-time iterations ([`ModelReuse`]; `None`: every
+    /// knot linearized every iteration). Only [`Slq::real_time_iteration`] reuses them; a
+    /// whole solve linearizes every knot.
+    pub model_reuse: Option<ModelReuse>,
+}
+
+/// Which knots a real-time iteration linearizes anew (the multi-level iteration of Bock et
+/// al. 2007, its level "new gradients, old Jacobians"): the window moves on by a knot or
+/// two a tick and the trajectory changes by one step, so most knots' `A`, `B` and cost
+/// Hessians from an earlier tick still describe them. Each iteration linearizes the first
+/// `fresh_head` knots (the robot runs them before the next tick), the knots new to the
+/// window, and every `refresh_period`-th of the rest in turn (each knot at least every
+/// `refresh_period` iterations); every other knot keeps its model, its cost gradient moved
+/// to the new trajectory by its Hessian,
+///
+/// ```text
+/// l_x <- l_x + l_xx dx + l_ux^T du,   l_u <- l_u + l_ux dx + l_uu du,
+/// dx = x_k (-) x_k^lin,  du = u_k - u_k^lin
+/// ```
+///
+/// (the old quadratic model, centred at the new trajectory: without it the pass would take
+/// the last tick's step again).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ModelReuse {
+    pub fresh_head: usize,
+    /// At least 1 (1: every knot, every iteration).
+    pub refresh_period: usize,
 }
 
 /// How SLQ keeps the inputs in their box (Tassa, Mansard, Todorov 2014 compare the two).
@@ -128,6 +155,7 @@ impl Default for SlqSettings {
             control_limits: ControlLimits::ProjectedRollout,
             box_qp: BoxQpSettings::default(),
             record_value_function: false,
+            model_reuse: None,
         }
     }
 }
@@ -259,6 +287,15 @@ pub struct Slq<'p, P: Problem> {
     derivatives: Vec<Mutex<KnotDerivatives>>,
     /// Which knots the overlapped pass has linearized.
     ready: Vec<AtomicBool>,
+    /// Where each knot's model was taken, with [`SlqSettings::model_reuse`] (empty without).
+    points: Vec<Mutex<ModelPoint<P::State>>>,
+    /// Which knots the next pass keeps the model of ([`ModelReuse`]; all false outside
+    /// [`Slq::real_time_iteration`]).
+    reused: Vec<bool>,
+    /// Real-time iterations so far and knots shifted out of the window so far (the refresh
+    /// turn of [`ModelReuse`] is by absolute knot).
+    reuse_iterations: usize,
+    shifted_knots: usize,
     workspaces: Vec<P::Workspace>,
     scratch_states: Vec<P::State>,
     terminal_gradient: DVector<f64>,
@@ -280,6 +317,58 @@ pub struct Slq<'p, P: Problem> {
     recording: bool,
     /// The real-time iterations' step size, adapted tick to tick ([`Slq::real_time_iteration`]).
     real_time_step: f64,
+}
+
+/// Where a knot's model was taken ([`ModelReuse`]), and scratch to move it.
+struct ModelPoint<S> {
+    x: S,
+    u: DVector<f64>,
+    /// False until the knot is linearized (and for knots new to the window).
+    valid: bool,
+    dx: DVector<f64>,
+    du: DVector<f64>,
+}
+
+impl<S: Clone> ModelPoint<S> {
+    fn new(x: S, nx: usize, nu: usize) -> Self {
+        Self { x, u: DVector::zeros(nu), valid: false, dx: DVector::zeros(nx), du: DVector::zeros(nu) }
+    }
+
+    /// The knot's quadratic cost model centred at `(x, u)` instead of where it was taken
+    /// (the gradient update of [`ModelReuse`]); `(x, u)` becomes its point.
+    fn recenter<P: Problem<State = S>>(&mut self, problem: &P, x: &S, u: &DVector<f64>, d: &mut KnotDerivatives) {
+        problem.difference(&self.x, x, &mut self.dx);
+        self.du.copy_from(u);
+        self.du -= &self.u;
+        // l_x += l_xx dx + l_ux^T du;  l_u += l_ux dx + l_uu du
+        d.l_x.gemv(1.0, &d.l_xx, &self.dx, 1.0);
+        d.l_x.gemv_tr(1.0, &d.l_ux, &self.du, 1.0);
+        d.l_u.gemv(1.0, &d.l_ux, &self.dx, 1.0);
+        d.l_u.gemv(1.0, &d.l_uu, &self.du, 1.0);
+        self.x.clone_from(x);
+        self.u.copy_from(u);
+    }
+}
+
+/// Knot `k`'s model at `(x, u)`: linearized anew, or with `reuse` the one it has, moved to
+/// `(x, u)` ([`ModelReuse`]) if `(x, u)` is in the same piece of the model
+/// ([`Problem::same_model_piece`]). `point` is where the model was taken (`None` without
+/// reuse).
+#[allow(clippy::too_many_arguments)]
+fn knot_model<P: Problem>(problem: &P, ws: &mut P::Workspace, k: usize, x: &P::State, u: &DVector<f64>, scratch: &mut P::State, d: &mut KnotDerivatives, point: Option<&Mutex<ModelPoint<P::State>>>, reuse: bool) {
+    let Some(point) = point else {
+        problem.linearize_knot(ws, k, x, u, scratch, d);
+        return;
+    };
+    let mut point = point.lock().unwrap_or_else(PoisonError::into_inner);
+    if reuse && problem.same_model_piece(&point.x, x) {
+        point.recenter(problem, x, u, d);
+    } else {
+        problem.linearize_knot(ws, k, x, u, scratch, d);
+        point.x.clone_from(x);
+        point.u.copy_from(u);
+        point.valid = true;
+    }
 }
 
 /// A line-search rollout: its trajectory, scratch and outcome.
@@ -508,6 +597,9 @@ struct RiccatiScratch {
 impl<'p, P: Problem> Slq<'p, P> {
     /// Sets up the solver: trajectories, gains and workspaces allocated once.
     pub fn new(problem: &'p P, settings: SlqSettings) -> Result<Self, SlqError> {
+        if settings.model_reuse.is_some_and(|r| r.refresh_period == 0) {
+            return Err(SlqError::Settings { field: "model_reuse", problem: "expected a refresh period of at least 1".into() });
+        }
         if settings.alpha_divisor.is_nan() || settings.alpha_divisor <= 1.0 {
             return Err(SlqError::Settings { field: "alpha_divisor", problem: format!("expected a number > 1, got {}", settings.alpha_divisor) });
         }
@@ -544,6 +636,10 @@ impl<'p, P: Problem> Slq<'p, P> {
             feedforward: vec![DVector::zeros(nu); n],
             derivatives: (0..n).map(|_| Mutex::new(KnotDerivatives::zeros(nx, nu))).collect(),
             ready: (0..n).map(|_| AtomicBool::new(false)).collect(),
+            points: if settings.model_reuse.is_some() { (0..n).map(|_| Mutex::new(ModelPoint::new(x0.clone(), nx, nu))).collect() } else { Vec::new() },
+            reused: vec![false; n],
+            reuse_iterations: 0,
+            shifted_knots: 0,
             workspaces: (0..threads).map(|_| problem.workspace()).collect(),
             scratch_states: vec![x0; threads],
             terminal_gradient: DVector::zeros(nx),
@@ -591,13 +687,12 @@ impl<'p, P: Problem> Slq<'p, P> {
         let n = problem.horizon();
         let threads = self.workspaces.len();
         let chunk = n.div_ceil(threads);
-        let states = &self.states;
-        let inputs = &self.inputs;
+        let (states, inputs, points, reused) = (&self.states, &self.inputs, &self.points, &self.reused);
         let jobs = self.derivatives.chunks_mut(chunk).zip(self.workspaces.iter_mut().zip(self.scratch_states.iter_mut())).enumerate();
         for_each_job(self.pool.as_ref(), jobs, |(c, (derivs, (ws, scratch)))| {
             for (i, d) in derivs.iter_mut().enumerate() {
                 let k = c * chunk + i;
-                problem.linearize_knot(ws, k, &states[k], &inputs[k], scratch, knot_mut(d));
+                knot_model(problem, ws, k, &states[k], &inputs[k], scratch, knot_mut(d), points.get(k), reused[k]);
             }
         });
         let ws = &mut self.workspaces[0];
@@ -623,13 +718,13 @@ impl<'p, P: Problem> Slq<'p, P> {
             timing.backward_pass = t.elapsed().as_secs_f64();
             return ok;
         }
-        let Self { problem, settings, states, inputs, gains, feedforward, derivatives, ready, workspaces, scratch_states, terminal_gradient, terminal_hessian, riccati: r, regularization, pool, lower, upper, bounded, qp, value, recording, .. } = self;
+        let Self { problem, settings, states, inputs, gains, feedforward, derivatives, ready, points, reused, workspaces, scratch_states, terminal_gradient, terminal_hessian, riccati: r, regularization, pool, lower, upper, bounded, qp, value, recording, .. } = self;
         let (problem, n) = (*problem, problem.horizon());
         problem.terminal_cost_derivatives(&mut workspaces[0], &states[n], terminal_gradient, terminal_hessian);
         for flag in ready.iter() {
             flag.store(false, Ordering::Relaxed);
         }
-        let (states, inputs, derivatives, ready) = (&*states, &*inputs, &*derivatives, &*ready);
+        let (states, inputs, derivatives, ready, points, reused) = (&*states, &*inputs, &*derivatives, &*ready, &*points, &*reused);
         // The next knot to linearize (counting down; negative when all are claimed), and
         // whether a thread panicked in a knot (which then never becomes ready: the pass
         // panics too instead of waiting for it).
@@ -639,7 +734,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             let Ok(k) = usize::try_from(next.fetch_sub(1, Ordering::Relaxed)) else { return false };
             let _flag = FlagOnPanic(&abandoned);
             let mut d = derivatives[k].lock().unwrap_or_else(PoisonError::into_inner);
-            problem.linearize_knot(ws, k, &states[k], &inputs[k], scratch, &mut d);
+            knot_model(problem, ws, k, &states[k], &inputs[k], scratch, &mut d, points.get(k), reused[k]);
             drop(d);
             ready[k].store(true, Ordering::Release);
             true

@@ -57,6 +57,14 @@ pub trait Problem: Sync {
     /// `true` if a state is usable (finite, not blown up): a rollout reaching an unusable
     /// state is a failed line-search trial, not a result.
     fn is_valid(&self, x: &Self::State) -> bool;
+    /// `true` if a knot's model taken at `y` may serve at `x` ([`crate::slq::ModelReuse`]):
+    /// false where the two lie in different pieces of a piecewise model (another set of
+    /// feet in contact), whose derivatives the kept model does not describe. By default
+    /// always true.
+    fn same_model_piece(&self, y: &Self::State, x: &Self::State) -> bool {
+        let _ = (y, x);
+        true
+    }
 }
 
 /// A control law `u = pi_k(x)` for the first rollout (Neunert 2017, Alg. 1: "initial stable

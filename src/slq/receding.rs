@@ -16,7 +16,8 @@
 //! Later iterations of the same tick keep a trial only if it lowers the cost. Nothing
 //! here allocates: the trajectories, gains and trials are the solver's own.
 
-use super::{divided, for_each_job, IterationTiming, Policy, Problem, Slq, SlqError};
+use super::{divided, for_each_job, IterationTiming, ModelPoint, ModelReuse, Policy, Problem, Slq, SlqError};
+use std::sync::Mutex;
 use nalgebra::{DMatrix, DVector};
 use std::time::Instant;
 
@@ -80,6 +81,7 @@ impl<'p, P: Problem> Slq<'p, P> {
     /// the first tick); returns its cost. The gains stay those of the last pass (zero on a
     /// new solver) until [`Self::real_time_iteration`] computes them.
     pub fn start_from(&mut self, x0: &P::State, policy: &dyn Policy<P>) -> Result<f64, SlqError> {
+        self.forget_models(0);
         self.states[0].clone_from(x0);
         self.rollout(policy)
     }
@@ -108,6 +110,12 @@ impl<'p, P: Problem> Slq<'p, P> {
         self.inputs.rotate_left(m);
         self.gains.rotate_left(m);
         self.feedforward.rotate_left(m);
+        if !self.points.is_empty() {
+            self.derivatives.rotate_left(m);
+            self.points.rotate_left(m);
+            self.shifted_knots += m;
+            self.forget_models(n - m);
+        }
         // The old last state is now at n - m: the new tail starts from it.
         for k in n - m..n {
             held_states += usize::from(self.roll_out_tail_knot(k, tail));
@@ -149,6 +157,8 @@ impl<'p, P: Problem> Slq<'p, P> {
         if m == 0 || head < m || head >= n {
             return self.shift(m, tail);
         }
+        // The split knot's model is not its parts' ([`crate::slq::ModelReuse`] keeps none).
+        self.forget_models(0);
         // Head: knots m..head move to 0..head - m; the first later knot (index head)
         // fills head - m..head.
         shift_into_head(&mut self.inputs, head, m, DVector::copy_from);
@@ -166,13 +176,52 @@ impl<'p, P: Problem> Slq<'p, P> {
         usize::from(self.roll_out_tail_knot(n - 1, tail))
     }
 
+    /// Turns [`crate::slq::ModelReuse`] on or off for the next real-time iterations (a
+    /// controller's first iterations, before the robot starts, can linearize every knot).
+    /// The knots' models are kept from the first iteration after this on.
+    pub fn set_model_reuse(&mut self, reuse: Option<ModelReuse>) -> Result<(), SlqError> {
+        if reuse.is_some_and(|r| r.refresh_period == 0) {
+            return Err(SlqError::Settings { field: "model_reuse", problem: "expected a refresh period of at least 1".into() });
+        }
+        if reuse.is_some() && self.points.is_empty() {
+            let (nx, nu) = (self.problem.nx(), self.problem.nu());
+            self.points = (0..self.problem.horizon()).map(|_| Mutex::new(ModelPoint::new(self.states[0].clone(), nx, nu))).collect();
+        }
+        self.forget_models(0);
+        self.settings.model_reuse = reuse;
+        Ok(())
+    }
+
+    /// Knots `from..` have no model to keep ([`crate::slq::ModelReuse`]).
+    fn forget_models(&mut self, from: usize) {
+        for point in self.points.iter_mut().skip(from) {
+            point.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner).valid = false;
+        }
+    }
+
+    /// Marks the knots whose models the next pass keeps ([`crate::slq::ModelReuse`]): not
+    /// the first `fresh_head`, not those without one, and not this iteration's turn of the
+    /// rest (absolute knot `a`'s turn every `refresh_period` iterations).
+    fn choose_reused_models(&mut self) {
+        let Some(reuse) = self.settings.model_reuse else { return };
+        let turn = self.reuse_iterations;
+        for (k, (reused, point)) in self.reused.iter_mut().zip(self.points.iter_mut()).enumerate() {
+            let valid = point.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner).valid;
+            *reused = valid && k >= reuse.fresh_head && (k + self.shifted_knots + turn) % reuse.refresh_period != 0;
+        }
+        self.reuse_iterations += 1;
+    }
+
     /// One real-time iteration from the measured state `x0` (module docs): the model
     /// around the current solution, then one round of trials (a step size per thread) from
     /// `x0`. With `must_improve`, a trial is kept only if it costs less than `cost`
     /// (a later iteration of the same tick, whose trajectory already starts at `x0`).
     pub fn real_time_iteration(&mut self, x0: &P::State, must_improve: Option<f64>) -> Result<RealTimeIteration, RealTimeIterationError> {
         let mut timing = IterationTiming::default();
-        if !self.linearize_and_backward_pass(&mut timing) {
+        self.choose_reused_models();
+        let passed = self.linearize_and_backward_pass(&mut timing);
+        self.reused.fill(false);
+        if !passed {
             return Err(RealTimeIterationError::BackwardPass);
         }
         let feedforward_norm = self.feedforward_norm();
