@@ -19,7 +19,8 @@
 //! - **warm start**: the previous tick's solution shifted by the knots the window moved
 //!   ([`crate::slq::Slq::shift`]), its new last knots from the plan's own policy;
 //! - **iteration budget**: a fixed number of SLQ iterations per tick (one by default,
-//!   [`crate::slq::Slq::real_time_iteration`]);
+//!   [`crate::slq::Slq::real_time_iteration`]), each linearizing every knot or, with
+//!   [`MpcSettings::model_reuse`], only some, the others' models kept from earlier ticks;
 //! - **policy**: between solves the robot runs the last solution's
 //!   `u = u_k + K_k (x (-) x_k)` ([`MpcPolicy`], Neunert 2017 eq. 2) at the simulator's
 //!   control rate.

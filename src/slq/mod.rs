@@ -95,9 +95,10 @@ pub struct SlqSettings {
 /// two a tick and the trajectory changes by one step, so most knots' `A`, `B` and cost
 /// Hessians from an earlier tick still describe them. Each iteration linearizes the first
 /// `fresh_head` knots (the robot runs them before the next tick), the knots new to the
-/// window, and every `refresh_period`-th of the rest in turn (each knot at least every
-/// `refresh_period` iterations); every other knot keeps its model, its cost gradient moved
-/// to the new trajectory by its Hessian,
+/// window, every `refresh_period`-th of the rest in turn (each knot at least every
+/// `refresh_period` iterations), and any knot whose state left its model's piece
+/// ([`Problem::same_model_piece`]: a foot landed or lifted); every other knot keeps its
+/// model, its cost gradient moved to the new trajectory by its Hessian,
 ///
 /// ```text
 /// l_x <- l_x + l_xx dx + l_ux^T du,   l_u <- l_u + l_ux dx + l_uu du,
@@ -105,9 +106,11 @@ pub struct SlqSettings {
 /// ```
 ///
 /// (the old quadratic model, centred at the new trajectory: without it the pass would take
-/// the last tick's step again).
+/// the last tick's step again). On the whole-body tasks it shortens a tick by about a
+/// quarter and costs robustness where feet land and slip (docs/experiments/mpc-6.md).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ModelReuse {
+    /// Knots at the window's start linearized every iteration.
     pub fresh_head: usize,
     /// At least 1 (1: every knot, every iteration).
     pub refresh_period: usize,

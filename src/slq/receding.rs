@@ -13,8 +13,10 @@
 //! The first iteration of a tick starts from a state the shifted trajectory did not start
 //! from, so its costs are not comparable with the trajectory's: the cheapest trial is
 //! taken whatever the old cost (the step is the controller's answer to the new state).
-//! Later iterations of the same tick keep a trial only if it lowers the cost. Nothing
-//! here allocates: the trajectories, gains and trials are the solver's own.
+//! Later iterations of the same tick keep a trial only if it lowers the cost. With
+//! [`crate::slq::ModelReuse`] most knots keep their models across ticks (they move with
+//! the window in [`Slq::shift`]). Nothing here allocates: the trajectories, gains and
+//! trials are the solver's own.
 
 use super::{divided, for_each_job, IterationTiming, ModelPoint, ModelReuse, Policy, Problem, Slq, SlqError};
 use std::sync::Mutex;
