@@ -600,9 +600,6 @@ struct RiccatiScratch {
 impl<'p, P: Problem> Slq<'p, P> {
     /// Sets up the solver: trajectories, gains and workspaces allocated once.
     pub fn new(problem: &'p P, settings: SlqSettings) -> Result<Self, SlqError> {
-        if settings.model_reuse.is_some_and(|r| r.refresh_period == 0) {
-            return Err(SlqError::Settings { field: "model_reuse", problem: "expected a refresh period of at least 1".into() });
-        }
         if settings.alpha_divisor.is_nan() || settings.alpha_divisor <= 1.0 {
             return Err(SlqError::Settings { field: "alpha_divisor", problem: format!("expected a number > 1, got {}", settings.alpha_divisor) });
         }
@@ -630,7 +627,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             }
         }
         let bounded = (0..n).map(|k| lower[k].iter().chain(upper[k].iter()).any(|b| b.is_finite())).collect();
-        Ok(Self {
+        let mut slq = Self {
             problem,
             states: vec![x0.clone(); n + 1],
             inputs: vec![DVector::zeros(nu); n],
@@ -639,7 +636,8 @@ impl<'p, P: Problem> Slq<'p, P> {
             feedforward: vec![DVector::zeros(nu); n],
             derivatives: (0..n).map(|_| Mutex::new(KnotDerivatives::zeros(nx, nu))).collect(),
             ready: (0..n).map(|_| AtomicBool::new(false)).collect(),
-            points: if settings.model_reuse.is_some() { (0..n).map(|_| Mutex::new(ModelPoint::new(x0.clone(), nx, nu))).collect() } else { Vec::new() },
+            // Checked and allocated by set_model_reuse below.
+            points: Vec::new(),
             reused: vec![false; n],
             reuse_iterations: 0,
             shifted_knots: 0,
@@ -675,7 +673,9 @@ impl<'p, P: Problem> Slq<'p, P> {
             regularization: settings.initial_regularization,
             settings,
             pool,
-        })
+        };
+        slq.set_model_reuse(slq.settings.model_reuse)?;
+        Ok(slq)
     }
 
     /// Step 1 (first iteration): `x_{k+1} = f(x_k, pi_k(x_k))` with the initial policy.
