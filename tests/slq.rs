@@ -17,6 +17,9 @@ struct Linear {
     n: usize,
     /// `|u_i| <= u_max` (infinite: unbounded).
     u_max: f64,
+    /// A state is valid while every coordinate is below this in magnitude (infinite: while
+    /// finite).
+    valid_below: f64,
 }
 
 impl Problem for Linear {
@@ -65,7 +68,7 @@ impl Problem for Linear {
         upper.fill(self.u_max);
     }
     fn is_valid(&self, x: &DVector<f64>) -> bool {
-        x.iter().all(|v| v.is_finite())
+        x.iter().all(|v| v.is_finite() && v.abs() < self.valid_below)
     }
 }
 
@@ -149,7 +152,7 @@ fn double_integrator(n: usize, u_max: f64) -> Linear {
     let a = DMatrix::from_row_slice(4, 4, &[1.0, dt, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, dt, 0.0, 0.0, 0.0, 1.0]);
     let b = DMatrix::from_row_slice(4, 2, &[0.0, 0.0, dt, 0.0, 0.0, 0.0, 0.0, dt]);
     let q = DMatrix::from_row_slice(4, 4, &[1.0, 0.0, 0.3, 0.0, 0.0, 0.1, 0.0, 0.0, 0.3, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.1]);
-    Linear { a, b, q: q.clone(), r: DMatrix::identity(2, 2) * 0.01, h: q * 50.0, x0: DVector::from_row_slice(&[1.0, 0.0, -0.5, 0.3]), n, u_max }
+    Linear { a, b, q: q.clone(), r: DMatrix::identity(2, 2) * 0.01, h: q * 50.0, x0: DVector::from_row_slice(&[1.0, 0.0, -0.5, 0.3]), n, u_max, valid_below: f64::INFINITY }
 }
 
 /// Control limits (Tassa 2014): with `|u| <= 1.5`, which cuts the unconstrained optimum's
@@ -196,7 +199,7 @@ fn linear_quadratic_optimum_in_one_full_step() {
     let a = DMatrix::from_row_slice(4, 4, &[1.0, dt, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, dt, 0.0, 0.0, 0.0, 1.0]);
     let b = DMatrix::from_row_slice(4, 2, &[0.0, 0.0, dt, 0.0, 0.0, 0.0, 0.0, dt]);
     let q = DMatrix::from_row_slice(4, 4, &[1.0, 0.0, 0.3, 0.0, 0.0, 0.1, 0.0, 0.0, 0.3, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.1]);
-    let p = Linear { a, b, q: q.clone(), r: DMatrix::identity(2, 2) * 0.01, h: q * 50.0, x0: DVector::from_row_slice(&[1.0, 0.0, -0.5, 0.3]), n: 40, u_max: f64::INFINITY };
+    let p = Linear { a, b, q: q.clone(), r: DMatrix::identity(2, 2) * 0.01, h: q * 50.0, x0: DVector::from_row_slice(&[1.0, 0.0, -0.5, 0.3]), n: 40, u_max: f64::INFINITY, valid_below: f64::INFINITY };
     let settings = SlqSettings { threads: 2, ..Default::default() };
     let sol = Slq::new(&p, settings).unwrap().solve(&Zero, |_| {}).unwrap();
     assert_eq!(sol.iterations[0].alpha, 1.0, "a linear-quadratic problem takes the full step");
@@ -498,5 +501,46 @@ fn real_time_iterations_that_keep_the_knots_models_take_the_same_steps_on_a_quad
                 assert!((&gains_f[k] - &gains_k[k]).amax() <= 1e-8 * (1.0 + gains_f[k].amax()), "tick {tick} knot {k} gains");
             }
         }
+    }
+}
+
+/// A real-time iteration whose every trial leaves the valid states (an MPC window whose
+/// rollouts spin a free leg past the speed limit) keeps the trial that went furthest if it
+/// held for a quarter of the window, its later states held at its last valid one, and says
+/// so (`held_after`, cost infinite); one whose trials all fail sooner is an error.
+#[test]
+fn a_window_whose_every_trial_leaves_the_valid_states_is_held_after_a_quarter() {
+    use legwork::slq::RealTimeIterationError;
+    // x' = 1.2 x, the input clipped at 1e-9 (it cannot hold the state), valid below 1e4.
+    let n = 40;
+    let p = Linear {
+        a: DMatrix::from_element(1, 1, 1.2),
+        b: DMatrix::from_element(1, 1, 1.0),
+        q: DMatrix::identity(1, 1),
+        r: DMatrix::identity(1, 1),
+        h: DMatrix::identity(1, 1),
+        x0: DVector::from_element(1, 1.0),
+        n,
+        u_max: 1e-9,
+        valid_below: 1e4,
+    };
+    for threads in [1, 2] {
+        let mut slq = Slq::new(&p, SlqSettings { threads, ..Default::default() }).unwrap();
+        // From 1: 1.2^40 ~ 1470, valid to the end; a priced trajectory.
+        slq.start_from(&p.x0, &Zero).unwrap();
+        let it = slq.real_time_iteration(&p.x0, None).unwrap();
+        assert!(it.cost.is_finite() && it.held_after.is_none(), "{threads} threads: {} {:?}", it.cost, it.held_after);
+        // From 100: 100 * 1.2^k passes 1e4 at k = 26 (state 26 is the first invalid, knot 25
+        // the last valid one's step): held after knot 25.
+        let x = DVector::from_element(1, 100.0);
+        let it = slq.real_time_iteration(&x, None).unwrap();
+        assert_eq!(it.held_after, Some(25), "{threads} threads");
+        assert_eq!(it.cost, f64::INFINITY);
+        let states = slq.states();
+        assert!(states[25][0] < 1e4 && states[25][0] > 1e4 / 1.2, "{}", states[25][0]);
+        assert!(states[26..].iter().all(|s| s == &states[25]), "{threads} threads: the states after knot 25 held at its");
+        // From 5000: invalid at knot 4, before a quarter of the window (10): no trajectory.
+        let err = slq.real_time_iteration(&DVector::from_element(1, 5000.0), None).unwrap_err();
+        assert_eq!(err, RealTimeIterationError::NoValidTrial);
     }
 }

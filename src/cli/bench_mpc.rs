@@ -86,6 +86,7 @@ fn row(run: &MpcRun) -> Value {
         "stopped": run.closed_loop.stopped,
         "ticks": s["ticks"],
         "failed_ticks": s["failed_ticks"],
+        "held_ticks": s["held_ticks"],
         "ticks_over_period": s["ticks_over_period"],
         "tick_time_p50_s": s["tick_time_p50_s"],
         "tick_time_p99_s": s["tick_time_p99_s"],

@@ -157,7 +157,7 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
     let (plan, run) = job.run(|_| {}, |_| {}).map_err(job_error)?;
     let sum = &run.summary;
     let ms = |key: &str| sum[key].as_f64().unwrap_or(f64::NAN) * 1e3;
-    say!("plan: {:.2} s to solve; closed loop: {} ticks, solve time per tick median {:.2} ms, p99 {:.2} ms, max {:.2} ms; {} over the {:.1} ms period, {} restarted from the plan, {} failed", sum["plan_solve_time_s"].as_f64().unwrap_or(0.0), sum["ticks"], ms("tick_time_p50_s"), ms("tick_time_p99_s"), ms("tick_time_max_s"), sum["ticks_over_period"], s.period() * 1e3, sum["restarted_ticks"], sum["failed_ticks"]);
+    say!("plan: {:.2} s to solve; closed loop: {} ticks, solve time per tick median {:.2} ms, p99 {:.2} ms, max {:.2} ms; {} over the {:.1} ms period, {} restarted from the plan, {} held (every trial past the valid states before the window's end), {} failed", sum["plan_solve_time_s"].as_f64().unwrap_or(0.0), sum["ticks"], ms("tick_time_p50_s"), ms("tick_time_p99_s"), ms("tick_time_max_s"), sum["ticks_over_period"], s.period() * 1e3, sum["restarted_ticks"], sum["held_ticks"], sum["failed_ticks"]);
     if let Some(reason) = &run.closed_loop.stopped {
         say!("the closed loop stopped: {reason}");
     }

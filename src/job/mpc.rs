@@ -145,6 +145,7 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
         "ticks": run.ticks.len(),
         "failed_ticks": run.ticks.iter().filter(|t| t.failure.is_some()).count(),
         "restarted_ticks": run.ticks.iter().filter(|t| t.restarted).count(),
+        "held_ticks": run.ticks.iter().filter(|t| t.held_after_knot.is_some()).count(),
         "ticks_over_period": times.iter().filter(|t| **t > period).count(),
         "tick_time_p50_s": percentile(times.clone(), 50.0),
         "tick_time_p99_s": percentile(times.clone(), 99.0),

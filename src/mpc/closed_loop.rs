@@ -40,7 +40,8 @@ pub struct TickRecord {
     pub solve_time: f64,
     /// When after `t` its policy took over (s).
     pub latency: f64,
-    /// Cost of the kept trajectory, its step size, iterations run; `None` if the tick failed.
+    /// Cost of the kept trajectory, its step size, iterations run; `None` if the tick failed
+    /// or kept a trajectory held after [`Self::held_after_knot`] (no finite cost).
     pub cost: Option<f64>,
     pub alpha: Option<f64>,
     /// The Levenberg-Marquardt regularization of `H` after the tick.
@@ -55,6 +56,10 @@ pub struct TickRecord {
     pub rollout_time: f64,
     /// Why the tick gave no policy (the previous one kept running).
     pub failure: Option<String>,
+    /// Every trial of the tick left the valid states (a joint past the speed limit); the
+    /// kept one did after this window knot, its later knots held there
+    /// ([`crate::slq::RealTimeIteration::held_after`]). Its policy runs.
+    pub held_after_knot: Option<usize>,
 }
 
 /// A closed-loop run: the recorded motion, every tick, and how it ended.
@@ -158,11 +163,11 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
                             PolicyLatency::Measured => report.solve_time,
                             PolicyLatency::Fixed(l) => l,
                         };
-                        (TickRecord { t: t_tick, solve_time: report.solve_time, latency: wait, cost: Some(report.cost), alpha: last.map(|i| i.alpha), regularization: last.map(|i| i.regularization), iterations: report.iterations.len(), restarted: report.restarted, linearization_time: report.iterations.iter().map(|i| i.timing.linearization).sum(), backward_pass_time: report.iterations.iter().map(|i| i.timing.backward_pass).sum(), rollout_time: report.iterations.iter().map(|i| i.timing.line_search).sum(), failure: None }, Some(reply.policy))
+                        (TickRecord { t: t_tick, solve_time: report.solve_time, latency: wait, cost: report.cost.is_finite().then_some(report.cost), held_after_knot: if report.cost.is_finite() { None } else { report.iterations.iter().rev().find_map(|i| i.held_after) }, alpha: last.map(|i| i.alpha), regularization: last.map(|i| i.regularization), iterations: report.iterations.len(), restarted: report.restarted, linearization_time: report.iterations.iter().map(|i| i.timing.linearization).sum(), backward_pass_time: report.iterations.iter().map(|i| i.timing.backward_pass).sum(), rollout_time: report.iterations.iter().map(|i| i.timing.line_search).sum(), failure: None }, Some(reply.policy))
                     }
                     Err(e) => {
                         spare = Some(reply.policy);
-                        (TickRecord { t: t_tick, solve_time: 0.0, latency: 0.0, cost: None, alpha: None, regularization: None, iterations: 0, restarted: false, linearization_time: 0.0, backward_pass_time: 0.0, rollout_time: 0.0, failure: Some(e.to_string()) }, None)
+                        (TickRecord { t: t_tick, solve_time: 0.0, latency: 0.0, cost: None, alpha: None, regularization: None, iterations: 0, restarted: false, linearization_time: 0.0, backward_pass_time: 0.0, rollout_time: 0.0, failure: Some(e.to_string()), held_after_knot: None }, None)
                     }
                 };
                 step_until(sim, &mut controller, &mut trajectory, t_tick + record.latency)?;

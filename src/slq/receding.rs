@@ -26,7 +26,8 @@ use std::time::Instant;
 /// One real-time iteration's record.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct RealTimeIteration {
-    /// Cost of the kept trajectory (from the measured state).
+    /// Cost of the kept trajectory (from the measured state); infinite when the kept trial
+    /// left the valid states before the window's end ([`Self::held_after`]).
     pub cost: f64,
     /// Its step size: 0 for the no-step trial (the shifted policy's own feedback), or when a
     /// later iteration of the tick kept the trajectory as it was.
@@ -35,6 +36,11 @@ pub struct RealTimeIteration {
     pub feedforward_norm: f64,
     pub regularization: f64,
     pub timing: IterationTiming,
+    /// `Some(k)`: every trial left the valid states, and the kept one (the furthest, past a
+    /// quarter of the window) did after knot `k`: its states after `k` are held at knot `k`'s
+    /// and its cost is infinite. The robot runs only the window's first knots before the
+    /// next tick, but a tick like this has no priced trajectory.
+    pub held_after: Option<usize>,
 }
 
 /// Why a real-time iteration gave no trajectory.
@@ -248,13 +254,13 @@ impl<'p, P: Problem> Slq<'p, P> {
         });
         let best = (0..round).filter_map(|j| self.trials[j].cost.map(|c| (j, c))).filter(|&(_, c)| must_improve.is_none_or(|old| c < old)).min_by(|a, b| a.1.total_cmp(&b.1));
         timing.line_search = t.elapsed().as_secs_f64();
-        let (alpha, cost) = match (best, must_improve) {
+        let (alpha, cost, held_after) = match (best, must_improve) {
             (Some((j, c)), _) => {
                 std::mem::swap(&mut self.states, &mut self.trials[j].states);
                 std::mem::swap(&mut self.inputs, &mut self.trials[j].inputs);
-                (alpha_of(j), c)
+                (alpha_of(j), c, None)
             }
-            (None, Some(old)) => (0.0, old),
+            (None, Some(old)) => (0.0, old, None),
             (None, None) => {
                 // Every trial left the valid states (a flailing free leg past the speed
                 // limit, late in the window): the robot only runs the window's first knots
@@ -274,7 +280,7 @@ impl<'p, P: Problem> Slq<'p, P> {
                 }
                 std::mem::swap(&mut self.states, &mut trial.states);
                 std::mem::swap(&mut self.inputs, &mut trial.inputs);
-                (alpha_of(j), f64::INFINITY)
+                (alpha_of(j), f64::INFINITY, Some(k))
             }
         };
         // The regularization only grows where the backward pass needs it (an H that is not
@@ -286,6 +292,6 @@ impl<'p, P: Problem> Slq<'p, P> {
         // short (the gallop's plan accepts alpha ~ 0.01-0.06): full Newton steps every
         // tick drive the torques to their limits and spin free legs up.
         self.real_time_step = if alpha == step { (2.0 * step).min(1.0) } else { (step / divisor).max(1e-3) };
-        Ok(RealTimeIteration { cost, alpha, feedforward_norm, regularization: self.regularization, timing })
+        Ok(RealTimeIteration { cost, alpha, feedforward_norm, regularization: self.regularization, timing, held_after })
     }
 }
