@@ -530,8 +530,8 @@ fn a_window_whose_every_trial_leaves_the_valid_states_is_held_after_a_quarter() 
         slq.start_from(&p.x0, &Zero).unwrap();
         let it = slq.real_time_iteration(&p.x0, None).unwrap();
         assert!(it.cost.is_finite() && it.held_after.is_none(), "{threads} threads: {} {:?}", it.cost, it.held_after);
-        // From 100: 100 * 1.2^k passes 1e4 at k = 26 (state 26 is the first invalid, knot 25
-        // the last valid one's step): held after knot 25.
+        // From 100: 100 * 1.2^k passes 1e4 at k = 26, so the step from knot 25 leaves the
+        // valid states: held after knot 25.
         let x = DVector::from_element(1, 100.0);
         let it = slq.real_time_iteration(&x, None).unwrap();
         assert_eq!(it.held_after, Some(25), "{threads} threads");
