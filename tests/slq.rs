@@ -436,7 +436,7 @@ impl Problem for Window {
         self.linear.terminal_cost_derivatives(ws, x, h_x, h_xx)
     }
     fn is_valid(&self, x: &DVector<f64>) -> bool {
-        x.iter().all(|v| v.is_finite())
+        self.linear.is_valid(x)
     }
     fn same_model_piece(&self, _: &DVector<f64>, _: &DVector<f64>) -> bool {
         self.one_piece

@@ -163,7 +163,7 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
                             PolicyLatency::Measured => report.solve_time,
                             PolicyLatency::Fixed(l) => l,
                         };
-                        (TickRecord { t: t_tick, solve_time: report.solve_time, latency: wait, cost: report.cost.is_finite().then_some(report.cost), held_after_knot: if report.cost.is_finite() { None } else { report.iterations.iter().rev().find_map(|i| i.held_after) }, alpha: last.map(|i| i.alpha), regularization: last.map(|i| i.regularization), iterations: report.iterations.len(), restarted: report.restarted, linearization_time: report.iterations.iter().map(|i| i.timing.linearization).sum(), backward_pass_time: report.iterations.iter().map(|i| i.timing.backward_pass).sum(), rollout_time: report.iterations.iter().map(|i| i.timing.line_search).sum(), failure: None }, Some(reply.policy))
+                        (TickRecord { t: t_tick, solve_time: report.solve_time, latency: wait, cost: report.cost.is_finite().then_some(report.cost), held_after_knot: report.iterations.iter().rev().find_map(|i| i.held_after).filter(|_| !report.cost.is_finite()), alpha: last.map(|i| i.alpha), regularization: last.map(|i| i.regularization), iterations: report.iterations.len(), restarted: report.restarted, linearization_time: report.iterations.iter().map(|i| i.timing.linearization).sum(), backward_pass_time: report.iterations.iter().map(|i| i.timing.backward_pass).sum(), rollout_time: report.iterations.iter().map(|i| i.timing.line_search).sum(), failure: None }, Some(reply.policy))
                     }
                     Err(e) => {
                         spare = Some(reply.policy);
