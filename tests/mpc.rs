@@ -1,15 +1,19 @@
 //! Receding-horizon SLQ (issue 21): the warm start's shift, the window's costs, the closed
 //! loop's tick schedule, HyQ standing under a 100 N lateral push in legwork's simulator and
-//! in MuJoCo, and the settings' errors.
+//! in MuJoCo, the physical feedback's control loop, and the settings' errors.
 
 use legwork::export::{MujocoCheck, MujocoPlant};
 use legwork::io::Trajectory;
 use legwork::model::{embedded, Model};
-use legwork::mpc::{run_closed_loop, window_problem, Mpc, MpcError, MpcSettings, PolicyLatency};
-use legwork::ocp::{solve_task, PdPolicy, RobotState, SolveOptions, TaskRun, TaskSpec};
-use legwork::sim::{Push, SimConfig, Simulator};
+use legwork::mpc::{run_closed_loop, window_problem, Mpc, MpcError, MpcFeedback, MpcPolicy, MpcPolicyController, MpcSettings, PolicyLatency};
+use legwork::ocp::{physical_gain, solve_task, PdPolicy, PhysicalGainWorkspace, RobotState, SolveOptions, TaskRun, TaskSpec};
+use legwork::sim::{Controller, Push, SimConfig, SimState, Simulator};
 use legwork::slq::{ModelReuse, Problem, Slq, SlqSettings};
 use legwork::terrain::Plane;
+use nalgebra::{DMatrix, DVector, Vector3};
+#[path = "support/counting_allocator.rs"]
+mod counting_allocator;
+use counting_allocator::allocations;
 
 /// HyQ holding its stance for `duration` seconds: the standing task of the issue's push test.
 fn stand(duration: f64) -> TaskSpec {
@@ -262,6 +266,67 @@ fn standing_hyq_rejects_a_100_n_lateral_push_in_mujoco() {
     assert!((normal - weight).abs() < 0.05 * weight, "the feet carry {normal:.0} N of {weight:.0} N");
     assert_stood_through_the_push(&closed.trajectory, 1.0);
     std::fs::remove_dir_all(&folder).ok();
+}
+
+/// `MpcFeedback::Physical`: the robot's torque is the knot's feedforward plus the knot's
+/// exported gain ([`physical_gain`]) on `[q (-) q*; v - v*]`, blind to legwork's anchor
+/// estimate; each knot's gain is computed in the control loop, without allocating.
+#[test]
+fn the_physical_feedback_runs_each_knots_exported_gain_without_allocating() {
+    let model = embedded::load("hyq").unwrap();
+    let nv = model.nv;
+    let spec = stand(0.3);
+    let run = plan(&spec, &model);
+    let ground = Plane::flat(0.0);
+    let settings = MpcSettings { horizon: 0.1, initial_iterations: 2, feedback: MpcFeedback::Physical, ..MpcSettings::default() };
+    let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
+    let mpc = Mpc::new(&problem, &run.solution, spec.dt, settings).unwrap();
+    let mut policy = MpcPolicy::for_problem(&problem);
+    mpc.write_policy(&mut policy);
+    let mut controller = MpcPolicyController::new(&problem, policy.clone(), MpcFeedback::Physical);
+    // The measured state: knot 2's, the joints and the base moved and moving.
+    let knot = &policy.states[2];
+    let mut q = knot.q.clone();
+    for i in 0..nv {
+        q[if i < 3 { i } else { i + 1 }] += 0.01 * (((i * 7) % 5) as f64 - 2.0);
+    }
+    q.fixed_rows_mut::<4>(3).normalize_mut();
+    let v = &knot.v + DVector::from_fn(nv, |i, _| 0.1 * (((i * 3) % 7) as f64 - 3.0));
+    let mut state = SimState { t: 0.0, q: q.clone(), v: v.clone(), anchors: knot.anchors.clone() };
+    let mut tau = DVector::zeros(nv);
+    controller.compute(&model, &state, &mut tau).unwrap();
+    // Twenty control periods over four knots, each knot's gain computed on entering it.
+    let before = allocations();
+    for i in 1..=20 {
+        state.t = i as f64 * 0.001;
+        controller.compute(&model, &state, &mut tau).unwrap();
+    }
+    assert_eq!(allocations() - before, 0, "the physical feedback allocated in the control loop");
+    // At knot 2, u = u_2 + K_phys,2 [(x (-) x*(t)) on q, v], x*(t) interpolated along the knot.
+    state.t = 0.012;
+    controller.compute(&model, &state, &mut tau).unwrap();
+    let (k, along) = policy.knot_at(state.t);
+    assert_eq!(k, 2);
+    let control_dt = SimConfig::default().control_dt;
+    let q0 = &problem.initial.q;
+    let joint_pd = legwork::control::PdGains::from_model(&model, q0, control_dt).capped_for_free_joints(&model, q0, control_dt);
+    let mut ws = PhysicalGainWorkspace::new(&model, &joint_pd);
+    let mut gain = DMatrix::zeros(nv - 6, 2 * nv);
+    physical_gain(&model, &mut ws, &knot.q, &knot.anchors, &policy.gains[2], &mut gain);
+    let measured = RobotState { q: q.clone(), v: v.clone(), anchors: knot.anchors.clone() };
+    let (mut dx, mut step) = (DVector::zeros(problem.nx()), DVector::zeros(problem.nx()));
+    problem.difference(knot, &measured, &mut dx);
+    problem.difference(knot, &policy.states[3], &mut step);
+    dx.axpy(-along, &step, 1.0);
+    let expected = &policy.inputs[2] + &gain * dx.rows(0, 2 * nv);
+    let got = tau.rows(6, nv - 6).into_owned();
+    assert!((&got - &expected).norm() < 1e-9 * expected.norm(), "{got} vs {expected}");
+    assert!((&got - &policy.inputs[2]).norm() > 1.0, "the feedback acts");
+    // Moved anchors change nothing: the physical gain has no anchor columns.
+    state.anchors = knot.anchors.iter().map(|a| a.map(|a| a + Vector3::new(0.01, -0.01, 0.0))).collect();
+    let mut moved = DVector::zeros(nv);
+    controller.compute(&model, &state, &mut moved).unwrap();
+    assert_eq!(moved, tau);
 }
 
 #[test]

@@ -69,6 +69,12 @@ pub struct MpcArgs {
     /// the rest keep their models, their cost gradients moved to the new trajectory.
     #[arg(long, value_name = "HEAD,PERIOD")]
     reuse_models: Option<String>,
+    /// What the robot's policy feeds back between ticks: `optimizer` (the window's gains on
+    /// legwork's state, the stance feet's contact anchors estimated) or `physical` (the
+    /// gains a plan exports: on joint and base positions and velocities alone, the stance
+    /// feet held planted; for a stiff ground, MuJoCo's or a robot's).
+    #[arg(long, value_enum, default_value_t = FeedbackChoice::Optimizer)]
+    feedback: FeedbackChoice,
     /// The smallest regularization of the window's SLQ (1e-3).
     #[arg(long, default_value_t = 1e-3)]
     regularization: f64,
@@ -88,6 +94,21 @@ pub struct MpcArgs {
     /// Also write every plot as PNG beside its SVG.
     #[arg(long)]
     png: bool,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum FeedbackChoice {
+    Optimizer,
+    Physical,
+}
+
+impl From<FeedbackChoice> for legwork::mpc::MpcFeedback {
+    fn from(choice: FeedbackChoice) -> Self {
+        match choice {
+            FeedbackChoice::Optimizer => Self::Optimizer,
+            FeedbackChoice::Physical => Self::Physical,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -129,7 +150,7 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join("mpc").join(&spec.name));
     let plan_out = out.join("plan");
     let threads = super::capped_threads(args.threads);
-    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, fine_head: args.fine_head, iterations_per_tick: args.iterations_per_tick, threads, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), model_reuse: args.reuse_models.as_deref().map(parse_model_reuse).transpose()?, ..MpcSettings::default() };
+    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, fine_head: args.fine_head, iterations_per_tick: args.iterations_per_tick, threads, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), model_reuse: args.reuse_models.as_deref().map(parse_model_reuse).transpose()?, feedback: args.feedback.into(), ..MpcSettings::default() };
     let sim = match args.sim {
         SimChoice::Legwork => ClosedLoopSim::Legwork,
         SimChoice::Mujoco => ClosedLoopSim::Mujoco(legwork::export::MujocoCheck::locate()?),

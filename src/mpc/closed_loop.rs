@@ -115,7 +115,7 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
     let physics_dt = sim.physics_dt();
     let mut first = MpcPolicy::for_problem(problem);
     mpc.write_policy(&mut first);
-    let mut controller = MpcPolicyController::new(problem, first);
+    let mut controller = MpcPolicyController::new(problem, first, mpc.settings().feedback);
     let mut spare = Some(MpcPolicy::for_problem(problem));
     let mut measured = Some(problem.initial.clone());
     let mut trajectory = Trajectory::new(problem.model, format!("mpc at {} Hz", mpc.settings().rate), sim.record_dt(), problem.terrain.spec());
@@ -172,7 +172,7 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
                 };
                 step_until(sim, &mut controller, &mut trajectory, t_tick + record.latency)?;
                 if let Some(mut policy) = new_policy {
-                    std::mem::swap(&mut controller.policy, &mut policy);
+                    controller.swap_policy(&mut policy);
                     spare = Some(policy);
                 }
                 let periods = (record.latency / period - 1e-9).ceil().max(1.0);

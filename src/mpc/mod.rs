@@ -33,7 +33,7 @@ pub mod closed_loop;
 pub use closed_loop::{run_closed_loop, ClosedLoopRun, PolicyLatency, TickRecord};
 
 use crate::model::Model;
-use crate::ocp::{CoarseTail, KnotLinearization, PlanValue, RecedingHorizon, ReferenceMotion, RobotState, TaskError, TaskSpec, WholeBodyProblem};
+use crate::ocp::{physical_gain, CoarseTail, KnotLinearization, PhysicalGainWorkspace, PlanValue, RecedingHorizon, ReferenceMotion, RobotState, TaskError, TaskSpec, WholeBodyProblem};
 use crate::sim::{ControlError, Controller, SimState};
 use crate::slq::{ModelReuse, Policy, Problem, RealTimeIteration, RealTimeIterationError, Slq, SlqError, SlqSettings, SlqSolution};
 use crate::terrain::Terrain;
@@ -135,11 +135,29 @@ pub struct MpcSettings {
     /// Keep most knots' models from tick to tick ([`crate::slq::ModelReuse`]; `None`:
     /// every knot linearized every tick). The initial iterations linearize every knot.
     pub model_reuse: Option<ModelReuse>,
+    /// What the robot's feedback between ticks acts on ([`MpcFeedback::Optimizer`]).
+    pub feedback: MpcFeedback,
+}
+
+/// What the policy `u = u_k + K_k dx` the robot runs between ticks feeds back.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MpcFeedback {
+    /// The window's gains as SLQ computed them, on the optimizer's state: with the anchors
+    /// as states, their columns act on legwork's estimate of the stance feet's anchors.
+    #[default]
+    Optimizer,
+    /// The window's gains as the physical gains a plan exports
+    /// ([`crate::ocp::physical_gain`]): on `[q (-) q*; v - v*]` alone, acting as the
+    /// optimizer's on the motions that keep the knot's stance feet planted, the joint
+    /// damping of a free joint on a stance foot's own motion. No anchor estimate, and no
+    /// negative stiffness of a stance leg against a stiff ground (MuJoCo, a robot). Each
+    /// knot's gain is computed once, when the robot first runs it.
+    Physical,
 }
 
 impl Default for MpcSettings {
     fn default() -> Self {
-        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None }
+        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
     }
 }
 
@@ -534,18 +552,51 @@ impl<'p, 'a> Mpc<'p, 'a> {
 /// `x (-) x*(t) ~ (x (-) x_k) - s (x_{k+1} (-) x_k)`, `s = (t - t_k) / dt` (to first order on
 /// the base's SE(3)). Against `x_k` itself the feedback would read the knot's own planned
 /// motion as an error: 4 ms into a 5 ms knot of a take-off, several rad/s on a knee.
+/// With [`MpcFeedback::Physical`], `K_k` is knot `k`'s physical gain on the `[dq; dv]`
+/// rows of that deviation, computed the first time the robot runs the knot.
 pub struct MpcPolicyController<'p, 'a> {
     problem: &'p WholeBodyProblem<'a>,
-    pub policy: MpcPolicy,
+    policy: MpcPolicy,
     x: RobotState,
     dx: DVector<f64>,
     knot_step: DVector<f64>,
     u: DVector<f64>,
+    physical: Option<PhysicalFeedback>,
+}
+
+/// The physical gains of the policy's knots, each computed when first needed.
+struct PhysicalFeedback {
+    workspace: PhysicalGainWorkspace,
+    gains: Vec<DMatrix<f64>>,
+    ready: Vec<bool>,
 }
 
 impl<'p, 'a> MpcPolicyController<'p, 'a> {
-    pub fn new(problem: &'p WholeBodyProblem<'a>, policy: MpcPolicy) -> Self {
-        Self { problem, policy, x: problem.initial.clone(), dx: DVector::zeros(problem.nx()), knot_step: DVector::zeros(problem.nx()), u: DVector::zeros(problem.nu()) }
+    /// With a stance foot's own motion damped by legwork's joint PD for a free joint at the
+    /// simulator's control rate (as the plans' exported gains, [`crate::ocp::solution_trajectory`]).
+    pub fn new(problem: &'p WholeBodyProblem<'a>, policy: MpcPolicy, feedback: MpcFeedback) -> Self {
+        let (nx, nu, nv) = (problem.nx(), problem.nu(), problem.model.nv);
+        let physical = (feedback == MpcFeedback::Physical).then(|| {
+            let control_dt = crate::sim::SimConfig::default().control_dt;
+            let q0 = &problem.initial.q;
+            let joint_pd = crate::control::PdGains::from_model(problem.model, q0, control_dt).capped_for_free_joints(problem.model, q0, control_dt);
+            let knots = policy.gains.len();
+            PhysicalFeedback { workspace: PhysicalGainWorkspace::new(problem.model, &joint_pd), gains: vec![DMatrix::zeros(nu, 2 * nv); knots], ready: vec![false; knots] }
+        });
+        Self { problem, policy, x: problem.initial.clone(), dx: DVector::zeros(nx), knot_step: DVector::zeros(nx), u: DVector::zeros(nu), physical }
+    }
+
+    /// The policy the robot runs.
+    pub fn policy(&self) -> &MpcPolicy {
+        &self.policy
+    }
+
+    /// Runs `policy` from now on; the one it replaces comes back in `policy` (no allocation).
+    pub fn swap_policy(&mut self, policy: &mut MpcPolicy) {
+        std::mem::swap(&mut self.policy, policy);
+        if let Some(p) = &mut self.physical {
+            p.ready.fill(false);
+        }
     }
 }
 
@@ -553,7 +604,7 @@ impl Controller for MpcPolicyController<'_, '_> {
     fn name(&self) -> &str {
         "mpc"
     }
-    fn compute(&mut self, _model: &Model, state: &SimState, tau: &mut DVector<f64>) -> Result<(), ControlError> {
+    fn compute(&mut self, model: &Model, state: &SimState, tau: &mut DVector<f64>) -> Result<(), ControlError> {
         let (k, along) = self.policy.knot_at(state.t);
         self.x.q.copy_from(&state.q);
         self.x.v.copy_from(&state.v);
@@ -564,7 +615,17 @@ impl Controller for MpcPolicyController<'_, '_> {
             self.dx.axpy(-along, &self.knot_step, 1.0);
         }
         self.u.copy_from(&self.policy.inputs[k]);
-        self.u.gemv(1.0, &self.policy.gains[k], &self.dx, 1.0);
+        match &mut self.physical {
+            None => self.u.gemv(1.0, &self.policy.gains[k], &self.dx, 1.0),
+            Some(p) => {
+                if !p.ready[k] {
+                    let knot = &self.policy.states[k];
+                    physical_gain(model, &mut p.workspace, &knot.q, &knot.anchors, &self.policy.gains[k], &mut p.gains[k]);
+                    p.ready[k] = true;
+                }
+                self.u.gemv(1.0, &p.gains[k], &self.dx.rows(0, 2 * model.nv), 1.0);
+            }
+        }
         tau.rows_mut(6, self.u.len()).copy_from(&self.u);
         Ok(())
     }

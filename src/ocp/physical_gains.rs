@@ -49,22 +49,50 @@ use nalgebra::{DMatrix, DVector, Matrix6xX, Vector3};
 const PSEUDO_INVERSE_RELATIVE_TOLERANCE: f64 = 1e-9;
 
 /// Workspace for [`physical_gain`]: the kinematics, the foot Jacobian, each foot's leg and
-/// the joint damping of a stance foot's own motion.
+/// the joint damping of a stance foot's own motion. Sized once: on a robot whose feet end
+/// disjoint legs of three joints each (a quadruped), [`physical_gain`] allocates nothing
+/// (the MPC's controller calls it in the control loop, [`crate::mpc::MpcFeedback`]).
 pub struct PhysicalGainWorkspace {
     data: Data,
     jacobian: Matrix6xX<f64>,
     /// Per foot, the velocity indices of the joints between the foot and the base.
     legs: Vec<Vec<usize>>,
+    /// Every leg has three joints and no joint is on two feet's legs: `J_c,C` is block
+    /// diagonal with 3 x 3 blocks, its pseudo-inverse taken block by block.
+    three_joint_legs: bool,
     /// `kd` per velocity index (the base entries unused).
     damping: DVector<f64>,
     projector: DMatrix<f64>,
+    /// Per stance foot: its linear Jacobian `J_f` (3 x nv) and, on three-joint legs, the
+    /// SVD of its leg's block `J_f,C_f`.
+    foot_jacobians: Vec<nalgebra::Matrix3xX<f64>>,
+    leg_blocks: Vec<nalgebra::SVD<f64, nalgebra::U3, nalgebra::U3>>,
+    /// `J_c,C^+ J_c` (the rows of the stance legs' joints, 3 x nv a foot).
+    correction: nalgebra::Matrix3xX<f64>,
 }
 
 impl PhysicalGainWorkspace {
     /// With the damping `joint_pd.kd` on a stance foot's own motion (module documentation).
     pub fn new(model: &Model, joint_pd: &PdGains) -> Self {
-        let legs = model.feet.iter().map(|foot| leg_dofs(model, model.frames[foot.frame].parent_joint)).collect();
-        Self { data: Data::new(model), jacobian: Matrix6xX::zeros(model.nv), legs, damping: joint_pd.kd.clone(), projector: DMatrix::identity(model.nv, model.nv) }
+        let legs: Vec<Vec<usize>> = model.feet.iter().map(|foot| leg_dofs(model, model.frames[foot.frame].parent_joint)).collect();
+        let mut all: Vec<usize> = legs.iter().flatten().copied().collect();
+        let joints = all.len();
+        all.sort_unstable();
+        all.dedup();
+        let three_joint_legs = all.len() == joints && legs.iter().all(|l| l.len() == 3);
+        let feet = model.feet.len();
+        let zero_svd = nalgebra::Matrix3::<f64>::identity().svd(true, true);
+        Self {
+            data: Data::new(model),
+            jacobian: Matrix6xX::zeros(model.nv),
+            legs,
+            three_joint_legs,
+            damping: joint_pd.kd.clone(),
+            projector: DMatrix::identity(model.nv, model.nv),
+            foot_jacobians: vec![nalgebra::Matrix3xX::zeros(model.nv); feet],
+            leg_blocks: vec![zero_svd; feet],
+            correction: nalgebra::Matrix3xX::zeros(model.nv),
+        }
     }
 
     /// `N` of the last [`physical_gain`] call (`nv x nv`): the projection of a configuration
@@ -97,23 +125,79 @@ fn leg_dofs(model: &Model, joint: usize) -> Vec<usize> {
 pub fn physical_gain(model: &Model, ws: &mut PhysicalGainWorkspace, q_star: &DVector<f64>, anchors: &[Option<Vector3<f64>>], gain: &DMatrix<f64>, out: &mut DMatrix<f64>) {
     let nv = model.nv;
     ws.projector.fill_with_identity();
-    let stance: Vec<usize> = anchors.iter().enumerate().filter_map(|(f, a)| a.map(|_| f)).collect();
-    if stance.is_empty() {
+    if anchors.iter().all(Option::is_none) {
         out.copy_from(&gain.columns(0, 2 * nv));
         return;
     }
-    // J_c (3 ns x nv) and the stance legs' joints C.
+    // J_f per stance foot (3 x nv).
     compute_joint_jacobians(model, &mut ws.data, q_star);
-    let mut constraint = DMatrix::zeros(3 * stance.len(), nv);
+    for (f, _) in anchors.iter().enumerate().filter(|(_, a)| a.is_some()) {
+        frame_jacobian(model, &ws.data, model.feet[f].frame, ReferenceFrame::LocalWorldAligned, &mut ws.jacobian);
+        ws.foot_jacobians[f].copy_from(&ws.jacobian.fixed_rows::<3>(0));
+    }
+    // N = I - E_C J_c,C^+ J_c, row by row of the stance legs' joints C.
+    if ws.three_joint_legs {
+        subtract_blockwise_correction(ws, anchors);
+    } else {
+        subtract_correction(model, ws, anchors);
+    }
+    // K_phys = [K_q N, K_v N - K_d (I - N)]; the anchor columns act on da = 0.
+    // Column by column: a matrix-matrix product this size goes through matrixmultiply,
+    // which allocates its packing buffers.
+    for c in 0..nv {
+        out.column_mut(c).gemv(1.0, &gain.columns(0, nv), &ws.projector.column(c), 0.0);
+        out.column_mut(nv + c).gemv(1.0, &gain.columns(nv, nv), &ws.projector.column(c), 0.0);
+    }
+    // Row dof - 6 of K_d (I - N) = kd_dof (E_C J_c,C^+ J_c)[dof, :] = kd_dof (I - N)[dof, :],
+    // zero off the stance legs' joints.
+    for dof in 6..nv {
+        let kd = ws.damping[dof];
+        for c in 0..nv {
+            let identity = if c == dof { 1.0 } else { 0.0 };
+            out[(dof - 6, nv + c)] -= kd * (identity - ws.projector[(dof, c)]);
+        }
+    }
+}
+
+/// `N -= E_C J_c,C^+ J_c` when the stance legs are disjoint and of three joints: `J_c,C` is
+/// block diagonal, `J_c,C^+ = diag(J_f,C_f^+)` (its singular values are the blocks', the
+/// tolerance relative to the largest of them all), no allocation.
+fn subtract_blockwise_correction(ws: &mut PhysicalGainWorkspace, anchors: &[Option<Vector3<f64>>]) {
+    let mut largest = 0.0_f64;
+    for (f, _) in anchors.iter().enumerate().filter(|(_, a)| a.is_some()) {
+        let leg = &ws.legs[f];
+        let block = nalgebra::Matrix3::from_fn(|r, c| ws.foot_jacobians[f][(r, leg[c])]);
+        ws.leg_blocks[f] = block.svd(true, true);
+        largest = largest.max(ws.leg_blocks[f].singular_values.max());
+    }
+    let tolerance = PSEUDO_INVERSE_RELATIVE_TOLERANCE * largest;
+    for (f, _) in anchors.iter().enumerate().filter(|(_, a)| a.is_some()) {
+        // The SVD was computed with both factors, so the pseudo-inverse exists.
+        let Ok(pseudo_inverse) = ws.leg_blocks[f].pseudo_inverse(tolerance) else { unreachable!("SVD computed with U and V^T") };
+        for c in 0..ws.correction.ncols() {
+            let column = pseudo_inverse * ws.foot_jacobians[f].fixed_view::<3, 1>(0, c);
+            ws.correction.set_column(c, &column);
+        }
+        for (i, &dof) in ws.legs[f].iter().enumerate() {
+            for c in 0..ws.correction.ncols() {
+                ws.projector[(dof, c)] -= ws.correction[(i, c)];
+            }
+        }
+    }
+}
+
+/// `N -= E_C J_c,C^+ J_c` on any robot (legs that share joints, or of other lengths): the
+/// stacked Jacobian's pseudo-inverse (allocates).
+fn subtract_correction(model: &Model, ws: &mut PhysicalGainWorkspace, anchors: &[Option<Vector3<f64>>]) {
+    let stance: Vec<usize> = anchors.iter().enumerate().filter_map(|(f, a)| a.map(|_| f)).collect();
+    let mut constraint = DMatrix::zeros(3 * stance.len(), model.nv);
     let mut legs: Vec<usize> = Vec::new();
     for (row, &f) in stance.iter().enumerate() {
-        frame_jacobian(model, &ws.data, model.feet[f].frame, ReferenceFrame::LocalWorldAligned, &mut ws.jacobian);
-        constraint.rows_mut(3 * row, 3).copy_from(&ws.jacobian.fixed_rows::<3>(0));
+        constraint.rows_mut(3 * row, 3).copy_from(&ws.foot_jacobians[f]);
         legs.extend(&ws.legs[f]);
     }
     legs.sort_unstable();
     legs.dedup();
-    // N = I - E_C J_c,C^+ J_c.
     let constraint_legs = DMatrix::from_fn(constraint.nrows(), legs.len(), |r, c| constraint[(r, legs[c])]);
     let svd = constraint_legs.svd(true, true);
     let tolerance = PSEUDO_INVERSE_RELATIVE_TOLERANCE * svd.singular_values.max();
@@ -121,18 +205,8 @@ pub fn physical_gain(model: &Model, ws: &mut PhysicalGainWorkspace, q_star: &DVe
     let Ok(pseudo_inverse) = svd.pseudo_inverse(tolerance) else { unreachable!("SVD computed with U and V^T") };
     let correction = pseudo_inverse * &constraint;
     for (i, &dof) in legs.iter().enumerate() {
-        for c in 0..nv {
+        for c in 0..model.nv {
             ws.projector[(dof, c)] -= correction[(i, c)];
-        }
-    }
-    // K_phys = [K_q N, K_v N - K_d (I - N)]; the anchor columns act on da = 0.
-    out.columns_mut(0, nv).gemm(1.0, &gain.columns(0, nv), &ws.projector, 0.0);
-    out.columns_mut(nv, nv).gemm(1.0, &gain.columns(nv, nv), &ws.projector, 0.0);
-    for (i, &dof) in legs.iter().enumerate() {
-        // Row dof - 6 of K_d (I - N) = kd_dof (E_C J_c,C^+ J_c)[dof, :] = kd_dof correction[i, :].
-        let kd = ws.damping[dof];
-        for c in 0..nv {
-            out[(dof - 6, nv + c)] -= kd * correction[(i, c)];
         }
     }
 }
@@ -219,6 +293,30 @@ mod tests {
         // No stance feet: the (q, v) columns as they are.
         physical_gain(&model, &mut ws, &q, &[None; 4], &gain, &mut k);
         assert_eq!(k, gain.columns(0, 2 * nv));
+    }
+
+    /// On a quadruped the pseudo-inverse is taken leg by leg (no allocation); it is the
+    /// stacked Jacobian's, to rounding, on every set of stance feet.
+    #[test]
+    fn the_leg_by_leg_pseudo_inverse_is_the_stacked_one() {
+        let model = embedded::load("hyq").unwrap();
+        let q = bent_stance(&model);
+        let nv = model.nv;
+        let nx = 2 * nv + ANCHOR_DIM * model.feet.len();
+        let gain = DMatrix::from_fn(nv - 6, nx, |i, j| ((i * 31 + j * 17) % 13) as f64 - 6.0);
+        let pd = PdGains::from_model(&model, &q, 0.001);
+        let mut ws = PhysicalGainWorkspace::new(&model, &pd);
+        assert!(ws.three_joint_legs);
+        let (mut blockwise, mut stacked) = (DMatrix::zeros(nv - 6, 2 * nv), DMatrix::zeros(nv - 6, 2 * nv));
+        for stance in 1..16_usize {
+            let anchors: Vec<_> = (0..4).map(|f| (stance >> f & 1 == 1).then(Vector3::zeros)).collect();
+            ws.three_joint_legs = true;
+            physical_gain(&model, &mut ws, &q, &anchors, &gain, &mut blockwise);
+            ws.three_joint_legs = false;
+            physical_gain(&model, &mut ws, &q, &anchors, &gain, &mut stacked);
+            assert!((&blockwise - &stacked).norm() < 1e-12 * gain.norm(), "stance feet {stance:04b}: {}", (&blockwise - &stacked).norm());
+            assert!((&blockwise - gain.columns(0, 2 * nv)).norm() > 1.0, "stance feet {stance:04b}: the projection acts");
+        }
     }
 
     #[test]
