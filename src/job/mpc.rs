@@ -140,7 +140,7 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
         "model_reuse": s.model_reuse.map(|r| json!({ "fresh_head": r.fresh_head, "refresh_period": r.refresh_period })),
         "threads": s.threads,
         "anchor_states": s.anchor_states,
-        "feedback": match s.feedback { crate::mpc::MpcFeedback::Optimizer => "optimizer", crate::mpc::MpcFeedback::Physical => "physical" },
+        "feedback": s.feedback.name(),
         "latency": match job.latency { PolicyLatency::Measured => json!("measured"), PolicyLatency::Fixed(l) => json!(l) },
         "pushes": job.pushes.iter().map(|p| json!({ "force_n": [p.force.x, p.force.y, p.force.z], "start_s": p.start, "duration_s": p.duration })).collect::<Vec<_>>(),
         "ticks": run.ticks.len(),

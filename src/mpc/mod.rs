@@ -155,6 +155,16 @@ pub enum MpcFeedback {
     Physical,
 }
 
+impl MpcFeedback {
+    /// `optimizer` or `physical` (`legwork mpc --feedback`, the summaries' `feedback`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Optimizer => "optimizer",
+            Self::Physical => "physical",
+        }
+    }
+}
+
 impl Default for MpcSettings {
     fn default() -> Self {
         Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
