@@ -36,6 +36,8 @@ pub struct MpcBench<'a> {
     /// The contact anchors as states of the windows (with them, the windows end on the
     /// plan's value function; without, on the tracking cost's terminal weights).
     pub anchor_states: bool,
+    /// Scale of the windows' tracking weights (1: the defaults).
+    pub tracking: f64,
     /// What the robot's policy feeds back between ticks.
     pub feedback: legwork::mpc::MpcFeedback,
     pub as_json: bool,
@@ -111,7 +113,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
     let sim = if bench.mujoco { ClosedLoopSim::Mujoco(MujocoCheck::locate().or_could_not_finish()?) } else { ClosedLoopSim::Legwork };
     let sim_name = if bench.mujoco { "MuJoCo" } else { "legwork" };
     let max_threads = *bench.thread_counts.iter().max().unwrap_or(&1);
-    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, feedback: bench.feedback, ..MpcSettings::default() };
+    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, feedback: bench.feedback, tracking: legwork::mpc::TrackingWeights::default().scaled(bench.tracking), ..MpcSettings::default() };
 
     // The tick time against horizon and threads, on one task, the latency measured.
     let timing_out = bench.out.join("timing");
@@ -175,6 +177,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         "anchor_states": base.anchor_states,
         "plan_value": base.plan_value,
         "feedback": base.feedback.name(),
+        "tracking_scale": bench.tracking,
         "task_horizon_s": bench.horizon,
         "latency": match bench.latency { PolicyLatency::Measured => json!("measured"), PolicyLatency::Fixed(l) => json!(l) },
         "cpu": super::bench::cpu_name(),
