@@ -307,10 +307,7 @@ fn the_physical_feedback_runs_each_knots_exported_gain_without_allocating() {
     controller.compute(&model, &state, &mut tau).unwrap();
     let (k, along) = policy.knot_at(state.t);
     assert_eq!(k, 2);
-    let control_dt = SimConfig::default().control_dt;
-    let q0 = &problem.initial.q;
-    let joint_pd = legwork::control::PdGains::from_model(&model, q0, control_dt).capped_for_free_joints(&model, q0, control_dt);
-    let mut ws = PhysicalGainWorkspace::new(&model, &joint_pd);
+    let mut ws = PhysicalGainWorkspace::for_exported_policy(&model, &problem.initial.q);
     let mut gain = DMatrix::zeros(nv - 6, 2 * nv);
     physical_gain(&model, &mut ws, &knot.q, &knot.anchors, &policy.gains[2], &mut gain);
     let measured = RobotState { q: q.clone(), v: v.clone(), anchors: knot.anchors.clone() };

@@ -141,7 +141,7 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
         "threads": s.threads,
         "anchor_states": s.anchor_states,
         "feedback": s.feedback.name(),
-        "tracking": { "base_position": s.tracking.base_position, "base_orientation": s.tracking.base_orientation, "joint_position": s.tracking.joint_position, "base_velocity": s.tracking.base_velocity, "joint_velocity": s.tracking.joint_velocity, "terminal_seconds": s.tracking.terminal_seconds, "input": s.tracking.input },
+        "tracking": s.tracking,
         "latency": match job.latency { PolicyLatency::Measured => json!("measured"), PolicyLatency::Fixed(l) => json!(l) },
         "pushes": job.pushes.iter().map(|p| json!({ "force_n": [p.force.x, p.force.y, p.force.z], "start_s": p.start, "duration_s": p.duration })).collect::<Vec<_>>(),
         "ticks": run.ticks.len(),

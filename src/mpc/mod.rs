@@ -44,7 +44,7 @@ use std::time::Instant;
 /// Weights of the window's pull toward the plan, on the deviation coordinates of
 /// [`crate::ocp::StateDeviation`] (per second on the running knots; the terminal ones are
 /// `terminal_seconds` times them at the window's end).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct TrackingWeights {
     /// Base position, world frame (1e3).
     pub base_position: f64,
@@ -582,23 +582,15 @@ struct PhysicalFeedback {
 }
 
 impl<'p, 'a> MpcPolicyController<'p, 'a> {
-    /// With a stance foot's own motion damped by legwork's joint PD for a free joint at the
-    /// simulator's control rate (as the plans' exported gains, [`crate::ocp::solution_trajectory`]).
+    /// With [`MpcFeedback::Physical`], a stance foot's own motion damped as in the plans'
+    /// exported gains ([`PhysicalGainWorkspace::for_exported_policy`]).
     pub fn new(problem: &'p WholeBodyProblem<'a>, policy: MpcPolicy, feedback: MpcFeedback) -> Self {
         let (nx, nu, nv) = (problem.nx(), problem.nu(), problem.model.nv);
         let physical = (feedback == MpcFeedback::Physical).then(|| {
-            let control_dt = crate::sim::SimConfig::default().control_dt;
-            let q0 = &problem.initial.q;
-            let joint_pd = crate::control::PdGains::from_model(problem.model, q0, control_dt).capped_for_free_joints(problem.model, q0, control_dt);
             let knots = policy.gains.len();
-            PhysicalFeedback { workspace: PhysicalGainWorkspace::new(problem.model, &joint_pd), gains: vec![DMatrix::zeros(nu, 2 * nv); knots], ready: vec![false; knots] }
+            PhysicalFeedback { workspace: PhysicalGainWorkspace::for_exported_policy(problem.model, &problem.initial.q), gains: vec![DMatrix::zeros(nu, 2 * nv); knots], ready: vec![false; knots] }
         });
         Self { problem, policy, x: problem.initial.clone(), dx: DVector::zeros(nx), knot_step: DVector::zeros(nx), u: DVector::zeros(nu), physical }
-    }
-
-    /// The policy the robot runs.
-    pub fn policy(&self) -> &MpcPolicy {
-        &self.policy
     }
 
     /// Runs `policy` from now on; the one it replaces comes back in `policy` (no allocation).

@@ -67,8 +67,6 @@ pub struct PhysicalGainWorkspace {
     /// SVD of its leg's block `J_f,C_f`.
     foot_jacobians: Vec<nalgebra::Matrix3xX<f64>>,
     leg_blocks: Vec<nalgebra::SVD<f64, nalgebra::U3, nalgebra::U3>>,
-    /// `J_c,C^+ J_c` (the rows of the stance legs' joints, 3 x nv a foot).
-    correction: nalgebra::Matrix3xX<f64>,
 }
 
 impl PhysicalGainWorkspace {
@@ -91,8 +89,15 @@ impl PhysicalGainWorkspace {
             projector: DMatrix::identity(model.nv, model.nv),
             foot_jacobians: vec![nalgebra::Matrix3xX::zeros(model.nv); feet],
             leg_blocks: vec![zero_svd; feet],
-            correction: nalgebra::Matrix3xX::zeros(model.nv),
         }
+    }
+
+    /// With the damping of the policy `trajectory.json` exports: legwork's joint PD for a free
+    /// joint ([`PdGains::capped_for_free_joints`]) around `q0` at the simulator's control rate
+    /// (legwork's simulator and the MuJoCo check run the policy at 1 kHz).
+    pub fn for_exported_policy(model: &Model, q0: &DVector<f64>) -> Self {
+        let control_dt = crate::sim::SimConfig::default().control_dt;
+        Self::new(model, &PdGains::from_model(model, q0, control_dt).capped_for_free_joints(model, q0, control_dt))
     }
 
     /// `N` of the last [`physical_gain`] call (`nv x nv`): the projection of a configuration
@@ -174,13 +179,11 @@ fn subtract_blockwise_correction(ws: &mut PhysicalGainWorkspace, anchors: &[Opti
     for (f, _) in anchors.iter().enumerate().filter(|(_, a)| a.is_some()) {
         // The SVD was computed with both factors, so the pseudo-inverse exists.
         let Ok(pseudo_inverse) = ws.leg_blocks[f].pseudo_inverse(tolerance) else { unreachable!("SVD computed with U and V^T") };
-        for c in 0..ws.correction.ncols() {
+        // Column c of J_f,C_f^+ J_f onto the leg's rows of N.
+        for c in 0..ws.projector.ncols() {
             let column = pseudo_inverse * ws.foot_jacobians[f].fixed_view::<3, 1>(0, c);
-            ws.correction.set_column(c, &column);
-        }
-        for (i, &dof) in ws.legs[f].iter().enumerate() {
-            for c in 0..ws.correction.ncols() {
-                ws.projector[(dof, c)] -= ws.correction[(i, c)];
+            for (i, &dof) in ws.legs[f].iter().enumerate() {
+                ws.projector[(dof, c)] -= column[i];
             }
         }
     }

@@ -181,12 +181,7 @@ pub fn solution_trajectory(problem: &WholeBodyProblem<'_>, solution: &SlqSolutio
     traj.metadata.joint_stops = problem.joint_limits;
     let mut ws = crate::sim::ContactModelWorkspace::new(model, problem.terrain).with_joint_limits(problem.joint_limits);
     let n = solution.inputs.len();
-    // The damping of a stance foot's own motion: legwork's joint PD for a free joint at the
-    // rate the exported policy runs at (legwork's simulator and the MuJoCo check, 1 kHz).
-    let control_dt = SimConfig::default().control_dt;
-    let q0 = &solution.states[0].q;
-    let joint_pd = crate::control::PdGains::from_model(model, q0, control_dt).capped_for_free_joints(model, q0, control_dt);
-    let mut gain_ws = super::PhysicalGainWorkspace::new(model, &joint_pd);
+    let mut gain_ws = super::PhysicalGainWorkspace::for_exported_policy(model, &solution.states[0].q);
     let mut gain = DMatrix::zeros(model.nv - 6, 2 * model.nv);
     for (k, x) in solution.states.iter().enumerate() {
         ws.evaluate_contacts(&x.q, &x.v, &x.anchors);
