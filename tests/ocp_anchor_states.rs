@@ -150,7 +150,7 @@ fn extended_linearization_with_joints_past_their_stops() {
 }
 
 /// A receding window's 5 ms knot held at its first substep's model
-/// (`KnotLinearization::FirstSubstep`, chained on `A_1`'s structure by `SubstepProduct`):
+/// (`KnotLinearization::FirstSubstep`: `A_1`'s powers by `SubstepProduct::power`, `B` chained by `SubstepProduct::mul`):
 /// `A = A_1^5` and `B = sum_i A_1^i B_1` as dense products of the 1 ms substep's own
 /// linearization, whichever way each foot's anchor rows go (touching down, slipping,
 /// sticking, in the air). The backward pass's `linearize_knot`, which does not integrate the

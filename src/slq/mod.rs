@@ -455,6 +455,73 @@ fn knot_mut(d: &mut Mutex<KnotDerivatives>) -> &mut KnotDerivatives {
     d.get_mut().unwrap_or_else(PoisonError::into_inner)
 }
 
+/// How many of the last rows of `[A B]` pass their own coordinate through: row `i`'s only
+/// nonzero entry is `A_ii` (a contact anchor that a step holds, `1`, or forgets, `0`).
+/// [`riccati_knot`] skips them in its products.
+fn pass_through_rows(a: &DMatrix<f64>, b: &DMatrix<f64>) -> usize {
+    // Column by column (contiguous), from the bottom: the last nonzero off the diagonal
+    // ends the candidate block below it.
+    let nx = a.nrows();
+    let mut start = 0;
+    for (j, column) in a.as_slice().chunks_exact(nx).chain(b.as_slice().chunks_exact(nx)).enumerate() {
+        if let Some(i) = (start..nx).rev().find(|&i| i != j && column[i] != 0.0) {
+            start = i + 1;
+        }
+    }
+    nx - start
+}
+
+/// The quadratic model of the Q-function from `P'` in `r.p_mat` (first half of
+/// [`riccati_knot`]): `Q_xx`, `H = Q_uu`, `G = Q_ux` into `r`, with the last `nx - nz` rows
+/// of `[A B]` passing their coordinate through ([`pass_through_rows`]).
+fn q_function_hessian(r: &mut RiccatiScratch, d: &KnotDerivatives, nz: usize) {
+    // Q_xx = l_xx + A^T P' A;  H = l_uu + B^T P' B;  G = l_ux + B^T P' A, from M = P' [A B],
+    // each block as `l + [A B]^T M` (the unused A^T P'B, G^T's round-off twin, is not
+    // formed). Through matrixmultiply (every dimension above nalgebra's small-matrix
+    // threshold of 5, as on the robots) every entry is the same fused dot product over the
+    // rows of M, in the same order, then rounded once with `l` added, as when
+    // [A B]^T P' [A B] was formed first and `l` added after: the same to the bit. (`A^T`
+    // is copied: nalgebra's own small-matrix path mishandles a transposed strided view.)
+    //
+    // The last `nt` rows of [A B] may pass their coordinate through ([`pass_through_rows`]:
+    // a held contact anchor, a forgotten one), [A B] = [[A_zz A_zt B_z]; [0 D 0]] with `D`
+    // diagonal. Then every product runs over the `nz = nx - nt` other rows only and `D`
+    // enters as a scaling (at HyQ's 48 states with four anchors held, 36 rows: 0.78x the
+    // multiplications of the pass). The products skip exact zeros and add `D`'s single term
+    // where the dense sum would, so for `D` of zeros and ones the result is the dense one to
+    // the bit.
+    let (nx, nu) = (d.a.nrows(), d.b.ncols());
+    d.a.rows(0, nz).transpose_to(&mut r.ab_t.view_mut((0, 0), (nx, nz)));
+    d.b.rows(0, nz).transpose_to(&mut r.ab_t.view_mut((nx, 0), (nu, nz)));
+    let (a_t, b_t) = (r.ab_t.view((0, 0), (nx, nz)), r.ab_t.view((nx, 0), (nu, nz)));
+    // M = P' [A B] = P'_{:z} [A B]_z, then + P'_{:t} D on the pass-through columns.
+    let p_z = r.p_mat.columns(0, nz);
+    r.p_ab.columns_mut(0, nx).gemm(1.0, &p_z, &d.a.rows(0, nz), 0.0);
+    r.p_ab.columns_mut(nx, nu).gemm(1.0, &p_z, &d.b.rows(0, nz), 0.0);
+    for j in nz..nx {
+        let d_jj = d.a[(j, j)];
+        for (m, p) in r.p_ab.column_mut(j).iter_mut().zip(r.p_mat.column(j).iter()) {
+            *m += p * d_jj;
+        }
+    }
+    let m_z = r.p_ab.rows(0, nz);
+    // Q_xx = l_xx + A^T M = l_xx + (A_{z:}^T M_z + [0; D M_t]): `l` added last, as the dense
+    // product adds it (one product over all rows: nalgebra multiplies fewer than six rows
+    // in its own order).
+    r.q_xx.gemm(1.0, &a_t, &m_z.columns(0, nx), 0.0);
+    for i in nz..nx {
+        let d_ii = d.a[(i, i)];
+        for j in 0..nx {
+            r.q_xx[(i, j)] += d_ii * r.p_ab[(i, j)];
+        }
+    }
+    r.q_xx += &d.l_xx;
+    r.q_uu.copy_from(&d.l_uu);
+    r.q_uu.gemm(1.0, &b_t, &m_z.columns(nx, nu), 1.0);
+    r.q_ux.copy_from(&d.l_ux);
+    r.q_ux.gemm(1.0, &b_t, &m_z.columns(0, nx), 1.0);
+}
+
 /// One knot of the backward pass (Step 3 of Algorithm 1), from `P'`, `p'` in `r.p_mat`,
 /// `r.p_vec` to this knot's `P`, `p` there:
 ///
@@ -479,26 +546,8 @@ fn riccati_knot(
     gain: &mut DMatrix<f64>,
     ff: &mut DVector<f64>,
 ) -> bool {
-    // Q_xx = l_xx + A^T P' A;  H = l_uu + B^T P' B;  G = l_ux + B^T P' A, from P' [A B]
-    // in one large product (1.5x faster than five small ones at nx = 48, nu = 12), then
-    // each block as `l + [A B]^T (P' [A B])` by a product that adds onto a copy of `l`
-    // (the unused A^T P'B, G^T's round-off twin, is not formed). Through matrixmultiply
-    // (every dimension above nalgebra's small-matrix threshold of 5, as on the robots)
-    // every entry is the same fused dot product over the nx rows of P' [A B], in the same
-    // order, then rounded once with `l` added, as when [A B]^T P' [A B] was formed first and
-    // `l` added after: the same to the bit.
-    let (nx, nu) = (d.a.nrows(), d.b.ncols());
-    r.ab.columns_mut(0, nx).copy_from(&d.a);
-    r.ab.columns_mut(nx, nu).copy_from(&d.b);
-    r.ab.transpose_to(&mut r.ab_t);
-    r.p_ab.gemm(1.0, &r.p_mat, &r.ab, 0.0);
-    let (a_t, b_t) = (r.ab_t.rows(0, nx), r.ab_t.rows(nx, nu));
-    r.q_xx.copy_from(&d.l_xx);
-    r.q_xx.gemm(1.0, &a_t, &r.p_ab.columns(0, nx), 1.0);
-    r.q_uu.copy_from(&d.l_uu);
-    r.q_uu.gemm(1.0, &b_t, &r.p_ab.columns(nx, nu), 1.0);
-    r.q_ux.copy_from(&d.l_ux);
-    r.q_ux.gemm(1.0, &b_t, &r.p_ab.columns(0, nx), 1.0);
+    let nx = d.a.nrows();
+    q_function_hessian(r, d, nx - pass_through_rows(&d.a, &d.b));
     // Q_x = l_x + A^T p';  g = l_u + B^T p'
     r.q_x.copy_from(&d.l_x);
     r.q_x.gemv_tr(1.0, &d.a, &r.p_vec, 1.0);
@@ -578,8 +627,7 @@ fn riccati_knot(
 struct RiccatiScratch {
     p_mat: DMatrix<f64>,
     p_vec: DVector<f64>,
-    /// `[A B]` (nx x (nx + nu)), its transpose and `P' [A B]`.
-    ab: DMatrix<f64>,
+    /// `[A B]^T` (its first `nz` columns, [`q_function_hessian`]) and `P' [A B]`.
     ab_t: DMatrix<f64>,
     p_ab: DMatrix<f64>,
     q_xx: DMatrix<f64>,
@@ -595,6 +643,28 @@ struct RiccatiScratch {
     du_upper: DVector<f64>,
     warm: DVector<f64>,
     qp_residual: DVector<f64>,
+}
+
+impl RiccatiScratch {
+    fn new(nx: usize, nu: usize) -> Self {
+        Self {
+            p_mat: DMatrix::zeros(nx, nx),
+            p_vec: DVector::zeros(nx),
+            ab_t: DMatrix::zeros(nx + nu, nx),
+            p_ab: DMatrix::zeros(nx, nx + nu),
+            q_xx: DMatrix::zeros(nx, nx),
+            q_uu: DMatrix::zeros(nu, nu),
+            q_ux: DMatrix::zeros(nu, nx),
+            q_ux_t: DMatrix::zeros(nx, nu),
+            q_x: DVector::zeros(nx),
+            q_u: DVector::zeros(nu),
+            chol: SmallCholesky::new(nu),
+            du_lower: DVector::zeros(nu),
+            du_upper: DVector::zeros(nu),
+            warm: DVector::zeros(nu),
+            qp_residual: DVector::zeros(nu),
+        }
+    }
 }
 
 impl<'p, P: Problem> Slq<'p, P> {
@@ -645,24 +715,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             scratch_states: vec![x0; threads],
             terminal_gradient: DVector::zeros(nx),
             terminal_hessian: DMatrix::zeros(nx, nx),
-            riccati: RiccatiScratch {
-                p_mat: DMatrix::zeros(nx, nx),
-                p_vec: DVector::zeros(nx),
-                ab: DMatrix::zeros(nx, nx + nu),
-                ab_t: DMatrix::zeros(nx + nu, nx),
-                p_ab: DMatrix::zeros(nx, nx + nu),
-                q_xx: DMatrix::zeros(nx, nx),
-                q_uu: DMatrix::zeros(nu, nu),
-                q_ux: DMatrix::zeros(nu, nx),
-                q_ux_t: DMatrix::zeros(nx, nu),
-                q_x: DVector::zeros(nx),
-                q_u: DVector::zeros(nu),
-                chol: SmallCholesky::new(nu),
-                du_lower: DVector::zeros(nu),
-                du_upper: DVector::zeros(nu),
-                warm: DVector::zeros(nu),
-                qp_residual: DVector::zeros(nu),
-            },
+            riccati: RiccatiScratch::new(nx, nu),
             lower,
             upper,
             bounded,
@@ -1041,5 +1094,66 @@ impl<'p, P: Problem> Slq<'p, P> {
             initial_rollout_time,
             total_time: started.elapsed().as_secs_f64(),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A knot whose last `held + forgotten` rows pass their anchor through (HyQ's shape:
+    /// 36 rows of joints and base, four anchors), pseudo-random entries.
+    fn anchored_knot(nx: usize, nu: usize, held: usize, forgotten: usize, seed: u64) -> KnotDerivatives {
+        let mut state = seed;
+        let mut next = move || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        };
+        let mut d = KnotDerivatives::zeros(nx, nu);
+        let nz = nx - held - forgotten;
+        d.a = DMatrix::from_fn(nx, nx, |i, j| if i < nz { next() } else if i == j && i < nz + held { 1.0 } else { 0.0 });
+        d.b = DMatrix::from_fn(nx, nu, |i, _| if i < nz { next() } else { 0.0 });
+        let l = DMatrix::from_fn(nx, nx, |_, _| next());
+        d.l_xx = &l * l.transpose();
+        d.l_ux = DMatrix::from_fn(nu, nx, |_, _| next());
+        d.l_uu = DMatrix::from_fn(nu, nu, |i, j| if i == j { 2.0 } else { 0.0 });
+        d
+    }
+
+    fn scratch(nx: usize, nu: usize, p_seed: f64) -> RiccatiScratch {
+        let p = DMatrix::from_fn(nx, nx, |i, j| ((i * 7 + j * 3) as f64 * p_seed).sin());
+        let mut r = RiccatiScratch::new(nx, nu);
+        r.p_mat = &p + p.transpose();
+        r
+    }
+
+    #[test]
+    fn pass_through_rows_are_counted_from_the_end() {
+        let d = anchored_knot(48, 12, 6, 6, 1);
+        assert_eq!(pass_through_rows(&d.a, &d.b), 12);
+        let mut touching = d.a.clone();
+        touching[(46, 3)] = 0.5; // an anchor set where the foot lands
+        assert_eq!(pass_through_rows(&touching, &d.b), 1);
+        let mut coupled = d.b.clone();
+        coupled[(47, 0)] = 1.0;
+        assert_eq!(pass_through_rows(&d.a, &coupled), 0);
+    }
+
+    /// Skipping the pass-through rows changes no bit of `Q_xx`, `H`, `G`.
+    #[test]
+    fn q_function_skips_pass_through_rows_to_the_bit() {
+        let (nx, nu) = (48, 12);
+        for (seed, (held, forgotten)) in [(12, 0), (9, 3), (3, 9), (0, 12), (6, 0), (3, 0), (0, 3), (1, 0)].into_iter().enumerate() {
+            let d = anchored_knot(nx, nu, held, forgotten, seed as u64 + 3);
+            let nt = held + forgotten;
+            assert_eq!(pass_through_rows(&d.a, &d.b), nt);
+            let (mut dense, mut skipping) = (scratch(nx, nu, 0.37), scratch(nx, nu, 0.37));
+            q_function_hessian(&mut dense, &d, nx);
+            q_function_hessian(&mut skipping, &d, nx - nt);
+            for (name, x, y) in [("Q_xx", &dense.q_xx, &skipping.q_xx), ("H", &dense.q_uu, &skipping.q_uu), ("G", &dense.q_ux, &skipping.q_ux)] {
+                let differ = x.iter().zip(y.iter()).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+                assert_eq!(differ, 0, "{name}: {differ} entries differ with {held} anchors held and {forgotten} forgotten (max {:e})", (x - y).abs().max());
+            }
+        }
     }
 }
