@@ -16,7 +16,7 @@
 //! `nv = 18` with the anchors, 2.7x fewer multiplications. The result equals the dense
 //! product up to round-off.
 //!
-//! A knot's `A = A_i^n` ([`SubstepProduct::power`]) needs only the velocity rows of each
+//! A knot's `A = A_i^k` ([`SubstepProduct::power`]) needs only the velocity rows of each
 //! power, `V A_i^j`, new: they follow from the last ones by a product on the right,
 //! `V A_i^j = (V A_i^(j-1)) A_i`, and a product with `A_i` on the right is `nv x nv x n`
 //! (`A_i`'s rows are `V`'s but for identities and the free flyers' blocks):
@@ -139,14 +139,14 @@ impl SubstepProduct {
         self.vx = vx;
     }
 
-    /// `a <- A_i^n` for `a = A_i` of the last [`Self::capture`] (`n >= 1`; `scratch` of
+    /// `a <- A_i^k` for `a = A_i` of the last [`Self::capture`] (`k >= 1`; `scratch` of
     /// `a`'s shape), by the velocity rows' recursion of the module docs: each power
     /// `A_i^(j+1) = A_i A_i^j` has the velocity rows `W_j = V A_i^j = W_(j-1) A_i`, the
     /// configuration rows `Jq (A_i^j)_q + h Jv W_j` and the anchor rows `R A_i^j`. Equals
-    /// `n - 1` products [`Self::mul`] up to round-off.
-    pub fn power(&mut self, n: usize, a: &mut DMatrix<f64>, scratch: &mut DMatrix<f64>) {
+    /// `k - 1` products [`Self::mul`] up to round-off.
+    pub fn power(&mut self, k: usize, a: &mut DMatrix<f64>, scratch: &mut DMatrix<f64>) {
         self.powers_v.copy_from(&self.velocity_rows);
-        for _ in 1..n {
+        for _ in 1..k {
             self.right_mul_velocity_rows();
             std::mem::swap(&mut self.powers_v, &mut self.powers_v_next);
             // An empty matrix in its place for the call (no allocation).
