@@ -133,10 +133,8 @@ impl SubstepProduct {
     pub fn mul(&mut self, x: &DMatrix<f64>, out: &mut DMatrix<f64>) {
         let (nv, m) = (self.nv, x.ncols());
         // V X, the velocity rows: the one product of the size of the state.
-        let mut vx = std::mem::take(&mut self.vx);
-        DMatrixViewMut::from_slice(&mut vx[..nv * m], nv, m).gemm(1.0, &self.velocity_rows, x, 0.0);
-        self.assemble(x, &vx[..nv * m], out);
-        self.vx = vx;
+        DMatrixViewMut::from_slice(&mut self.vx[..nv * m], nv, m).gemm(1.0, &self.velocity_rows, x, 0.0);
+        self.assemble(x, &self.vx[..nv * m], out);
     }
 
     /// `a <- A_i^k` for `a = A_i` of the last [`Self::capture`] (`k >= 1`; `scratch` of
@@ -149,10 +147,7 @@ impl SubstepProduct {
         for _ in 1..k {
             self.right_mul_velocity_rows();
             std::mem::swap(&mut self.powers_v, &mut self.powers_v_next);
-            // An empty matrix in its place for the call (no allocation).
-            let w = std::mem::replace(&mut self.powers_v, DMatrix::zeros(0, 0));
-            self.assemble(a, w.as_slice(), scratch);
-            self.powers_v = w;
+            self.assemble(a, self.powers_v.as_slice(), scratch);
             std::mem::swap(a, scratch);
         }
     }
