@@ -153,6 +153,87 @@ fn a_coarse_tail_moves_into_the_fine_head_one_tick_at_a_time() {
 }
 
 #[test]
+fn a_tail_of_two_tick_knots_stays_on_its_grid_as_the_window_moves() {
+    let model = embedded::load("hyq").unwrap();
+    let spec = stand(0.3);
+    let run = plan(&spec, &model);
+    // 0.1 s: 4 knots of the 5 ms tick period, then 8 of 10 ms (ten 1 ms steps each).
+    let settings = MpcSettings { horizon: 0.1, fine_head: Some(0.02), tail_ticks: 2, ..MpcSettings::default() };
+    assert_eq!(settings.knot_counts(), (4, 8));
+    let ground = Plane::flat(0.0);
+    let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
+    let (n, head) = (problem.horizon(), 4);
+    assert_eq!(n, 12);
+    assert!((problem.knot_time(n) - 0.1).abs() < 1e-12 && (problem.knot_time(head + 1) - 0.03).abs() < 1e-12);
+    assert_eq!((problem.knot_substeps(head - 1), problem.knot_substeps(head)), (5, 10));
+    let pd = legwork::control::JointPd::standing(&model, problem.dt).unwrap();
+    let mut slq = Slq::new(&problem, SlqSettings { threads: 1, ..SlqSettings::default() }).unwrap();
+    slq.start_from(&problem.initial, &PdPolicy(&pd)).unwrap();
+    slq.real_time_iteration(&problem.initial, None).unwrap();
+    let (states, inputs, gains): (Vec<RobotState>, Vec<_>, Vec<_>) = (slq.states().to_vec(), slq.inputs().to_vec(), slq.gains().to_vec());
+    let receding = problem.receding.as_ref().unwrap();
+
+    // A tick later the window starts between two tail knots: the head is a knot shorter,
+    // the tail knots keep their times and a new one ends the window 5 ms later.
+    receding.set_start(0.005);
+    assert_eq!(problem.grid().tail.unwrap().from, head - 1);
+    assert!((problem.knot_time(head - 1) - 0.02).abs() < 1e-12 && (problem.knot_time(n) - 0.11).abs() < 1e-12);
+    assert_eq!(slq.shift(1, &PdPolicy(&pd)), 0, "the standing tail stays valid");
+    for k in 0..n {
+        assert_eq!(slq.states()[k], states[k + 1], "state {k}");
+    }
+    for k in 0..n - 1 {
+        assert_eq!((&slq.inputs()[k], &slq.gains()[k]), (&inputs[k + 1], &gains[k + 1]), "input and gain {k}");
+    }
+    let shifted: (Vec<RobotState>, Vec<_>, Vec<_>) = (slq.states().to_vec(), slq.inputs().to_vec(), slq.gains().to_vec());
+
+    // Another tick: the first tail knot becomes the head's last two, the rest stays.
+    receding.set_start(0.01);
+    assert_eq!(problem.grid().tail.unwrap().from, head);
+    assert!((problem.knot_time(n) - 0.11).abs() < 1e-12);
+    slq.shift_halving(head - 1);
+    for k in 0..head - 2 {
+        assert_eq!(slq.states()[k], shifted.0[k + 1], "head state {k}");
+        assert_eq!(slq.inputs()[k], shifted.1[k + 1], "head input {k}");
+        assert_eq!(slq.gains()[k], shifted.2[k + 1], "head gain {k}");
+    }
+    for k in head - 1..=head {
+        assert_eq!(slq.inputs()[k - 1], shifted.1[head - 1], "halved input {k}");
+        assert_eq!(slq.gains()[k - 1], shifted.2[head - 1], "halved gain {k}");
+    }
+    for k in head..=n {
+        assert_eq!(slq.states()[k], shifted.0[k], "tail state {k}");
+    }
+    for k in head + 1..n {
+        assert_eq!(slq.inputs()[k], shifted.1[k], "tail input {k}");
+    }
+    // Two 5 ms knots with the 10 ms knot's input are that knot: the same end state.
+    let mut ws = problem.workspace();
+    let mut x = slq.states()[head - 2].clone();
+    let mut next = x.clone();
+    assert_eq!(x, shifted.0[head - 1]);
+    for k in head - 2..head {
+        problem.step(&mut ws, k, &x, &slq.inputs()[k], &mut next);
+        assert!((&next.q - &slq.states()[k + 1].q).amax() < 1e-12 && (&next.v - &slq.states()[k + 1].v).amax() < 1e-9, "halved state {}", k + 1);
+        std::mem::swap(&mut x, &mut next);
+    }
+    assert!((&x.q - &slq.states()[head].q).amax() < 1e-9 && (&x.v - &slq.states()[head].v).amax() < 1e-6, "the halves end where the tail knot ended");
+
+    for (field, bad) in [
+        ("tail_ticks", MpcSettings { tail_ticks: 3, ..settings.clone() }),
+        ("tail_ticks", MpcSettings { knot_dt: Some(0.001), ..settings.clone() }),
+        ("fine_head", MpcSettings { fine_head: None, ..settings.clone() }),
+        ("fine_head", MpcSettings { fine_head: Some(0.005), ..settings.clone() }),
+        ("fine_head", MpcSettings { fine_head: Some(0.025), ..settings.clone() }),
+    ] {
+        match bad.check() {
+            Err(MpcError::Settings { field: f, .. }) => assert_eq!(f, field, "{bad:?}"),
+            other => panic!("{bad:?}: expected an error on {field}, got {other:?}"),
+        }
+    }
+}
+
+#[test]
 fn a_window_that_holds_the_tasks_end_counts_its_final_cost_once() {
     // The plan's value function includes the task's final cost H (past the plan's end, its
     // last knot's value is l_{N-1} + H): a window that holds the task's end has H at the

@@ -91,6 +91,9 @@ pub enum BenchCommand {
         /// --knot-dt, the rest in knots of the tick period (`legwork mpc --fine-head`).
         #[arg(long)]
         fine_head: Option<f64>,
+        /// The knots after --fine-head in tick periods, 1 or 2 (`legwork mpc --tail-ticks`).
+        #[arg(long, default_value_t = 1)]
+        tail_ticks: usize,
         /// Horizon of the task runs (s).
         #[arg(long, default_value_t = 0.5)]
         horizon: f64,
@@ -240,10 +243,10 @@ pub fn run(cmd: BenchCommand) -> Result<Verdict> {
         BenchCommand::Jumps { json, repeats, knots, trials, jumps: names, barrier_contact_timing, barrier_full_body, barrier_curvature, threads } => jumps(json, repeats, knots, trials, &names, [barrier_contact_timing, barrier_full_body, barrier_curvature], super::capped_threads(threads)),
         BenchCommand::Slq { json, threads, iterations, check, out } => slq(json, super::capped_threads(threads), iterations, check.is_some(), &out),
         BenchCommand::Terrain { trials, json, threads, scenarios, out } => terrain(trials, json, super::capped_threads(threads), &scenarios, &out),
-        BenchCommand::Mpc { tasks, timing_task, horizons, thread_counts, push, rate, knot_dt, fine_head, horizon, reuse_models, no_anchor_states, tracking, feedback, latency, sim, json, out } => {
+        BenchCommand::Mpc { tasks, timing_task, horizons, thread_counts, push, rate, knot_dt, fine_head, tail_ticks, horizon, reuse_models, no_anchor_states, tracking, feedback, latency, sim, json, out } => {
             let thread_counts: Vec<usize> = thread_counts.iter().map(|&t| super::capped_threads(t)).collect();
             let latency = super::mpc::parse_latency(&latency)?;
-            super::bench_mpc::run(&super::bench_mpc::MpcBench { tasks: &tasks, timing_task: &timing_task, horizons: &horizons, thread_counts: &thread_counts, push, mujoco: sim == super::mpc::SimChoice::Mujoco, latency, rate, knot_dt, fine_head, horizon, model_reuse: reuse_models.as_deref().map(super::mpc::parse_model_reuse).transpose()?, anchor_states: !no_anchor_states, tracking, feedback: feedback.into(), as_json: json, out: &out })
+            super::bench_mpc::run(&super::bench_mpc::MpcBench { tasks: &tasks, timing_task: &timing_task, horizons: &horizons, thread_counts: &thread_counts, push, mujoco: sim == super::mpc::SimChoice::Mujoco, latency, rate, knot_dt, fine_head, tail_ticks, horizon, model_reuse: reuse_models.as_deref().map(super::mpc::parse_model_reuse).transpose()?, anchor_states: !no_anchor_states, tracking, feedback: feedback.into(), as_json: json, out: &out })
         }
     }
 }

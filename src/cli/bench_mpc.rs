@@ -30,6 +30,8 @@ pub struct MpcBench<'a> {
     /// Knot spacing of every window (s; `None`: the tick period).
     pub knot_dt: Option<f64>,
     pub fine_head: Option<f64>,
+    /// The coarse tail's knots in tick periods (`legwork mpc --tail-ticks`).
+    pub tail_ticks: usize,
     /// Horizon of the task runs (s).
     pub horizon: f64,
     pub model_reuse: Option<legwork::slq::ModelReuse>,
@@ -113,7 +115,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
     let sim = if bench.mujoco { ClosedLoopSim::Mujoco(MujocoCheck::locate().or_could_not_finish()?) } else { ClosedLoopSim::Legwork };
     let sim_name = if bench.mujoco { "MuJoCo" } else { "legwork" };
     let max_threads = *bench.thread_counts.iter().max().unwrap_or(&1);
-    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, feedback: bench.feedback, tracking: legwork::mpc::TrackingWeights::default().scaled(bench.tracking), ..MpcSettings::default() };
+    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, tail_ticks: bench.tail_ticks, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, feedback: bench.feedback, tracking: legwork::mpc::TrackingWeights::default().scaled(bench.tracking), ..MpcSettings::default() };
 
     // The tick time against horizon and threads, on one task, the latency measured.
     let timing_out = bench.out.join("timing");
@@ -173,6 +175,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         "rate_hz": bench.rate,
         "knot_dt_s": base.knot_dt(),
         "fine_head_s": base.fine_head,
+        "tail_knot_dt_s": base.tail_knot_dt(),
         "model_reuse": base.model_reuse.map(|r| json!({ "fresh_head": r.fresh_head, "refresh_period": r.refresh_period })),
         "anchor_states": base.anchor_states,
         "plan_value": base.plan_value,

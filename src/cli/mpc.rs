@@ -36,6 +36,11 @@ pub struct MpcArgs {
     /// knots for 0.05 s and 5 ms ones after: 140 knots instead of 500).
     #[arg(long)]
     fine_head: Option<f64>,
+    /// The knots after --fine-head in tick periods: 1, or 2 with knots of the tick period
+    /// (a 0.5 s window of 5 ms knots for 0.1 s and 10 ms ones after: 60 knots instead of
+    /// 100; the head alternates by a knot from tick to tick).
+    #[arg(long, default_value_t = 1)]
+    tail_ticks: usize,
     /// SLQ iterations per tick (real-time iteration: 1).
     #[arg(long, default_value_t = 1)]
     iterations_per_tick: usize,
@@ -150,7 +155,7 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join("mpc").join(&spec.name));
     let plan_out = out.join("plan");
     let threads = super::capped_threads(args.threads);
-    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, fine_head: args.fine_head, iterations_per_tick: args.iterations_per_tick, threads, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), model_reuse: args.reuse_models.as_deref().map(parse_model_reuse).transpose()?, feedback: args.feedback.into(), ..MpcSettings::default() };
+    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, fine_head: args.fine_head, tail_ticks: args.tail_ticks, iterations_per_tick: args.iterations_per_tick, threads, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), model_reuse: args.reuse_models.as_deref().map(parse_model_reuse).transpose()?, feedback: args.feedback.into(), ..MpcSettings::default() };
     let sim = match args.sim {
         SimChoice::Legwork => ClosedLoopSim::Legwork,
         SimChoice::Mujoco => ClosedLoopSim::Mujoco(legwork::export::MujocoCheck::locate()?),
@@ -174,7 +179,7 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
     };
     job.check().map_err(job_error)?;
     let s = &job.settings;
-    say!("Planning {} ({}) for {}: {} s, then MPC in {} at {} Hz on a {} s window of {} knots of {} s{}, {} iteration(s) per tick{}, {} thread(s)", spec.name, spec.summary, model.name, spec.duration, if args.sim == SimChoice::Mujoco { "MuJoCo" } else { "legwork's simulator" }, s.rate, s.horizon, s.knot_counts().0, s.knot_dt(), if s.knot_counts().1 > 0 { format!(" and {} of {} s", s.knot_counts().1, s.period()) } else { String::new() }, s.iterations_per_tick, s.model_reuse.map(|r| format!(" (models kept: the first {} knots, the new ones and every {}th other relinearized)", r.fresh_head, r.refresh_period)).unwrap_or_default(), s.threads);
+    say!("Planning {} ({}) for {}: {} s, then MPC in {} at {} Hz on a {} s window of {} knots of {} s{}, {} iteration(s) per tick{}, {} thread(s)", spec.name, spec.summary, model.name, spec.duration, if args.sim == SimChoice::Mujoco { "MuJoCo" } else { "legwork's simulator" }, s.rate, s.horizon, s.knot_counts().0, s.knot_dt(), if s.knot_counts().1 > 0 { format!(" and {} of {} s", s.knot_counts().1, s.tail_knot_dt()) } else { String::new() }, s.iterations_per_tick, s.model_reuse.map(|r| format!(" (models kept: the first {} knots, the new ones and every {}th other relinearized)", r.fresh_head, r.refresh_period)).unwrap_or_default(), s.threads);
     let (plan, run) = job.run(|_| {}, |_| {}).map_err(job_error)?;
     let sum = &run.summary;
     let ms = |key: &str| sum[key].as_f64().unwrap_or(f64::NAN) * 1e3;

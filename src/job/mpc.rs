@@ -136,6 +136,7 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
         "knots": s.knot_counts().0 + s.knot_counts().1,
         "fine_head_s": s.fine_head,
         "tail_knots": s.knot_counts().1,
+        "tail_knot_dt_s": s.tail_knot_dt(),
         "iterations_per_tick": s.iterations_per_tick,
         "model_reuse": s.model_reuse.map(|r| json!({ "fresh_head": r.fresh_head, "refresh_period": r.refresh_period })),
         "threads": s.threads,

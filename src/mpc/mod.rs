@@ -15,7 +15,8 @@
 //!   knots spaced by the tick period (5 ms, coarser than the plan's 2 ms; each integrated
 //!   in steps of the contact's stable step and linearized once, at its start), or finer
 //!   ([`MpcSettings::knot_dt`]), or finer only over the window's first part
-//!   ([`MpcSettings::fine_head`]);
+//!   ([`MpcSettings::fine_head`]), or with the part after it in knots of two tick periods
+//!   ([`MpcSettings::tail_ticks`]);
 //! - **warm start**: the previous tick's solution shifted by the knots the window moved
 //!   ([`crate::slq::Slq::shift`]), its new last knots from the plan's own policy;
 //! - **iteration budget**: a fixed number of SLQ iterations per tick (one by default,
@@ -96,12 +97,19 @@ pub struct MpcSettings {
     /// Knot spacing of the window (`None`: the tick period, so a tick moves the window by
     /// one knot). The tick period must be a whole number of knots.
     pub knot_dt: Option<f64>,
-    /// With `knot_dt` finer than the tick period: only the window's first `fine_head`
-    /// seconds in knots of `knot_dt`, the rest in knots of the tick period, each integrated
-    /// in the head's steps (`None`: the whole window in knots of `knot_dt`). The robot runs
+    /// With `knot_dt` finer than the tick period, or [`Self::tail_ticks`] 2: only the
+    /// window's first `fine_head` seconds in knots of `knot_dt`, the rest in knots of
+    /// `tail_ticks` tick periods, each integrated in the head's steps (`None`: the whole
+    /// window in knots of `knot_dt`). The robot runs
     /// the head's first knots before the next tick; the coarse rest carries the cost-to-go
     /// at a fraction of the knots ([`crate::ocp::CoarseTail`]).
     pub fine_head: Option<f64>,
+    /// The coarse knots' spacing in tick periods (1). With 2, `knot_dt` the tick period and a
+    /// `fine_head` of at least two knots, the window's knots after the head span two tick
+    /// periods (ten 1 ms steps at 200 Hz), on a grid fixed in the task's time: the head
+    /// alternates between `fine_head` and one knot less from tick to tick, the window's
+    /// length between `horizon` and a tick period more ([`crate::ocp::CoarseTail`]).
+    pub tail_ticks: usize,
     /// SLQ iterations per tick (1: the real-time iteration scheme).
     pub iterations_per_tick: usize,
     /// SLQ iterations on the first window before the robot starts (10): the robot waits
@@ -167,7 +175,7 @@ impl MpcFeedback {
 
 impl Default for MpcSettings {
     fn default() -> Self {
-        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
+        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, tail_ticks: 1, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
     }
 }
 
@@ -187,14 +195,19 @@ impl MpcSettings {
         (self.period() / self.knot_dt()).round() as usize
     }
 
-    /// The window's knots: `(head, tail)`, the first `head` of `knot_dt` and `tail` of the
-    /// tick period after them ([`Self::fine_head`]; `tail` 0 without one).
+    /// The coarse tail's knot spacing (s): [`Self::tail_ticks`] tick periods.
+    pub fn tail_knot_dt(&self) -> f64 {
+        self.tail_ticks as f64 * self.period()
+    }
+
+    /// The window's knots: `(head, tail)`, the first `head` of `knot_dt` and `tail` of
+    /// [`Self::tail_knot_dt`] after them ([`Self::fine_head`]; `tail` 0 without one).
     pub fn knot_counts(&self) -> (usize, usize) {
         let dt = self.knot_dt();
-        match self.fine_head.filter(|_| self.knots_per_tick() > 1) {
+        match self.fine_head.filter(|_| self.tail_knot_dt() > dt * 1.5) {
             Some(head) => {
                 let fine = (head / dt).round() as usize;
-                (fine, ((self.horizon - fine as f64 * dt) / self.period()).round().max(0.0) as usize)
+                (fine, ((self.horizon - fine as f64 * dt) / self.tail_knot_dt()).round().max(0.0) as usize)
             }
             None => ((self.horizon / dt).round() as usize, 0),
         }
@@ -224,10 +237,22 @@ impl MpcSettings {
         if knots > 100_000.0 {
             return bad("horizon", format!("{} s is {knots:.0} knots of {dt} s: at most 100000", self.horizon));
         }
+        if !(1..=2).contains(&self.tail_ticks) || (self.tail_ticks == 2 && self.knots_per_tick() != 1) {
+            return bad("tail_ticks", format!("expected 1, or 2 with knots of the tick period ({} s), got {} with knots of {dt} s", self.period(), self.tail_ticks));
+        }
+        if self.tail_ticks == 2 && self.fine_head.is_none() {
+            return bad("fine_head", "expected the head's length (s) with tail_ticks = 2".into());
+        }
         if let Some(head) = self.fine_head {
             let fine = head / dt;
-            if !(head.is_finite() && (fine - fine.round()).abs() < 1e-6 && fine.round() as usize >= self.knots_per_tick() && head < self.horizon) {
-                return bad("fine_head", format!("expected a whole number of knots of {dt} s, at least a tick period ({} s) and shorter than the horizon ({} s), got {head}", self.period(), self.horizon));
+            // A tail of two-tick knots shortens the head by one knot every other tick.
+            let shortest = self.knots_per_tick().max(self.tail_ticks);
+            if !(head.is_finite() && (fine - fine.round()).abs() < 1e-6 && fine.round() as usize >= shortest && head < self.horizon) {
+                return bad("fine_head", format!("expected a whole number of knots of {dt} s, at least {shortest} of them and shorter than the horizon ({} s), got {head}", self.horizon));
+            }
+            let tail = (self.horizon - head) / self.tail_knot_dt();
+            if self.knot_counts().1 > 0 && (tail - tail.round()).abs() > 1e-6 {
+                return bad("fine_head", format!("the rest of the window, horizon - fine_head = {} s, must be a whole number of the tail's knots of {} s", self.horizon - head, self.tail_knot_dt()));
             }
         }
         if let Some(reuse) = self.model_reuse {
@@ -295,7 +320,7 @@ pub fn window_problem<'a>(spec: &TaskSpec, model: &'a Model, terrain: &'a dyn Te
     let (head, tail) = settings.knot_counts();
     window.dt = settings.knot_dt();
     // The knots' count (the feasibility rows are per knot); a coarse tail spaces the last
-    // `tail` of them by the tick period below.
+    // `tail` of them by its own knot spacing below.
     window.duration = settings.knot_dt() * (head + tail) as f64;
     window.substeps = None;
     window.continuation = None;
@@ -324,7 +349,8 @@ pub fn window_problem<'a>(spec: &TaskSpec, model: &'a Model, terrain: &'a dyn Te
     problem.anchor_states = settings.anchor_states;
     problem.linearization = settings.linearization;
     if tail > 0 {
-        problem.tail = Some(CoarseTail { from: head, dt: settings.period(), substeps: problem.substeps * settings.knots_per_tick() });
+        let head_knots_per_tail_knot = (settings.tail_knot_dt() / settings.knot_dt()).round() as usize;
+        problem.tail = Some(CoarseTail { from: head, dt: settings.tail_knot_dt(), substeps: problem.substeps * head_knots_per_tail_knot });
     }
     let mut receding = RecedingHorizon::new(0.0, spec.duration, reference);
     if settings.plan_value {
@@ -505,7 +531,8 @@ impl<'p, 'a> Mpc<'p, 'a> {
     pub fn tick(&mut self, t: f64, x: &RobotState) -> Result<TickReport, MpcError> {
         let started = Instant::now();
         if let Some(tail) = self.problem.tail {
-            // A coarse tail: the window moves by whole tick periods, one tail knot each.
+            // A coarse tail: the window moves by whole tick periods, a tail knot of one
+            // period (split into the head's knots) or a head knot of a two-period tail.
             let period = self.settings.period();
             let ticks = ((t - self.last_start) / period).round().max(0.0) as usize;
             let m = self.settings.knots_per_tick();
@@ -513,7 +540,14 @@ impl<'p, 'a> Mpc<'p, 'a> {
                 if let Some(r) = &self.problem.receding {
                     r.set_start(self.last_start + i as f64 * period);
                 }
-                self.slq.shift_head(tail.from, m, &self.plan_policy);
+                if self.settings.tail_ticks == 1 {
+                    self.slq.shift_head(tail.from, m, &self.plan_policy);
+                } else if self.problem.grid().tail.is_some_and(|now| now.from == tail.from) {
+                    // The first tail knot now starts a tick after the head's end.
+                    self.slq.shift_halving(tail.from - 1);
+                } else {
+                    self.slq.shift(1, &self.plan_policy);
+                }
             }
             self.last_start += ticks as f64 * period;
         } else {

@@ -416,9 +416,16 @@ impl<'a> WholeBodyProblem<'a> {
         scale * ws.e.dot(&ws.we) + self.add_foot_cost_derivatives(ws, feet, scale, x, l_x, l_xx)
     }
 
-    /// Where the knots fall ([`KnotGrid`]).
+    /// Where the knots fall ([`KnotGrid`]; a receding window's coarse tail as of its
+    /// current start, [`CoarseTail::at_start`]).
     pub fn grid(&self) -> KnotGrid {
-        KnotGrid { dt: self.dt, knots: self.knots, tail: self.tail }
+        KnotGrid { dt: self.dt, knots: self.knots, tail: self.current_tail() }
+    }
+
+    /// The coarse tail as of the window's current start.
+    fn current_tail(&self) -> Option<CoarseTail> {
+        let start = self.receding.as_ref().map_or(0.0, RecedingHorizon::start);
+        self.tail.map(|tail| tail.at_start(self.dt, start))
     }
 
     /// The length of knot `k`'s interval (s): `dt`, or the coarse tail's.
@@ -428,7 +435,7 @@ impl<'a> WholeBodyProblem<'a> {
 
     /// Integration steps of knot `k` (each `knot_dt(k) / knot_substeps(k)`).
     pub fn knot_substeps(&self, k: usize) -> usize {
-        match self.tail {
+        match self.current_tail() {
             Some(tail) if k >= tail.from => tail.substeps,
             _ => self.substeps,
         }

@@ -63,12 +63,28 @@ impl ReferenceMotion {
 /// A window's coarse tail: from knot `from` on, knots of `dt` seconds integrated in
 /// `substeps` steps, after the finer head knots of the problem's own `dt` (the part of the
 /// window the robot runs before the next tick is exact; the rest only has to carry the
-/// cost-to-go). [`crate::slq::Slq::shift_head`] moves such a window.
+/// cost-to-go). [`crate::slq::Slq::shift_head`] moves such a window by one tail knot, and
+/// [`crate::slq::Slq::shift`] and [`crate::slq::Slq::shift_halving`] by one head knot.
+///
+/// The tail's knots stay on a grid fixed in the task's time: a window that starts `j` head
+/// knots past a multiple of the tail's `dt` has the head `from - j` ([`Self::at_start`]), so
+/// its knot count stays and its length varies by less than a tail knot.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CoarseTail {
     pub from: usize,
     pub dt: f64,
     pub substeps: usize,
+}
+
+impl CoarseTail {
+    /// The tail of a window starting `start` seconds into the task, with head knots of
+    /// `head_dt`: `from - j`, `j = round(start / head_dt) mod round(dt / head_dt)` (the head
+    /// knots since the last tail knot boundary; `start` a multiple of `head_dt`).
+    pub fn at_start(self, head_dt: f64, start: f64) -> Self {
+        let per_tail_knot = ((self.dt / head_dt).round() as u64).max(1);
+        let past_boundary = ((start / head_dt).round().max(0.0) as u64 % per_tail_knot) as usize;
+        Self { from: self.from.saturating_sub(past_boundary), ..self }
+    }
 }
 
 /// Where a problem's knots fall: `knots` transitions of `dt` seconds, or with a
@@ -255,6 +271,22 @@ mod tests {
         h.set_start(2.0);
         assert_eq!(h.final_knot(&grid), Some(50));
         assert_eq!(h.clone(), h);
+    }
+
+    #[test]
+    fn a_tail_of_two_head_knots_stays_on_its_grid_as_the_window_starts_later() {
+        // Head knots of 5 ms, tail knots of 10 ms from 40 ms at a window start of 0.
+        let tail = CoarseTail { from: 8, dt: 0.01, substeps: 10 };
+        for (start, from) in [(0.0, 8), (0.005, 7), (0.01, 8), (0.015, 7), (1.235, 7), (1.24, 8)] {
+            let now = tail.at_start(0.005, start);
+            assert_eq!(now.from, from, "start {start}");
+            // The first tail knot's absolute time is a multiple of 10 ms past 40 ms.
+            let first = start + now.from as f64 * 0.005;
+            assert!(((first - 0.04) / 0.01 - ((first - 0.04) / 0.01).round()).abs() < 1e-9, "start {start}");
+        }
+        // A tail of one tick period (a 1 ms head) never moves.
+        let one_tick = CoarseTail { from: 20, dt: 0.005, substeps: 5 };
+        assert_eq!(one_tick.at_start(0.001, 0.735).from, 20);
     }
 
     #[test]

@@ -64,6 +64,15 @@ fn shift_into_head<T>(v: &mut [T], head: usize, m: usize, copy: impl Fn(&mut T, 
     v[head..].rotate_left(1);
 }
 
+/// Per-knot values of a window whose first later knot (index `head`) is halved into the
+/// head's last two knots ([`Slq::shift_halving`]): `v_k <- v_{k+1}` for `k < head`, the
+/// halved knot's value in both halves, the later knots unchanged.
+fn halve_into_head<T>(v: &mut [T], head: usize, copy: impl Fn(&mut T, &T)) {
+    v[..=head].rotate_left(1);
+    let (front, halved) = v.split_at_mut(head);
+    copy(&mut halved[0], &front[head - 1]);
+}
+
 impl<'p, P: Problem> Slq<'p, P> {
     /// The problem being solved.
     pub fn problem(&self) -> &'p P {
@@ -182,6 +191,29 @@ impl<'p, P: Problem> Slq<'p, P> {
         }
         // The new last knot from `tail`.
         usize::from(self.roll_out_tail_knot(n - 1, tail))
+    }
+
+    /// [`Self::shift`] by one knot for a window whose later knots are two head knots long
+    /// and stay on their absolute grid ([`crate::ocp::CoarseTail`] with knots of two tick
+    /// periods): on the ticks where the first later knot's start becomes the head's end, the
+    /// head knots `1..head` move to `0..head - 1` and the first later knot (index `head`)
+    /// becomes the head's last two knots, its input and gain held over both and its middle
+    /// state stepped with it (the same trajectory: a later knot integrates the head's
+    /// steps). The later knots keep their indices and times; no knot is added (the window
+    /// is one head knot shorter than after a plain [`Self::shift`], which adds a later knot
+    /// at the end; the two alternate and the knot count stays).
+    pub fn shift_halving(&mut self, head: usize) {
+        let n = self.problem.horizon();
+        assert!(head >= 1 && head < n, "shift_halving: the head ({head} knots) must leave a later knot in a window of {n}");
+        // The halved knot's model is not its halves' ([`crate::slq::ModelReuse`] keeps none).
+        self.forget_models(0);
+        halve_into_head(&mut self.inputs, head, DVector::copy_from);
+        halve_into_head(&mut self.feedforward, head, DVector::copy_from);
+        halve_into_head(&mut self.gains, head, DMatrix::copy_from);
+        // x_{k+1} for k < head, then the halved knot's middle state stepped with its input.
+        self.states[..=head].rotate_left(1);
+        let (before, next) = self.states.split_at_mut(head);
+        self.problem.step(&mut self.workspaces[0], head - 1, &before[head - 1], &self.inputs[head - 1], &mut next[0]);
     }
 
     /// Turns [`crate::slq::ModelReuse`] on or off for the next real-time iterations (a
