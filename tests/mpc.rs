@@ -101,7 +101,7 @@ fn a_coarse_tail_moves_into_the_fine_head_one_tick_at_a_time() {
     let spec = stand(0.3);
     let run = plan(&spec, &model);
     // 0.1 s: 10 knots of 1 ms, then 18 of the 5 ms tick period, each five 1 ms steps.
-    let settings = MpcSettings { horizon: 0.1, knot_dt: Some(0.001), fine_head: Some(0.01), ..MpcSettings::default() };
+    let settings = MpcSettings { horizon: 0.1, knot_dt: Some(0.001), fine_head: Some(0.01), tail_ticks: 1, ..MpcSettings::default() };
     assert_eq!(settings.knot_counts(), (10, 18));
     let ground = Plane::flat(0.0);
     let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
@@ -222,7 +222,6 @@ fn a_tail_of_two_tick_knots_stays_on_its_grid_as_the_window_moves() {
     for (field, bad) in [
         ("tail_ticks", MpcSettings { tail_ticks: 3, ..settings.clone() }),
         ("tail_ticks", MpcSettings { knot_dt: Some(0.001), ..settings.clone() }),
-        ("fine_head", MpcSettings { fine_head: None, ..settings.clone() }),
         ("fine_head", MpcSettings { fine_head: Some(0.005), ..settings.clone() }),
         ("fine_head", MpcSettings { fine_head: Some(0.025), ..settings.clone() }),
     ] {
@@ -277,9 +276,11 @@ fn standing_hyq_rejects_a_100_n_lateral_push_and_ticks_on_schedule() {
     let ground = Plane::flat(0.0);
     let settings = MpcSettings::default();
     let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
-    // The window: 0.5 s in knots of the 5 ms tick period, each integrated in the contact's
-    // stable 1 ms steps.
-    assert_eq!((problem.knots, problem.dt, problem.substeps), (100, 0.005, 5));
+    // The window: 0.2 s in knots of the 5 ms tick period, each integrated in the contact's
+    // stable 1 ms steps, then 0.3 s in knots of 10 ms (ten steps).
+    assert_eq!((problem.knots, problem.dt, problem.substeps), (70, 0.005, 5));
+    assert_eq!((problem.knot_substeps(39), problem.knot_substeps(40)), (5, 10));
+    assert!((problem.knot_time(70) - 0.5).abs() < 1e-12);
     let mpc = Mpc::new(&problem, &run.solution, spec.dt, settings.clone()).unwrap();
     let mut sim = Simulator::from_plan(&model, &ground, &run.plan, SimConfig::default()).unwrap();
     sim.add_push(Push::parse("0,100,0@0.3:0.2").unwrap());
@@ -422,7 +423,7 @@ fn bad_settings_and_a_plan_without_its_value_function_are_named() {
         (MpcSettings { iterations_per_tick: 0, ..MpcSettings::default() }, "iterations_per_tick"),
         (MpcSettings { regularization: -1.0, ..MpcSettings::default() }, "regularization"),
         (MpcSettings { model_reuse: Some(ModelReuse { fresh_head: 10, refresh_period: 0 }), ..MpcSettings::default() }, "model_reuse"),
-        (MpcSettings { knot_dt: Some(0.001), fine_head: Some(0.05), model_reuse: Some(ModelReuse { fresh_head: 10, refresh_period: 5 }), ..MpcSettings::default() }, "model_reuse"),
+        (MpcSettings { knot_dt: Some(0.001), fine_head: Some(0.05), tail_ticks: 1, model_reuse: Some(ModelReuse { fresh_head: 10, refresh_period: 5 }), ..MpcSettings::default() }, "model_reuse"),
     ] {
         let message = name(settings.check().unwrap_err());
         assert!(message.contains(&format!("`{field}`")), "{message}");

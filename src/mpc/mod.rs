@@ -97,18 +97,19 @@ pub struct MpcSettings {
     /// Knot spacing of the window (`None`: the tick period, so a tick moves the window by
     /// one knot). The tick period must be a whole number of knots.
     pub knot_dt: Option<f64>,
-    /// With `knot_dt` finer than the tick period, or [`Self::tail_ticks`] 2: only the
-    /// window's first `fine_head` seconds in knots of `knot_dt`, the rest in knots of
-    /// `tail_ticks` tick periods, each integrated in the head's steps (`None`: the whole
-    /// window in knots of `knot_dt`). The robot runs
+    /// The window's first seconds in knots of `knot_dt` (0.2 s), the rest in knots of
+    /// [`Self::tail_ticks`] tick periods, each integrated in the head's steps (`None`, or a
+    /// head as long as the horizon: the whole window in knots of `knot_dt`). The robot runs
     /// the head's first knots before the next tick; the coarse rest carries the cost-to-go
     /// at a fraction of the knots ([`crate::ocp::CoarseTail`]).
     pub fine_head: Option<f64>,
-    /// The coarse knots' spacing in tick periods (1). With 2, `knot_dt` the tick period and a
-    /// `fine_head` of at least two knots, the window's knots after the head span two tick
-    /// periods (ten 1 ms steps at 200 Hz), on a grid fixed in the task's time: the head
-    /// alternates between `fine_head` and one knot less from tick to tick, the window's
-    /// length between `horizon` and a tick period more ([`crate::ocp::CoarseTail`]).
+    /// The knots after the head in tick periods (2). With 2 (the knots the tick period's, a
+    /// head of at least two of them) the knots after the head span two tick periods (ten
+    /// 1 ms steps at 200 Hz: the default window is 40 knots of 5 ms and 30 of 10 ms), on a
+    /// grid fixed in the task's time: the head alternates between `fine_head` and one knot
+    /// less from tick to tick, the window's length between `horizon` and a tick period more
+    /// ([`crate::ocp::CoarseTail`]). With 1 and knots of the tick period, the whole window in
+    /// them; with 1 and finer knots, the tail in knots of the tick period.
     pub tail_ticks: usize,
     /// SLQ iterations per tick (1: the real-time iteration scheme).
     pub iterations_per_tick: usize,
@@ -175,7 +176,7 @@ impl MpcFeedback {
 
 impl Default for MpcSettings {
     fn default() -> Self {
-        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, tail_ticks: 1, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
+        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: Some(0.2), tail_ticks: 2, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
     }
 }
 
@@ -204,7 +205,7 @@ impl MpcSettings {
     /// [`Self::tail_knot_dt`] after them ([`Self::fine_head`]; `tail` 0 without one).
     pub fn knot_counts(&self) -> (usize, usize) {
         let dt = self.knot_dt();
-        match self.fine_head.filter(|_| self.tail_knot_dt() > dt * 1.5) {
+        match self.fine_head.filter(|&head| self.tail_knot_dt() > dt * 1.5 && head < self.horizon - 0.5 * dt) {
             Some(head) => {
                 let fine = (head / dt).round() as usize;
                 (fine, ((self.horizon - fine as f64 * dt) / self.tail_knot_dt()).round().max(0.0) as usize)
@@ -237,22 +238,24 @@ impl MpcSettings {
         if knots > 100_000.0 {
             return bad("horizon", format!("{} s is {knots:.0} knots of {dt} s: at most 100000", self.horizon));
         }
-        if !(1..=2).contains(&self.tail_ticks) || (self.tail_ticks == 2 && self.knots_per_tick() != 1) {
-            return bad("tail_ticks", format!("expected 1, or 2 with knots of the tick period ({} s), got {} with knots of {dt} s", self.period(), self.tail_ticks));
-        }
-        if self.tail_ticks == 2 && self.fine_head.is_none() {
-            return bad("fine_head", "expected the head's length (s) with tail_ticks = 2".into());
+        if !(1..=2).contains(&self.tail_ticks) {
+            return bad("tail_ticks", format!("expected 1 or 2 tick periods, got {}", self.tail_ticks));
         }
         if let Some(head) = self.fine_head {
             let fine = head / dt;
             // A tail of two-tick knots shortens the head by one knot every other tick.
             let shortest = self.knots_per_tick().max(self.tail_ticks);
-            if !(head.is_finite() && (fine - fine.round()).abs() < 1e-6 && fine.round() as usize >= shortest && head < self.horizon) {
-                return bad("fine_head", format!("expected a whole number of knots of {dt} s, at least {shortest} of them and shorter than the horizon ({} s), got {head}", self.horizon));
+            if !(head.is_finite() && (fine - fine.round()).abs() < 1e-6 && fine.round() as usize >= shortest) {
+                return bad("fine_head", format!("expected a whole number of knots of {dt} s, at least {shortest} of them, got {head}"));
             }
-            let tail = (self.horizon - head) / self.tail_knot_dt();
-            if self.knot_counts().1 > 0 && (tail - tail.round()).abs() > 1e-6 {
-                return bad("fine_head", format!("the rest of the window, horizon - fine_head = {} s, must be a whole number of the tail's knots of {} s", self.horizon - head, self.tail_knot_dt()));
+            if self.knot_counts().1 > 0 {
+                if self.tail_ticks == 2 && self.knots_per_tick() != 1 {
+                    return bad("tail_ticks", format!("a tail of two tick periods needs head knots of the tick period ({} s), not {dt} s: with finer knots set tail_ticks to 1 (a tail of the tick period) or fine_head to the horizon (no tail)", self.period()));
+                }
+                let tail = (self.horizon - head) / self.tail_knot_dt();
+                if (tail - tail.round()).abs() > 1e-6 {
+                    return bad("fine_head", format!("the rest of the window, horizon - fine_head = {} s, must be a whole number of the tail's knots of {} s (or fine_head at least the horizon: no tail)", self.horizon - head, self.tail_knot_dt()));
+                }
             }
         }
         if let Some(reuse) = self.model_reuse {
@@ -262,7 +265,7 @@ impl MpcSettings {
             if self.knot_counts().1 > 0 {
                 // Each tick splits the first coarse knot into fine ones (Slq::shift_head):
                 // the knots' models do not carry over.
-                return bad("model_reuse", "not with fine_head (its knots are resampled every tick, so no model carries over)".into());
+                return bad("model_reuse", "not with a coarse tail (its knots are resampled every tick or two, so no model carries over): set tail_ticks to 1 with knots of the tick period, or fine_head to the horizon".into());
             }
         }
         if self.iterations_per_tick == 0 {
