@@ -89,10 +89,10 @@ pub enum BenchCommand {
         knot_dt: Option<f64>,
         /// The windows' first seconds in knots of --knot-dt, the rest in knots of --tail-ticks
         /// tick periods (`legwork mpc --fine-head`).
-        #[arg(long, default_value_t = 0.2)]
-        fine_head: f64,
-        /// The knots after --fine-head in tick periods, 2 or 1 (`legwork mpc --tail-ticks`).
-        #[arg(long, default_value_t = 2)]
+        #[arg(long)]
+        fine_head: Option<f64>,
+        /// The knots after --fine-head in tick periods, 1 or 2 (`legwork mpc --tail-ticks`).
+        #[arg(long, default_value_t = 1)]
         tail_ticks: usize,
         /// Horizon of the task runs (s).
         #[arg(long, default_value_t = 0.5)]
@@ -246,7 +246,7 @@ pub fn run(cmd: BenchCommand) -> Result<Verdict> {
         BenchCommand::Mpc { tasks, timing_task, horizons, thread_counts, push, rate, knot_dt, fine_head, tail_ticks, horizon, reuse_models, no_anchor_states, tracking, feedback, latency, sim, json, out } => {
             let thread_counts: Vec<usize> = thread_counts.iter().map(|&t| super::capped_threads(t)).collect();
             let latency = super::mpc::parse_latency(&latency)?;
-            super::bench_mpc::run(&super::bench_mpc::MpcBench { tasks: &tasks, timing_task: &timing_task, horizons: &horizons, thread_counts: &thread_counts, push, mujoco: sim == super::mpc::SimChoice::Mujoco, latency, rate, knot_dt, fine_head: Some(fine_head), tail_ticks, horizon, model_reuse: reuse_models.as_deref().map(super::mpc::parse_model_reuse).transpose()?, anchor_states: !no_anchor_states, tracking, feedback: feedback.into(), as_json: json, out: &out })
+            super::bench_mpc::run(&super::bench_mpc::MpcBench { tasks: &tasks, timing_task: &timing_task, horizons: &horizons, thread_counts: &thread_counts, push, mujoco: sim == super::mpc::SimChoice::Mujoco, latency, rate, knot_dt, fine_head, tail_ticks, horizon, model_reuse: reuse_models.as_deref().map(super::mpc::parse_model_reuse).transpose()?, anchor_states: !no_anchor_states, tracking, feedback: feedback.into(), as_json: json, out: &out })
         }
     }
 }

@@ -31,17 +31,16 @@ pub struct MpcArgs {
     /// number of knots.
     #[arg(long)]
     knot_dt: Option<f64>,
-    /// The window's first FINE_HEAD seconds in knots of --knot-dt, the rest in knots of
+    /// Only the window's first FINE_HEAD seconds in knots of --knot-dt, the rest in knots of
     /// --tail-ticks tick periods; a head as long as the horizon or longer: no tail (with
-    /// --knot-dt 0.001 --fine-head 0.05 --tail-ticks 1, a 0.5 s window of 1 ms knots for
-    /// 0.05 s and 5 ms ones after: 140 knots instead of 500).
-    #[arg(long, default_value_t = 0.2)]
-    fine_head: f64,
-    /// The knots after --fine-head in tick periods: 2 (with knots of the tick period: the
-    /// default 0.5 s window is 0.2 s of 5 ms knots and 0.3 s of 10 ms ones, 70 knots instead
-    /// of 100; the head alternates by a knot from tick to tick), or 1 (5 ms knots
-    /// throughout; with a finer --knot-dt, a tail of 5 ms knots).
-    #[arg(long, default_value_t = 2)]
+    /// --knot-dt 0.001 --fine-head 0.05, a 0.5 s window of 1 ms knots for 0.05 s and 5 ms
+    /// ones after: 140 knots instead of 500).
+    #[arg(long)]
+    fine_head: Option<f64>,
+    /// The knots after --fine-head in tick periods: 1, or 2 with knots of the tick period
+    /// (--fine-head 0.2 --tail-ticks 2: a 0.5 s window of 5 ms knots for 0.2 s and 10 ms
+    /// ones after, 70 knots instead of 100; the head alternates by a knot from tick to tick).
+    #[arg(long, default_value_t = 1)]
     tail_ticks: usize,
     /// SLQ iterations per tick (real-time iteration: 1).
     #[arg(long, default_value_t = 1)]
@@ -157,7 +156,7 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join("mpc").join(&spec.name));
     let plan_out = out.join("plan");
     let threads = super::capped_threads(args.threads);
-    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, fine_head: Some(args.fine_head), tail_ticks: args.tail_ticks, iterations_per_tick: args.iterations_per_tick, threads, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), model_reuse: args.reuse_models.as_deref().map(parse_model_reuse).transpose()?, feedback: args.feedback.into(), ..MpcSettings::default() };
+    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, fine_head: args.fine_head, tail_ticks: args.tail_ticks, iterations_per_tick: args.iterations_per_tick, threads, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), model_reuse: args.reuse_models.as_deref().map(parse_model_reuse).transpose()?, feedback: args.feedback.into(), ..MpcSettings::default() };
     let sim = match args.sim {
         SimChoice::Legwork => ClosedLoopSim::Legwork,
         SimChoice::Mujoco => ClosedLoopSim::Mujoco(legwork::export::MujocoCheck::locate()?),

@@ -97,16 +97,16 @@ pub struct MpcSettings {
     /// Knot spacing of the window (`None`: the tick period, so a tick moves the window by
     /// one knot). The tick period must be a whole number of knots.
     pub knot_dt: Option<f64>,
-    /// The window's first seconds in knots of `knot_dt` (0.2 s), the rest in knots of
-    /// [`Self::tail_ticks`] tick periods, each integrated in the head's steps (`None`, or a
-    /// head as long as the horizon: the whole window in knots of `knot_dt`). The robot runs
+    /// The window's first seconds in knots of `knot_dt`, the rest in knots of
+    /// [`Self::tail_ticks`] tick periods, each integrated in the head's steps (`None`, the
+    /// default, or a head as long as the horizon: the whole window in knots of `knot_dt`). The robot runs
     /// the head's first knots before the next tick; the coarse rest carries the cost-to-go
     /// at a fraction of the knots ([`crate::ocp::CoarseTail`]).
     pub fine_head: Option<f64>,
-    /// The knots after the head in tick periods (2). With 2 (the knots the tick period's, a
+    /// The knots after the head in tick periods (1). With 2 (the knots the tick period's, a
     /// head of at least two of them) the knots after the head span two tick periods (ten
-    /// 1 ms steps at 200 Hz: the default window is 40 knots of 5 ms and 30 of 10 ms), on a
-    /// grid fixed in the task's time: the head alternates between `fine_head` and one knot
+    /// 1 ms steps at 200 Hz: with `fine_head` 0.2 s a 0.5 s window is 40 knots of 5 ms and
+    /// 30 of 10 ms instead of 100 of 5 ms), on a grid fixed in the task's time: the head alternates between `fine_head` and one knot
     /// less from tick to tick, the window's length between `horizon` and a tick period more
     /// ([`crate::ocp::CoarseTail`]). With 1 and knots of the tick period, the whole window in
     /// them; with 1 and finer knots, the tail in knots of the tick period.
@@ -176,7 +176,7 @@ impl MpcFeedback {
 
 impl Default for MpcSettings {
     fn default() -> Self {
-        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: Some(0.2), tail_ticks: 2, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
+        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, tail_ticks: 1, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
     }
 }
 
