@@ -12,6 +12,9 @@
 //! t_{i+1} = t_i + period * max(1, ceil(L_i / period))   (an overrun skips ticks)
 //! ```
 //!
+//! A tick that fails keeps the previous policy running; its `L_i` is still its wall time
+//! (or the fixed latency), and its solve time counts in the tick-time percentiles.
+//!
 //! While the solver works the plant waits (its steps take microseconds; a robot's
 //! physics would not wait, which the latency above accounts for): the solver has the
 //! machine's cores to itself, as it would on the robot's computer.
@@ -21,6 +24,7 @@ use crate::io::Trajectory;
 use crate::ocp::RobotState;
 use crate::sim::{Plant, SimError};
 use std::sync::mpsc;
+use std::time::Instant;
 
 /// When a tick's solution reaches the robot.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -36,9 +40,10 @@ pub enum PolicyLatency {
 pub struct TickRecord {
     /// The tick's time (s).
     pub t: f64,
-    /// Wall time of the solve (s).
+    /// Wall time of the solve (s), a failed one's too.
     pub solve_time: f64,
-    /// When after `t` its policy took over (s).
+    /// When after `t` its policy took over (s); for a failed tick, when the solver was free
+    /// again (the next tick waits for it as for a policy).
     pub latency: f64,
     /// Cost of the kept trajectory, its step size, iterations run; `None` if the tick failed
     /// or kept a trajectory held after [`Self::held_after_knot`] (no finite cost).
@@ -97,6 +102,8 @@ struct Reply {
     x: RobotState,
     policy: MpcPolicy,
     report: Result<TickReport, MpcError>,
+    /// Wall time of the tick (s), measured around it (a failed tick has no report).
+    elapsed: f64,
 }
 
 /// Runs `mpc` on `sim` for `duration` seconds (module docs), recording the motion at the
@@ -133,11 +140,13 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
     std::thread::scope(|scope| -> Result<(), MpcError> {
         scope.spawn(move || {
             for Request { t, x, mut policy } in requests {
+                let started = Instant::now();
                 let report = mpc.tick(t, &x);
+                let elapsed = started.elapsed().as_secs_f64();
                 if report.is_ok() {
                     mpc.write_policy(&mut policy);
                 }
-                if to_loop.send(Reply { x, policy, report }).is_err() {
+                if to_loop.send(Reply { x, policy, report, elapsed }).is_err() {
                     break;
                 }
             }
@@ -167,7 +176,13 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
                     }
                     Err(e) => {
                         spare = Some(reply.policy);
-                        (TickRecord { t: t_tick, solve_time: 0.0, latency: 0.0, cost: None, alpha: None, regularization: None, iterations: 0, restarted: false, linearization_time: 0.0, backward_pass_time: 0.0, rollout_time: 0.0, failure: Some(e.to_string()), held_after_knot: None }, None)
+                        // The solver was busy for the failed tick's time: the next tick
+                        // comes after it, as after a policy.
+                        let busy = match latency {
+                            PolicyLatency::Measured => reply.elapsed,
+                            PolicyLatency::Fixed(l) => l,
+                        };
+                        (TickRecord { t: t_tick, solve_time: reply.elapsed, latency: busy, cost: None, alpha: None, regularization: None, iterations: 0, restarted: false, linearization_time: 0.0, backward_pass_time: 0.0, rollout_time: 0.0, failure: Some(e.to_string()), held_after_knot: None }, None)
                     }
                 };
                 step_until(sim, &mut controller, &mut trajectory, t_tick + record.latency)?;

@@ -99,17 +99,19 @@ pub struct MpcSettings {
     pub knot_dt: Option<f64>,
     /// The window's first seconds in knots of `knot_dt`, the rest in knots of
     /// [`Self::tail_ticks`] tick periods, each integrated in the head's steps (`None`, the
-    /// default, or a head as long as the horizon: the whole window in knots of `knot_dt`). The robot runs
-    /// the head's first knots before the next tick; the coarse rest carries the cost-to-go
-    /// at a fraction of the knots ([`crate::ocp::CoarseTail`]).
+    /// default, or a head as long as the horizon: the whole window in knots of `knot_dt`).
+    /// The robot runs the head's first knots before the next tick; the coarse rest carries
+    /// the cost-to-go at a fraction of the knots ([`crate::ocp::CoarseTail`]).
     pub fine_head: Option<f64>,
     /// The knots after the head in tick periods (1). With 2 (the knots the tick period's, a
     /// head of at least two of them) the knots after the head span two tick periods (ten
     /// 1 ms steps at 200 Hz: with `fine_head` 0.2 s a 0.5 s window is 40 knots of 5 ms and
-    /// 30 of 10 ms instead of 100 of 5 ms), on a grid fixed in the task's time: the head alternates between `fine_head` and one knot
-    /// less from tick to tick, the window's length between `horizon` and a tick period more
-    /// ([`crate::ocp::CoarseTail`]). With 1 and knots of the tick period, the whole window in
-    /// them; with 1 and finer knots, the tail in knots of the tick period.
+    /// 30 of 10 ms instead of 100 of 5 ms), on a grid fixed in the task's time: the head
+    /// alternates between `fine_head` and one knot less from tick to tick, the window's
+    /// length between `horizon` and a tick period more ([`crate::ocp::CoarseTail`];
+    /// docs/experiments/mpc-11.md: 0.83x the tick, trot's loop lost). With 1 and knots of
+    /// the tick period, the whole window in them; with 1 and finer knots, the tail in knots
+    /// of the tick period.
     pub tail_ticks: usize,
     /// SLQ iterations per tick (1: the real-time iteration scheme).
     pub iterations_per_tick: usize,
