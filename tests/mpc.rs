@@ -101,7 +101,7 @@ fn a_coarse_tail_moves_into_the_fine_head_one_tick_at_a_time() {
     let spec = stand(0.3);
     let run = plan(&spec, &model);
     // 0.1 s: 10 knots of 1 ms, then 18 of the 5 ms tick period, each five 1 ms steps.
-    let settings = MpcSettings { horizon: 0.1, knot_dt: Some(0.001), fine_head: Some(0.01), tail_ticks: 1, ..MpcSettings::default() };
+    let settings = MpcSettings { horizon: 0.1, knot_dt: Some(0.001), fine_head: Some(0.01), ..MpcSettings::default() };
     assert_eq!(settings.knot_counts(), (10, 18));
     let ground = Plane::flat(0.0);
     let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
@@ -421,7 +421,7 @@ fn bad_settings_and_a_plan_without_its_value_function_are_named() {
         (MpcSettings { iterations_per_tick: 0, ..MpcSettings::default() }, "iterations_per_tick"),
         (MpcSettings { regularization: -1.0, ..MpcSettings::default() }, "regularization"),
         (MpcSettings { model_reuse: Some(ModelReuse { fresh_head: 10, refresh_period: 0 }), ..MpcSettings::default() }, "model_reuse"),
-        (MpcSettings { knot_dt: Some(0.001), fine_head: Some(0.05), tail_ticks: 1, model_reuse: Some(ModelReuse { fresh_head: 10, refresh_period: 5 }), ..MpcSettings::default() }, "model_reuse"),
+        (MpcSettings { knot_dt: Some(0.001), fine_head: Some(0.05), model_reuse: Some(ModelReuse { fresh_head: 10, refresh_period: 5 }), ..MpcSettings::default() }, "model_reuse"),
     ] {
         let message = name(settings.check().unwrap_err());
         assert!(message.contains(&format!("`{field}`")), "{message}");

@@ -422,10 +422,10 @@ impl<'a> WholeBodyProblem<'a> {
         KnotGrid { dt: self.dt, knots: self.knots, tail: self.current_tail() }
     }
 
-    /// The coarse tail as of the window's current start.
+    /// The coarse tail as of the window's current start (the start read only if there is
+    /// a tail: the plans' knots ask this on every step).
     fn current_tail(&self) -> Option<CoarseTail> {
-        let start = self.receding.as_ref().map_or(0.0, RecedingHorizon::start);
-        self.tail.map(|tail| tail.at_start(self.dt, start))
+        self.tail.map(|tail| tail.at_start(self.dt, self.receding.as_ref().map_or(0.0, RecedingHorizon::start)))
     }
 
     /// The length of knot `k`'s interval (s): `dt`, or the coarse tail's.
