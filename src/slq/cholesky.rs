@@ -3,19 +3,22 @@
 
 use nalgebra::{DMatrix, DVector};
 
-/// Right-hand-side columns solved together by [`SmallCholesky::solve_in_place`].
+/// Right-hand-side columns side by side in [`SmallCholesky::solve_in_place`]'s vectors.
 const COLUMN_BLOCK: usize = 8;
 
 /// `H = L L^T`, `L` kept in the lower triangle.
 pub(super) struct SmallCholesky {
     l: DMatrix<f64>,
+    /// `L` again, row by row: the forward substitution reads rows, the backward one columns,
+    /// and each reads its copy contiguously.
+    l_rows: Vec<f64>,
     /// `n x COLUMN_BLOCK` right-hand sides, row by row.
     block: Vec<[f64; COLUMN_BLOCK]>,
 }
 
 impl SmallCholesky {
     pub(super) fn new(n: usize) -> Self {
-        Self { l: DMatrix::zeros(n, n), block: vec![[0.0; COLUMN_BLOCK]; n] }
+        Self { l: DMatrix::zeros(n, n), l_rows: vec![0.0; n * n], block: vec![[0.0; COLUMN_BLOCK]; n] }
     }
 
     /// Factors the symmetric `h`; false if it is not (numerically) positive definite.
@@ -40,83 +43,85 @@ impl SmallCholesky {
                 self.l[(i, j)] = s / d;
             }
         }
+        for (i, row) in self.l_rows.chunks_exact_mut(n).enumerate() {
+            for (k, l_ik) in row.iter_mut().enumerate() {
+                *l_ik = self.l[(i, k)];
+            }
+        }
         true
     }
 
     /// `x <- H^-1 x` for one column (forward then backward substitution).
-    #[allow(clippy::needless_range_loop)] // the triangular solves read clearest with indices
     fn solve_column(&self, x: &mut [f64]) {
         let n = x.len();
+        let (l_rows, l_columns) = (&self.l_rows, self.l.as_slice());
         for i in 0..n {
-            let mut s = x[i];
-            for k in 0..i {
-                s -= self.l[(i, k)] * x[k];
+            let (solved, rest) = x.split_at_mut(i);
+            let mut s = rest[0];
+            for (lik, xk) in l_rows[i * n..i * n + i].iter().zip(solved.iter()) {
+                s -= lik * xk;
             }
-            x[i] = s / self.l[(i, i)];
+            rest[0] = s / l_rows[i * n + i];
         }
         for i in (0..n).rev() {
-            let mut s = x[i];
-            for k in (i + 1)..n {
-                s -= self.l[(k, i)] * x[k];
+            let (head, solved) = x.split_at_mut(i + 1);
+            let mut s = head[i];
+            for (lki, xk) in l_columns[i * n + i + 1..(i + 1) * n].iter().zip(solved.iter()) {
+                s -= lki * xk;
             }
-            x[i] = s / self.l[(i, i)];
+            head[i] = s / l_columns[i * n + i];
         }
     }
 
-    /// `b <- H^-1 b`, every column. Columns are solved [`COLUMN_BLOCK`] at a time, laid side
-    /// by side so that the substitutions run across columns in vector registers; each
-    /// column sees exactly the operations of [`Self::solve_column`], in the same order.
+    /// `b <- H^-1 b`, every column. The columns are solved [`COLUMN_BLOCK`] at a time (the
+    /// last block padded with zeros), laid side by side so that the substitutions run
+    /// across columns in vector registers, several independent ones per step where one
+    /// column's sums are a chain of dependent subtractions. Each column sees exactly the
+    /// operations of [`Self::solve_column`], in the same order.
     pub(super) fn solve_in_place(&mut self, b: &mut DMatrix<f64>) {
         let n = b.nrows();
-        let ncols = b.ncols();
-        let mut c0 = 0;
-        while c0 + COLUMN_BLOCK <= ncols {
-            for i in 0..n {
-                for c in 0..COLUMN_BLOCK {
-                    self.block[i][c] = b[(i, c0 + c)];
+        for columns in b.as_mut_slice().chunks_mut(COLUMN_BLOCK * n) {
+            for (row, i) in self.block.iter_mut().zip(0..) {
+                for (c, x) in row.iter_mut().enumerate() {
+                    *x = columns.get(c * n + i).copied().unwrap_or(0.0);
                 }
             }
             self.solve_block();
-            for i in 0..n {
-                for c in 0..COLUMN_BLOCK {
-                    b[(i, c0 + c)] = self.block[i][c];
+            for (c, column) in columns.chunks_exact_mut(n).enumerate() {
+                for (row, b_ic) in self.block.iter().zip(column) {
+                    *b_ic = row[c];
                 }
             }
-            c0 += COLUMN_BLOCK;
-        }
-        for c in c0..ncols {
-            let col = &mut b.as_mut_slice()[c * n..(c + 1) * n];
-            self.solve_column(col);
         }
     }
 
     /// [`Self::solve_column`] on the [`COLUMN_BLOCK`] columns in `self.block` at once.
     fn solve_block(&mut self) {
         let n = self.block.len();
-        let l = &self.l;
+        let (l_rows, l_columns) = (&self.l_rows, self.l.as_slice());
         let x = &mut self.block;
         for i in 0..n {
-            let mut sum = x[i];
-            for k in 0..i {
-                let lik = l[(i, k)];
-                for (acc, xk) in sum.iter_mut().zip(&x[k]) {
+            let (solved, rest) = x.split_at_mut(i);
+            let mut sum = rest[0];
+            for (lik, xk) in l_rows[i * n..i * n + i].iter().zip(solved.iter()) {
+                for (acc, xk) in sum.iter_mut().zip(xk) {
                     *acc -= lik * xk;
                 }
             }
-            let d = l[(i, i)];
-            for (xi, acc) in x[i].iter_mut().zip(&sum) {
+            let d = l_rows[i * n + i];
+            for (xi, acc) in rest[0].iter_mut().zip(&sum) {
                 *xi = acc / d;
             }
         }
         for i in (0..n).rev() {
-            let mut sum = x[i];
-            for k in (i + 1)..n {
-                let lki = l[(k, i)];
-                for (acc, xk) in sum.iter_mut().zip(&x[k]) {
+            let (head, solved) = x.split_at_mut(i + 1);
+            let mut sum = head[i];
+            for (lki, xk) in l_columns[i * n + i + 1..(i + 1) * n].iter().zip(solved.iter()) {
+                for (acc, xk) in sum.iter_mut().zip(xk) {
                     *acc -= lki * xk;
                 }
             }
-            let d = l[(i, i)];
+            let d = l_columns[i * n + i];
             for (xi, acc) in x[i].iter_mut().zip(&sum) {
                 *xi = acc / d;
             }

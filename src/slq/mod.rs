@@ -31,6 +31,7 @@ pub use problem::{KnotDerivatives, Policy, Problem};
 pub use receding::{RealTimeIteration, RealTimeIterationError};
 pub use warm_start::SolutionPolicy;
 
+use crate::linalg::gemm;
 use cholesky::SmallCholesky;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -287,7 +288,7 @@ pub struct Slq<'p, P: Problem> {
     /// One local model per knot, each behind its own lock: in the overlapped pass
     /// ([`SlqSettings::overlap_backward_pass`]) helper threads write knots while the backward
     /// pass reads later ones (uncontended: a knot is read only once it is marked ready).
-    derivatives: Vec<Mutex<KnotDerivatives>>,
+    derivatives: Vec<Mutex<KnotModel>>,
     /// Which knots the overlapped pass has linearized.
     ready: Vec<AtomicBool>,
     /// Where each knot's model was taken, with [`SlqSettings::model_reuse`] (empty without).
@@ -358,19 +359,35 @@ impl<S: Clone> ModelPoint<S> {
 /// ([`Problem::same_model_piece`]). `point` is where the model was taken (`None` without
 /// reuse).
 #[allow(clippy::too_many_arguments)]
-fn knot_model<P: Problem>(problem: &P, ws: &mut P::Workspace, k: usize, x: &P::State, u: &DVector<f64>, scratch: &mut P::State, d: &mut KnotDerivatives, point: Option<&Mutex<ModelPoint<P::State>>>, reuse: bool) {
+fn knot_model<P: Problem>(problem: &P, ws: &mut P::Workspace, k: usize, x: &P::State, u: &DVector<f64>, scratch: &mut P::State, model: &mut KnotModel, point: Option<&Mutex<ModelPoint<P::State>>>, reuse: bool) {
     let Some(point) = point else {
-        problem.linearize_knot(ws, k, x, u, scratch, d);
+        model.linearize(problem, ws, k, x, u, scratch);
         return;
     };
     let mut point = point.lock().unwrap_or_else(PoisonError::into_inner);
     if reuse && problem.same_model_piece(&point.x, x) {
-        point.recenter(problem, x, u, d);
+        // A and B are kept: so is their pass-through count.
+        point.recenter(problem, x, u, &mut model.d);
     } else {
-        problem.linearize_knot(ws, k, x, u, scratch, d);
+        model.linearize(problem, ws, k, x, u, scratch);
         point.x.clone_from(x);
         point.u.copy_from(u);
         point.valid = true;
+    }
+}
+
+/// A knot's local model, and what the backward pass reads off it: counted where the model
+/// is taken (on the linearization's threads), not in the pass, which runs on one thread.
+struct KnotModel {
+    d: KnotDerivatives,
+    /// [`pass_through_rows`] of `[A B]`.
+    pass_through: usize,
+}
+
+impl KnotModel {
+    fn linearize<P: Problem>(&mut self, problem: &P, ws: &mut P::Workspace, k: usize, x: &P::State, u: &DVector<f64>, scratch: &mut P::State) {
+        problem.linearize_knot(ws, k, x, u, scratch, &mut self.d);
+        self.pass_through = pass_through_rows(&self.d.a, &self.d.b);
     }
 }
 
@@ -451,7 +468,7 @@ impl Drop for FlagOnPanic<'_> {
 }
 
 /// The local model of a knot behind its lock, when the lock is not needed (`&mut` access).
-fn knot_mut(d: &mut Mutex<KnotDerivatives>) -> &mut KnotDerivatives {
+fn knot_mut(d: &mut Mutex<KnotModel>) -> &mut KnotModel {
     d.get_mut().unwrap_or_else(PoisonError::into_inner)
 }
 
@@ -496,11 +513,12 @@ fn q_function_hessian(r: &mut RiccatiScratch, d: &KnotDerivatives, nz: usize) {
     let (a_t, b_t) = (r.ab_t.view((0, 0), (nx, nz)), r.ab_t.view((nx, 0), (nu, nz)));
     // M = P' [A B] = P'_{:z} [A B]_z, then + P'_{:t} D on the pass-through columns.
     let p_z = r.p_mat.columns(0, nz);
-    r.p_ab.columns_mut(0, nx).gemm(1.0, &p_z, &d.a.rows(0, nz), 0.0);
-    r.p_ab.columns_mut(nx, nu).gemm(1.0, &p_z, &d.b.rows(0, nz), 0.0);
+    gemm(r.p_ab.columns_mut(0, nx), 1.0, p_z, d.a.rows(0, nz), 0.0);
+    gemm(r.p_ab.columns_mut(nx, nu), 1.0, p_z, d.b.rows(0, nz), 0.0);
+    let (p_ab, p_mat) = (r.p_ab.as_mut_slice(), r.p_mat.as_slice());
     for j in nz..nx {
         let d_jj = d.a[(j, j)];
-        for (m, p) in r.p_ab.column_mut(j).iter_mut().zip(r.p_mat.column(j).iter()) {
+        for (m, p) in p_ab[j * nx..(j + 1) * nx].iter_mut().zip(&p_mat[j * nx..(j + 1) * nx]) {
             *m += p * d_jj;
         }
     }
@@ -508,18 +526,21 @@ fn q_function_hessian(r: &mut RiccatiScratch, d: &KnotDerivatives, nz: usize) {
     // Q_xx = l_xx + A^T M = l_xx + (A_{z:}^T M_z + [0; D M_t]): `l` added last, as the dense
     // product adds it (one product over all rows: nalgebra multiplies fewer than six rows
     // in its own order).
-    r.q_xx.gemm(1.0, &a_t, &m_z.columns(0, nx), 0.0);
-    for i in nz..nx {
-        let d_ii = d.a[(i, i)];
-        for j in 0..nx {
-            r.q_xx[(i, j)] += d_ii * r.p_ab[(i, j)];
+    gemm(&mut r.q_xx, 1.0, a_t, m_z.columns(0, nx), 0.0);
+    // Column by column (contiguous): each entry gets the same two additions in the same order.
+    let (q_xx, p_ab, l_xx) = (r.q_xx.as_mut_slice(), r.p_ab.as_slice(), d.l_xx.as_slice());
+    for ((q, m), l) in q_xx.chunks_exact_mut(nx).zip(p_ab.chunks_exact(nx)).zip(l_xx.chunks_exact(nx)) {
+        for i in nz..nx {
+            q[i] += d.a[(i, i)] * m[i];
+        }
+        for (q, l) in q.iter_mut().zip(l) {
+            *q += l;
         }
     }
-    r.q_xx += &d.l_xx;
     r.q_uu.copy_from(&d.l_uu);
-    r.q_uu.gemm(1.0, &b_t, &m_z.columns(nx, nu), 1.0);
+    gemm(&mut r.q_uu, 1.0, b_t, m_z.columns(nx, nu), 1.0);
     r.q_ux.copy_from(&d.l_ux);
-    r.q_ux.gemm(1.0, &b_t, &m_z.columns(0, nx), 1.0);
+    gemm(&mut r.q_ux, 1.0, b_t, m_z.columns(0, nx), 1.0);
 }
 
 /// One knot of the backward pass (Step 3 of Algorithm 1), from `P'`, `p'` in `r.p_mat`,
@@ -540,14 +561,15 @@ fn riccati_knot(
     qp: &mut BoxQp,
     control_limits: ControlLimits,
     regularization: f64,
-    d: &KnotDerivatives,
+    model: &KnotModel,
     u: &DVector<f64>,
     (lower, upper, bounded): (&DVector<f64>, &DVector<f64>, bool),
     gain: &mut DMatrix<f64>,
     ff: &mut DVector<f64>,
 ) -> bool {
+    let d = &model.d;
     let nx = d.a.nrows();
-    q_function_hessian(r, d, nx - pass_through_rows(&d.a, &d.b));
+    q_function_hessian(r, d, nx - model.pass_through);
     // Q_x = l_x + A^T p';  g = l_u + B^T p'
     r.q_x.copy_from(&d.l_x);
     r.q_x.gemv_tr(1.0, &d.a, &r.p_vec, 1.0);
@@ -574,6 +596,7 @@ fn riccati_knot(
         r.chol.solve_in_place(gain);
         gain.neg_mut();
     } else {
+
         r.du_lower.copy_from(lower);
         r.du_lower -= u;
         r.du_upper.copy_from(upper);
@@ -602,7 +625,7 @@ fn riccati_knot(
     // (the pass: 36.7 -> 28 ms per 1500 knots, BENCHMARKS.md). Q_xx is not needed after
     // this: the product adds onto it, which then becomes P (its buffer traded with P').
     r.q_ux.transpose_to(&mut r.q_ux_t);
-    r.q_xx.gemm(1.0, &r.q_ux_t, gain, 1.0);
+    gemm(&mut r.q_xx, 1.0, &r.q_ux_t, &*gain, 1.0);
     std::mem::swap(&mut r.p_mat, &mut r.q_xx);
     r.p_vec.copy_from(&r.q_x);
     r.p_vec.gemv_tr(1.0, &r.q_ux, ff, 1.0);
@@ -704,7 +727,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             trials: (0..threads).map(|_| Trial { states: vec![x0.clone(); n + 1], inputs: vec![DVector::zeros(nu); n], dx: DVector::zeros(nx), cost: None, failed_at: None }).collect(),
             gains: vec![DMatrix::zeros(nu, nx); n],
             feedforward: vec![DVector::zeros(nu); n],
-            derivatives: (0..n).map(|_| Mutex::new(KnotDerivatives::zeros(nx, nu))).collect(),
+            derivatives: (0..n).map(|_| Mutex::new(KnotModel { d: KnotDerivatives::zeros(nx, nu), pass_through: 0 })).collect(),
             ready: (0..n).map(|_| AtomicBool::new(false)).collect(),
             // Checked and allocated by set_model_reuse below.
             points: Vec::new(),
