@@ -31,6 +31,7 @@ pub mod io;
 pub mod ipocp;
 pub mod job;
 pub mod jump;
+pub mod linalg;
 pub mod model;
 pub mod mpc;
 pub mod ocp;

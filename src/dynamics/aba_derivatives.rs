@@ -13,6 +13,7 @@
 //! `M^-1` comes from the tree-sparse `L^T D L` factorization of `M` (Featherstone 2008,
 //! §6.5, Table 6.3), which exploits that `M_ij = 0` unless `i` and `j` lie on one branch.
 
+use crate::linalg::gemm;
 use super::aba::aba;
 use super::crba::crba;
 use super::rnea_derivatives::compute_rnea_derivatives;
@@ -158,8 +159,8 @@ pub fn compute_aba_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>,
     compute_rnea_derivatives(model, data, q, v, &qdd);
     data.ddq = qdd;
     invert_mass_matrix(model, data);
-    data.ddq_dq.gemm(-1.0, &data.minv, &data.dtau_dq, 0.0);
-    data.ddq_dv.gemm(-1.0, &data.minv, &data.dtau_dv, 0.0);
+    gemm(&mut data.ddq_dq, -1.0, &data.minv, &data.dtau_dq, 0.0);
+    gemm(&mut data.ddq_dv, -1.0, &data.minv, &data.dtau_dv, 0.0);
 }
 
 #[cfg(test)]

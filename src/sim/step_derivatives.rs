@@ -43,6 +43,7 @@
 //!
 //! The contact anchors are hidden states (as in the paper): held over the step.
 
+use crate::linalg::gemm;
 use super::workspace::ContactModelWorkspace;
 use crate::dynamics::{compute_joint_jacobians, compute_minverse, compute_rnea_derivatives, integrate_jacobians};
 use crate::model::Model;
@@ -132,8 +133,8 @@ impl StepDerivatives {
         self.dtau_c_dq -= &ws.data.dtau_dq;
         self.dtau_c_dv -= &ws.data.dtau_dv;
         compute_minverse(model, &mut ws.data, q);
-        self.a_q.gemm(1.0, &ws.data.minv, &self.dtau_c_dq, 0.0);
-        self.a_v.gemm(1.0, &ws.data.minv, &self.dtau_c_dv, 0.0);
+        gemm(&mut self.a_q, 1.0, &ws.data.minv, &self.dtau_c_dq, 0.0);
+        gemm(&mut self.a_v, 1.0, &ws.data.minv, &self.dtau_c_dv, 0.0);
 
         // v' = v + dt a, q' = q (+) dt v' (the simulator's own update), and the Jacobians of
         // that integrate at dt v'.

@@ -28,6 +28,7 @@
 //! so a power costs `nv x nv x n` a substep instead of `nv x n x n` (at HyQ's 48 states
 //! 2.7x fewer again).
 
+use crate::linalg::gemm;
 use super::{StepDerivatives, ANCHOR_DIM};
 use crate::model::{JointKind, Model};
 use crate::spatial::Matrix6;
@@ -133,7 +134,7 @@ impl SubstepProduct {
     pub fn mul(&mut self, x: &DMatrix<f64>, out: &mut DMatrix<f64>) {
         let (nv, m) = (self.nv, x.ncols());
         // V X, the velocity rows: the one product of the size of the state.
-        DMatrixViewMut::from_slice(&mut self.vx[..nv * m], nv, m).gemm(1.0, &self.velocity_rows, x, 0.0);
+        gemm(DMatrixViewMut::from_slice(&mut self.vx[..nv * m], nv, m), 1.0, &self.velocity_rows, x, 0.0);
         self.assemble(x, &self.vx[..nv * m], out);
     }
 
@@ -194,19 +195,19 @@ impl SubstepProduct {
         // W_v + h W_q Jv (Jv the identity but on the free flyers' blocks).
         self.right_factor.copy_from(&w.columns(nv, nv));
         for (iv, _, h_jv) in &self.free_flyers {
-            self.right_factor.columns_mut(*iv, 6).gemm(1.0, &w.columns(*iv, 6), h_jv, 1.0);
+            gemm(self.right_factor.columns_mut(*iv, 6), 1.0, w.columns(*iv, 6), h_jv, 1.0);
         }
         for &c in &self.plain_columns {
             self.right_factor.column_mut(c).axpy(h, &w.column(c), 1.0);
         }
         let out = &mut self.powers_v_next;
-        out.gemm(1.0, &self.right_factor, &self.velocity_rows, 0.0);
+        gemm(&mut *out, 1.0, &self.right_factor, &self.velocity_rows, 0.0);
         // + W_q Jq on the configuration columns.
         for &c in &self.plain_columns {
             out.column_mut(c).axpy(1.0, &w.column(c), 1.0);
         }
         for (iv, jq, _) in &self.free_flyers {
-            out.columns_mut(*iv, 6).gemm(1.0, &w.columns(*iv, 6), jq, 1.0);
+            gemm(out.columns_mut(*iv, 6), 1.0, w.columns(*iv, 6), jq, 1.0);
         }
         // + W_a R: a held anchor's rows pass it through, a forgotten one's are zero.
         for (f, kind) in self.anchor_rows.iter().enumerate() {

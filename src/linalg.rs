@@ -1,0 +1,94 @@
+//! Dense matrix products of the hot paths.
+//!
+//! nalgebra's `gemm` on these sizes (the backward pass's `P' [A B]` is 48 x 36 times 36 x 60,
+//! the knots' linearization multiplies 18 to 48 rows) goes through matrixmultiply, which
+//! packs both operands into a buffer it allocates on every call. [`gemm`] runs nano-gemm's
+//! unpacked kernels on the column-major operands in place and allocates nothing.
+//!
+//! Every entry is the same sum as matrixmultiply's, `sum_k a_ik b_kj` accumulated by fused
+//! multiply-adds from `k = 0` up, then added once to `beta c_ij` (`beta` 0 or 1, `alpha` 1 or
+//! -1, exact scalings). nalgebra hands a product to matrixmultiply when all its dimensions
+//! exceed 5: there the results are nalgebra's to the bit, and the plans and closed loops do
+//! not move. (Below that nalgebra sums without fusing; the callers keep nalgebra there.)
+//!
+//! ```
+//! use nalgebra::DMatrix;
+//! let a = DMatrix::from_fn(6, 4, |i, j| (i + 2 * j) as f64 * 0.1);
+//! let b = DMatrix::from_fn(4, 5, |i, j| (i * j) as f64 - 1.5);
+//! let mut c = DMatrix::from_element(6, 5, 2.0);
+//! legwork::linalg::gemm(&mut c, 1.0, &a, &b, 1.0);
+//! assert!((c - (DMatrix::from_element(6, 5, 2.0) + &a * &b)).amax() < 1e-12);
+//! ```
+
+use nalgebra::{DMatrixView, DMatrixViewMut};
+
+/// `c <- beta c + alpha a b` (nalgebra's `gemm` argument order), `alpha` in {1, -1} and
+/// `beta` in {0, 1}: the products legwork's hot paths form, rounded as nalgebra's where every
+/// dimension exceeds 5 (the module's notes). `beta = 0` ignores `c`'s entries (they may be
+/// anything, NaN included).
+///
+/// # Panics
+/// If the shapes do not match or `alpha`, `beta` are other values: a programming error.
+pub fn gemm<'c, 'a, 'b>(c: impl Into<DMatrixViewMut<'c, f64>>, alpha: f64, a: impl Into<DMatrixView<'a, f64>>, b: impl Into<DMatrixView<'b, f64>>, beta: f64) {
+    let (mut c, a, b) = (c.into(), a.into(), b.into());
+    let ((m, n), (am, k), (bk, bn)) = (c.shape(), a.shape(), b.shape());
+    assert!(am == m && bn == n && bk == k, "gemm: {m}x{n} <- {am}x{k} * {bk}x{bn}");
+    assert!((alpha == 1.0 || alpha == -1.0) && (beta == 0.0 || beta == 1.0), "gemm: alpha {alpha}, beta {beta}");
+    if m == 0 || n == 0 {
+        return;
+    }
+    // nano-gemm's convention is `dst <- alpha dst + beta lhs rhs`; the views' row strides
+    // are 1 by their type (column-major, as its column-major plan needs).
+    let (c_cs, a_cs, b_cs) = (c.strides().1, a.strides().1, b.strides().1);
+    let plan = nano_gemm::Plan::new_colmajor_lhs_and_dst_f64(m, n, k);
+    // SAFETY: `c`, `a` and `b` are views of `m x n`, `m x k` and `k x n` (checked above) with
+    // unit row strides and the column strides passed: every address the kernels touch is an
+    // element of its view. `c` is borrowed mutably, so it aliases neither `a` nor `b`.
+    unsafe {
+        plan.execute_unchecked(m, n, k, c.as_mut_ptr(), 1, c_cs as isize, a.as_ptr(), 1, a_cs as isize, b.as_ptr(), 1, b_cs as isize, beta, alpha, false, false);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::DMatrix;
+
+    fn entries(rows: usize, cols: usize, seed: u64) -> DMatrix<f64> {
+        let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+        DMatrix::from_fn(rows, cols, |_, _| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        })
+    }
+
+    /// The same bits as nalgebra's `gemm` on the shapes of the backward pass and the knots'
+    /// linearization (every dimension above 5), on views with strides, for every `alpha`,
+    /// `beta` allowed; on smaller shapes the same product to round-off.
+    #[test]
+    fn matches_nalgebra_to_the_bit() {
+        for (seed, (m, n, k)) in [(48, 60, 36), (48, 48, 36), (12, 60, 36), (48, 48, 12), (18, 18, 18), (18, 36, 18), (6, 18, 12), (3, 18, 3), (1, 7, 5), (30, 1, 2)].into_iter().enumerate() {
+            let fused = m > 5 && n > 5 && k > 5;
+            let (a, b, c0) = (entries(m + 3, k + 1, seed as u64), entries(k + 2, n, seed as u64 + 100), entries(m + 1, n + 2, seed as u64 + 200));
+            for (alpha, beta) in [(1.0, 0.0), (1.0, 1.0), (-1.0, 0.0), (-1.0, 1.0)] {
+                let (mut ours, mut theirs) = (c0.clone(), c0.clone());
+                gemm(ours.view_mut((1, 2), (m, n)), alpha, a.view((2, 1), (m, k)), b.rows(1, k), beta);
+                theirs.view_mut((1, 2), (m, n)).gemm(alpha, &a.view((2, 1), (m, k)), &b.rows(1, k), beta);
+                let differ = ours.iter().zip(theirs.iter()).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
+                if fused {
+                    assert_eq!(differ, 0, "{m}x{n}x{k}, alpha {alpha}, beta {beta}");
+                } else {
+                    assert!((&ours - &theirs).amax() <= 1e-14 * k as f64, "{m}x{n}x{k}, alpha {alpha}, beta {beta}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    #[should_panic(expected = "gemm: 3x4 <- 3x2 * 3x4")]
+    fn refuses_mismatched_shapes() {
+        gemm(&mut DMatrix::zeros(3, 4), 1.0, &DMatrix::zeros(3, 2), &DMatrix::zeros(3, 4), 0.0);
+    }
+}
