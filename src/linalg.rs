@@ -20,7 +20,7 @@
 //! assert!((c - (DMatrix::from_element(6, 5, 2.0) + &a * &b)).amax() < 1e-12);
 //! ```
 
-use nalgebra::{DMatrixView, DMatrixViewMut};
+use nalgebra::{DMatrix, DMatrixView, DMatrixViewMut, DVector, DVectorView};
 
 /// `c <- beta c + alpha a b` (nalgebra's `gemm` argument order), `alpha` in {1, -1} and
 /// `beta` in {0, 1}: the products legwork's hot paths form, rounded as nalgebra's where every
@@ -46,6 +46,28 @@ pub fn gemm<'c, 'a, 'b>(c: impl Into<DMatrixViewMut<'c, f64>>, alpha: f64, a: im
     // element of its view. `c` is borrowed mutably, so it aliases neither `a` nor `b`.
     unsafe {
         plan.execute_unchecked(m, n, k, c.as_mut_ptr(), 1, c_cs as isize, a.as_ptr(), 1, a_cs as isize, b.as_ptr(), 1, b_cs as isize, beta, alpha, false, false);
+    }
+}
+
+/// `y <- y + a x`, column by column: for each `j` in order, `y_i <- a_ij x_j + y_i` (a product
+/// then a sum, unfused), the very operations of nalgebra's `y.gemv(1.0, a, x, 1.0)`, so the
+/// same bits; over contiguous columns, where nalgebra's generic strided loop is scalar (the
+/// policy `u = u_k + alpha l_k + K_k dx` of every rollout step).
+///
+/// # Panics
+/// If the shapes do not match: a programming error.
+pub fn gemv_add<'x>(y: &mut DVector<f64>, a: &DMatrix<f64>, x: impl Into<DVectorView<'x, f64>>) {
+    let x = x.into();
+    let (m, n) = a.shape();
+    assert!(y.len() == m && x.len() == n, "gemv_add: {} <- {m}x{n} * {}", y.len(), x.len());
+    if m == 0 {
+        return;
+    }
+    let y = y.as_mut_slice();
+    for (column, x_j) in a.as_slice().chunks_exact(m).zip(x.iter()) {
+        for (y_i, a_ij) in y.iter_mut().zip(column) {
+            *y_i = a_ij * x_j + *y_i;
+        }
     }
 }
 
@@ -83,6 +105,18 @@ mod tests {
                     assert!((&ours - &theirs).amax() <= 1e-14 * k as f64, "{m}x{n}x{k}, alpha {alpha}, beta {beta}");
                 }
             }
+        }
+    }
+
+    /// The same bits as nalgebra's `gemv(1.0, a, x, 1.0)`, on a contiguous and a strided `x`.
+    #[test]
+    fn gemv_add_matches_nalgebra_to_the_bit() {
+        for (seed, (m, n)) in [(12, 48), (12, 36), (1, 5), (7, 1), (48, 48)].into_iter().enumerate() {
+            let (a, x, y0) = (entries(m, n, seed as u64), entries(n, 2, seed as u64 + 7), entries(m, 1, seed as u64 + 9));
+            let (mut ours, mut theirs) = (DVector::from_column_slice(y0.as_slice()), DVector::from_column_slice(y0.as_slice()));
+            gemv_add(&mut ours, &a, x.column(1));
+            theirs.gemv(1.0, &a, &x.column(1), 1.0);
+            assert!(ours.iter().zip(theirs.iter()).all(|(p, q)| p.to_bits() == q.to_bits()), "{m}x{n}");
         }
     }
 

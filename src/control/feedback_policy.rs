@@ -11,6 +11,7 @@
 //! interpolated between knots (`q* = q_k (+) s (q_k+1 (-) q_k)`, `v*` linearly), so that a
 //! controller faster than the knots does not pull the robot back to the interval's start.
 
+use crate::linalg::gemv_add;
 use super::interpolation::interpolate_state;
 use crate::dynamics::difference;
 use crate::io::Trajectory;
@@ -82,7 +83,7 @@ impl Controller for FeedbackPolicy {
             self.dx[nv + i] = state.v[i] - self.v_ref[i];
         }
         self.u.copy_from(&self.tau[k]);
-        self.u.gemv(1.0, &self.gains[k], &self.dx, 1.0);
+        gemv_add(&mut self.u, &self.gains[k], &self.dx);
         tau.rows_mut(6, self.u.len()).copy_from(&self.u);
         Ok(())
     }

@@ -33,6 +33,7 @@ pub mod closed_loop;
 
 pub use closed_loop::{run_closed_loop, ClosedLoopRun, PolicyLatency, TickRecord};
 
+use crate::linalg::gemv_add;
 use crate::model::Model;
 use crate::ocp::{physical_gain, CoarseTail, KnotLinearization, PhysicalGainWorkspace, PlanValue, RecedingHorizon, ReferenceMotion, RobotState, TaskError, TaskSpec, WholeBodyProblem};
 use crate::sim::{ControlError, Controller, SimState};
@@ -657,14 +658,14 @@ impl Controller for MpcPolicyController<'_, '_> {
         }
         self.u.copy_from(&self.policy.inputs[k]);
         match &mut self.physical {
-            None => self.u.gemv(1.0, &self.policy.gains[k], &self.dx, 1.0),
+            None => gemv_add(&mut self.u, &self.policy.gains[k], &self.dx),
             Some(p) => {
                 if !p.ready[k] {
                     let knot = &self.policy.states[k];
                     physical_gain(model, &mut p.workspace, &knot.q, &knot.anchors, &self.policy.gains[k], &mut p.gains[k]);
                     p.ready[k] = true;
                 }
-                self.u.gemv(1.0, &p.gains[k], &self.dx.rows(0, 2 * model.nv), 1.0);
+                gemv_add(&mut self.u, &p.gains[k], self.dx.rows(0, 2 * model.nv));
             }
         }
         tau.rows_mut(6, self.u.len()).copy_from(&self.u);

@@ -31,7 +31,7 @@ pub use problem::{KnotDerivatives, Policy, Problem};
 pub use receding::{RealTimeIteration, RealTimeIterationError};
 pub use warm_start::SolutionPolicy;
 
-use crate::linalg::gemm;
+use crate::linalg::{gemm, gemv_add};
 use cholesky::SmallCholesky;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -985,7 +985,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             let u = &mut trial.inputs[k];
             u.copy_from(&inputs[k]);
             u.axpy(alpha, &feedforward[k], 1.0);
-            u.gemv(1.0, &gains[k], &trial.dx, 1.0);
+            gemv_add(u, &gains[k], &trial.dx);
             project(u, &lower[k], &upper[k]);
             let (head, tail) = trial.states.split_at_mut(k + 1);
             cost += problem.step(ws, k, &head[k], u, &mut tail[0]);
