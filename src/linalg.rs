@@ -49,25 +49,62 @@ pub fn gemm<'c, 'a, 'b>(c: impl Into<DMatrixViewMut<'c, f64>>, alpha: f64, a: im
     }
 }
 
-/// `y <- y + a x`, column by column: for each `j` in order, `y_i <- a_ij x_j + y_i` (a product
-/// then a sum, unfused), the very operations of nalgebra's `y.gemv(1.0, a, x, 1.0)`, so the
-/// same bits; over contiguous columns, where nalgebra's generic strided loop is scalar (the
-/// policy `u = u_k + alpha l_k + K_k dx` of every rollout step).
+/// `y <- beta y + alpha a x` (nalgebra's `gemv` argument order), `beta` in {0, 1}: column by
+/// column, for each `j` in order `y_i <- (alpha a_ij) x_j + y_i` (products then a sum,
+/// unfused; the first column alone without `beta = 0`), the very operations of nalgebra's
+/// `gemv`, so the same bits, over contiguous columns where nalgebra's generic strided loop
+/// is scalar (the policy `u = u_k + alpha l_k + K_k dx` of every rollout step, the anchors'
+/// columns of a knot's `A`).
 ///
 /// # Panics
-/// If the shapes do not match: a programming error.
-pub fn gemv_add<'x>(y: &mut DVector<f64>, a: &DMatrix<f64>, x: impl Into<DVectorView<'x, f64>>) {
+/// If the shapes do not match or `beta` is another value: a programming error.
+pub fn gemv<'x>(y: &mut DVector<f64>, alpha: f64, a: &DMatrix<f64>, x: impl Into<DVectorView<'x, f64>>, beta: f64) {
     let x = x.into();
     let (m, n) = a.shape();
-    assert!(y.len() == m && x.len() == n, "gemv_add: {} <- {m}x{n} * {}", y.len(), x.len());
+    assert!(y.len() == m && x.len() == n, "gemv: {} <- {m}x{n} * {}", y.len(), x.len());
+    assert!(beta == 0.0 || beta == 1.0, "gemv: beta {beta}");
+    let y = y.as_mut_slice();
     if m == 0 {
         return;
     }
-    let y = y.as_mut_slice();
-    for (column, x_j) in a.as_slice().chunks_exact(m).zip(x.iter()) {
-        for (y_i, a_ij) in y.iter_mut().zip(column) {
-            *y_i = a_ij * x_j + *y_i;
+    let mut columns = a.as_slice().chunks_exact(m).zip(x.iter());
+    if beta == 0.0 {
+        match columns.next() {
+            Some((column, x_0)) => {
+                for (y_i, a_i0) in y.iter_mut().zip(column) {
+                    *y_i = alpha * a_i0 * x_0;
+                }
+            }
+            None => y.fill(0.0),
         }
+    }
+    for (column, x_j) in columns {
+        for (y_i, a_ij) in y.iter_mut().zip(column) {
+            *y_i = alpha * a_ij * x_j + *y_i;
+        }
+    }
+}
+
+/// `y <- y + a x`: [`gemv`] with `alpha = beta = 1`.
+pub fn gemv_add<'x>(y: &mut DVector<f64>, a: &DMatrix<f64>, x: impl Into<DVectorView<'x, f64>>) {
+    gemv(y, 1.0, a, x, 1.0);
+}
+
+/// `dst`'s block at `(row, col)` <- `src`, column by column (contiguous copies, where
+/// nalgebra's `copy_from` on a view walks the entries one by one).
+///
+/// # Panics
+/// If `src` does not fit at `(row, col)`: a programming error.
+pub fn copy_block(dst: &mut DMatrix<f64>, (row, col): (usize, usize), src: &DMatrix<f64>) {
+    let (m, n) = src.shape();
+    let rows = dst.nrows();
+    assert!(row + m <= rows && col + n <= dst.ncols(), "copy_block: {m}x{n} at ({row}, {col}) in {rows}x{}", dst.ncols());
+    if m == 0 {
+        return;
+    }
+    for (j, column) in src.as_slice().chunks_exact(m).enumerate() {
+        let start = (col + j) * rows + row;
+        dst.as_mut_slice()[start..start + m].copy_from_slice(column);
     }
 }
 
@@ -108,16 +145,28 @@ mod tests {
         }
     }
 
-    /// The same bits as nalgebra's `gemv(1.0, a, x, 1.0)`, on a contiguous and a strided `x`.
+    /// The same bits as nalgebra's `gemv`, on a contiguous and a strided `x`.
     #[test]
-    fn gemv_add_matches_nalgebra_to_the_bit() {
-        for (seed, (m, n)) in [(12, 48), (12, 36), (1, 5), (7, 1), (48, 48)].into_iter().enumerate() {
+    fn gemv_matches_nalgebra_to_the_bit() {
+        for (seed, (m, n)) in [(12, 48), (12, 36), (1, 5), (7, 1), (48, 48), (18, 18), (4, 0)].into_iter().enumerate() {
             let (a, x, y0) = (entries(m, n, seed as u64), entries(n, 2, seed as u64 + 7), entries(m, 1, seed as u64 + 9));
-            let (mut ours, mut theirs) = (DVector::from_column_slice(y0.as_slice()), DVector::from_column_slice(y0.as_slice()));
-            gemv_add(&mut ours, &a, x.column(1));
-            theirs.gemv(1.0, &a, &x.column(1), 1.0);
-            assert!(ours.iter().zip(theirs.iter()).all(|(p, q)| p.to_bits() == q.to_bits()), "{m}x{n}");
+            for (alpha, beta) in [(1.0, 1.0), (1.0, 0.0), (0.005, 0.0), (-0.3, 1.0)] {
+                let (mut ours, mut theirs) = (DVector::from_column_slice(y0.as_slice()), DVector::from_column_slice(y0.as_slice()));
+                gemv(&mut ours, alpha, &a, x.column(1), beta);
+                theirs.gemv(alpha, &a, &x.column(1), beta);
+                assert!(ours.iter().zip(theirs.iter()).all(|(p, q)| p.to_bits() == q.to_bits()), "{m}x{n}, alpha {alpha}, beta {beta}");
+            }
         }
+    }
+
+    #[test]
+    fn copy_block_places_the_columns() {
+        let src = entries(3, 4, 1);
+        let mut dst = DMatrix::zeros(6, 7);
+        copy_block(&mut dst, (2, 3), &src);
+        let mut expected = DMatrix::zeros(6, 7);
+        expected.view_mut((2, 3), (3, 4)).copy_from(&src);
+        assert_eq!(dst, expected);
     }
 
     #[test]

@@ -16,6 +16,7 @@
 //! in the state, moving a foot before it lands moves the anchor planted under it, which the
 //! held-anchor linearization cannot see.
 
+use crate::linalg::{copy_block, gemv};
 use super::{ContactModelWorkspace, StepDerivatives};
 use crate::contact::anchor_derivatives;
 use nalgebra::{DMatrix, DVector, Vector3};
@@ -47,7 +48,7 @@ impl AnchorStepDerivatives {
         // last columns, contiguous in column-major storage).
         let first_anchor_entry = nx * a.nrows();
         a.as_mut_slice()[first_anchor_entry..].fill(0.0);
-        a.view_mut((0, 0), (nx, nx)).copy_from(&step.a);
+        copy_block(a, (0, 0), &step.a);
         let minv = &ws.data.minv;
         for (f, foot) in ws.feet.iter().enumerate() {
             let d = anchor_derivatives(&ws.params, &foot.contact, &foot.velocity, &foot.normal, anchors_before[f].as_ref());
@@ -60,9 +61,9 @@ impl AnchorStepDerivatives {
                     continue;
                 }
                 self.force_column.gemv_tr(1.0, jp, &df, 0.0);
-                self.acceleration_column.gemv(dt, minv, &self.force_column, 0.0);
+                gemv(&mut self.acceleration_column, dt, minv, &self.force_column, 0.0);
                 a.view_mut((nv, col + c), (nv, 1)).copy_from(&self.acceleration_column);
-                self.force_column.gemv(dt, &step.jv, &self.acceleration_column, 0.0);
+                gemv(&mut self.force_column, dt, &step.jv, &self.acceleration_column, 0.0);
                 a.view_mut((0, col + c), (nv, 1)).copy_from(&self.force_column);
             }
             // Rows: the anchor after the step.
