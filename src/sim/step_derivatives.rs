@@ -168,7 +168,7 @@ impl StepDerivatives {
         self.tmp.gemm(dt2, &self.jv, &self.a_v, dt);
         self.a.view_mut((0, nv), (nv, nv)).copy_from(&self.tmp);
         self.b_lower.copy_from(&self.b.rows(nv, nv));
-        self.b.view_mut((0, 0), (nv, nu)).gemm(dt, &self.jv, &self.b_lower, 0.0);
+        gemm(self.b.view_mut((0, 0), (nv, nu)), dt, &self.jv, &self.b_lower, 0.0);
     }
 
     /// `dtau_c/dq` and `dtau_c/dv` into `self.dtau_c_dq`, `self.dtau_c_dv` (see the module
