@@ -80,7 +80,7 @@ pub fn gemv<'x>(y: &mut DVector<f64>, alpha: f64, a: &DMatrix<f64>, x: impl Into
     }
     for (column, x_j) in columns {
         for (y_i, a_ij) in y.iter_mut().zip(column) {
-            *y_i = alpha * a_ij * x_j + *y_i;
+            *y_i += alpha * a_ij * x_j;
         }
     }
 }
