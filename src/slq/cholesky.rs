@@ -73,13 +73,15 @@ impl SmallCholesky {
         }
     }
 
-    /// `b <- H^-1 b`, every column. The columns are solved [`COLUMN_BLOCK`] at a time (the
-    /// last block padded with zeros), laid side by side so that the substitutions run
-    /// across columns in vector registers, several independent ones per step where one
-    /// column's sums are a chain of dependent subtractions. Each column sees exactly the
-    /// operations of [`Self::solve_column`], in the same order.
+    /// `b <- H^-1 b`, every column. The columns are solved [`COLUMN_BLOCK`] at a time, laid
+    /// side by side so that the substitutions run across columns in vector registers (the
+    /// last block padded with zeros rather than its columns solved one by one). Each column
+    /// sees exactly the operations of [`Self::solve_column`], in the same order.
     pub(super) fn solve_in_place(&mut self, b: &mut DMatrix<f64>) {
         let n = b.nrows();
+        if n == 0 {
+            return;
+        }
         for columns in b.as_mut_slice().chunks_mut(COLUMN_BLOCK * n) {
             for (row, i) in self.block.iter_mut().zip(0..) {
                 for (c, x) in row.iter_mut().enumerate() {
