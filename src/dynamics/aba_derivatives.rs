@@ -26,59 +26,62 @@ const ROOT: usize = usize::MAX;
 
 /// In-place `M = L^T D L` (Featherstone 2008, Table 6.3) on a column-major `n x n` slice: on
 /// return the strict lower triangle holds `L` (unit diagonal implied) and the diagonal `D`.
-/// `lambda[k]` is the parent degree of freedom of `k` (`ROOT` at the root); only the
-/// entries on a branch are touched.
-fn ltdl_in_place(h: &mut [f64], n: usize, lambda: &[usize]) {
+/// `chains`, `starts`: each degree of freedom's branch to the root, itself first
+/// ([`Data`]'s `dof_chains`); only the entries on a branch are touched.
+fn ltdl_in_place(h: &mut [f64], n: usize, (chains, starts): (&[usize], &[usize])) {
+    let chain = |k: usize| &chains[starts[k]..starts[k + 1]];
     for k in (0..n).rev() {
         let hkk = h[k + k * n];
-        let mut i = lambda[k];
-        while i != ROOT {
+        let ancestors = &chain(k)[1..];
+        for (m, &i) in ancestors.iter().enumerate() {
             // a = H_ki / H_kk;  H_ij -= a H_kj for j on the branch of i;  H_ki = a
             let a = h[k + i * n] / hkk;
-            let mut j = i;
-            while j != ROOT {
+            for &j in &ancestors[m..] {
                 h[i + j * n] -= a * h[k + j * n];
-                j = lambda[j];
             }
             h[k + i * n] = a;
-            i = lambda[i];
         }
     }
 }
 
 /// `M^-1 = L^-1 D^-1 L^-T` from the factor in `h`, into `out` (full, symmetric);
-/// `linv` is scratch for `L^-1`.
+/// `linv` is scratch for `L^-1`, `chain(k)` the branch from `k` to the root (`k` first).
 ///
 /// `L^-1` has the branch pattern of `L`: from `L L^-1 = I`,
 /// `L^-1[i, j] = -sum_{k on the branch from i (excluded) to j (included)} L[i, k] L^-1[k, j]`.
-/// Then `M^-1[a, b] = sum_{k common ancestor of a and b} L^-1[a, k] L^-1[b, k] / D_k`.
-fn minv_from_ltdl(h: &[f64], n: usize, lambda: &[usize], linv: &mut [f64], d_inv: &mut [f64], out: &mut [f64]) {
+/// Then `M^-1[a, b] = sum_{k common ancestor of a and b} L^-1[a, k] L^-1[b, k] / D_k`,
+/// summed from `b` towards the root; `L^-1[a, k]` is zero unless `k` is on `a`'s branch, so
+/// column `b` is summed for every `a >= b` at once, a column of `L^-1` at a time (vector
+/// operations; each entry's sum in the same order).
+#[allow(clippy::too_many_arguments)]
+fn minv_from_ltdl(h: &[f64], n: usize, (chains, starts): (&[usize], &[usize]), linv: &mut [f64], d_inv: &mut [f64], column: &mut [f64], out: &mut [f64]) {
+    let chain = |k: usize| &chains[starts[k]..starts[k + 1]];
     for k in 0..n {
         d_inv[k] = 1.0 / h[k + k * n];
     }
     linv.fill(0.0);
     for i in 0..n {
         linv[i + i * n] = 1.0;
-        let mut j = lambda[i];
-        while j != ROOT {
+        let ancestors = &chain(i)[1..];
+        for (m, &j) in ancestors.iter().enumerate() {
             let mut acc = 0.0;
-            let mut k = lambda[i];
-            while k != ROOT && k >= j {
+            // k from i's parent down to j (the branch's indices decrease towards the root).
+            for &k in &ancestors[..=m] {
                 acc += h[i + k * n] * linv[k + j * n];
-                k = lambda[k];
             }
             linv[i + j * n] = -acc;
-            j = lambda[j];
         }
     }
-    for a in 0..n {
-        for b in 0..=a {
-            let mut acc = 0.0;
-            let mut k = b;
-            while k != ROOT {
-                acc += linv[a + k * n] * linv[b + k * n] * d_inv[k];
-                k = lambda[k];
+    for b in 0..n {
+        let column = &mut column[b..n];
+        column.fill(0.0);
+        for &k in chain(b) {
+            let (l_bk, d_k) = (linv[b + k * n], d_inv[k]);
+            for (acc, l_ak) in column.iter_mut().zip(&linv[b + k * n..(k + 1) * n]) {
+                *acc += l_ak * l_bk * d_k;
             }
+        }
+        for (a, &acc) in (b..n).zip(column.iter()) {
             out[a + b * n] = acc;
             out[b + a * n] = acc;
         }
@@ -96,13 +99,14 @@ pub fn compute_minverse<'d>(model: &Model, data: &'d mut Data, q: &DVector<f64>)
 fn invert_mass_matrix(model: &Model, data: &mut Data) {
     let n = model.nv;
     data.ltdl.copy_from(&data.mass_matrix);
-    ltdl_in_place(data.ltdl.as_mut_slice(), n, &model.dof_parent);
+    ltdl_in_place(data.ltdl.as_mut_slice(), n, (&data.dof_chains, &data.dof_chain_starts));
     minv_from_ltdl(
         data.ltdl.as_slice(),
         n,
-        &model.dof_parent,
+        (&data.dof_chains, &data.dof_chain_starts),
         data.linv.as_mut_slice(),
         data.tmp_nv.as_mut_slice(),
+        &mut data.minv_column,
         data.minv.as_mut_slice(),
     );
 }
@@ -121,7 +125,7 @@ pub fn mass_matrix_solve(model: &Model, data: &mut Data, x: &mut [f64]) {
 /// configuration with other velocities or right-hand sides share it.
 pub fn mass_matrix_factor(model: &Model, data: &mut Data) {
     data.ltdl.copy_from(&data.mass_matrix);
-    ltdl_in_place(data.ltdl.as_mut_slice(), model.nv, &model.dof_parent);
+    ltdl_in_place(data.ltdl.as_mut_slice(), model.nv, (&data.dof_chains, &data.dof_chain_starts));
 }
 
 /// `x <- M^-1 x` with the factor [`mass_matrix_factor`] left in `data.ltdl` (Featherstone

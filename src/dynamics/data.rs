@@ -100,6 +100,13 @@ pub struct Data {
     pub(crate) ltdl: DMatrix<f64>,
     /// `L^-1`.
     pub(crate) linv: DMatrix<f64>,
+    /// Each degree of freedom's branch to the root, itself first, then its parent, ...:
+    /// `dof_chains[dof_chain_starts[k]..dof_chain_starts[k + 1]]` (the parent links of
+    /// `Model::dof_parent` walked once, not at every use).
+    pub(crate) dof_chains: Vec<usize>,
+    pub(crate) dof_chain_starts: Vec<usize>,
+    /// A column of `M^-1` as it is summed.
+    pub(crate) minv_column: Vec<f64>,
 }
 
 impl Data {
@@ -107,6 +114,15 @@ impl Data {
     pub fn new(model: &Model) -> Self {
         let n = model.njoints();
         let nv = model.nv;
+        let (mut dof_chains, mut dof_chain_starts) = (Vec::new(), vec![0]);
+        for k in 0..nv {
+            let mut j = k;
+            while j < nv {
+                dof_chains.push(j);
+                j = model.dof_parent[j];
+            }
+            dof_chain_starts.push(dof_chains.len());
+        }
         Self {
             li_m_i: vec![SE3::identity(); n],
             o_m_i: vec![SE3::identity(); n],
@@ -171,6 +187,9 @@ impl Data {
             w_dytj: vec![Vector3::zeros(); n],
             ltdl: DMatrix::zeros(nv, nv),
             linv: DMatrix::zeros(nv, nv),
+            dof_chains,
+            dof_chain_starts,
+            minv_column: vec![0.0; nv],
         }
     }
 }
