@@ -53,7 +53,6 @@ fn ltdl_in_place(h: &mut [f64], n: usize, (chains, starts): (&[usize], &[usize])
 /// summed from `b` towards the root; `L^-1[a, k]` is zero unless `k` is on `a`'s branch, so
 /// column `b` is summed for every `a >= b` at once, a column of `L^-1` at a time (vector
 /// operations; each entry's sum in the same order).
-#[allow(clippy::too_many_arguments)]
 fn minv_from_ltdl(h: &[f64], n: usize, (chains, starts): (&[usize], &[usize]), linv: &mut [f64], d_inv: &mut [f64], column: &mut [f64], out: &mut [f64]) {
     let chain = |k: usize| &chains[starts[k]..starts[k + 1]];
     for k in 0..n {
