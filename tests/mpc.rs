@@ -233,7 +233,7 @@ fn a_tail_of_two_tick_knots_stays_on_its_grid_as_the_window_moves() {
 }
 
 #[test]
-fn a_window_that_holds_the_tasks_end_counts_its_final_cost_once() {
+fn a_window_that_holds_the_tasks_end_counts_its_final_cost_once_and_uses_its_knots_to_the_end() {
     // The plan's value function includes the task's final cost H (past the plan's end, its
     // last knot's value is l_{N-1} + H): a window that holds the task's end has H at the
     // knot nearest it, or at its end once the task is over, and ends without the value.
@@ -254,9 +254,12 @@ fn a_window_that_holds_the_tasks_end_counts_its_final_cost_once() {
     let (mut h_with, mut h_without) = (nalgebra::DMatrix::zeros(nx, nx), nalgebra::DMatrix::zeros(nx, nx));
     // Window end 0.2 s (the value stands for the rest), 0.35 s (H at the knot nearest 0.3 s),
     // 0.45 s (the task over: H at the window's end).
-    for (start, ends_on_value) in [(0.1, true), (0.25, false), (0.35, false)] {
+    // The knots the task uses ([`Problem::last_used_knot`]): the window's 20 (5 ms each),
+    // those up to the task's end at 0.3 s (knot 10 from 0.25 s), all 20 once the task is over.
+    for (start, ends_on_value, last_used) in [(0.1, true, 20), (0.25, false, 10), (0.35, false, 20)] {
         for problem in [&with_value, &without_value] {
             problem.receding.as_ref().unwrap().set_start(start);
+            assert_eq!(problem.last_used_knot(), last_used, "start {start}");
         }
         let (c_with, c_without) = (with_value.terminal_cost(&mut ws_with, &x), without_value.terminal_cost(&mut ws_without, &x));
         with_value.terminal_cost_derivatives(&mut ws_with, &x, &mut g_with, &mut h_with);

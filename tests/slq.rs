@@ -544,3 +544,94 @@ fn a_window_whose_every_trial_leaves_the_valid_states_is_held_after_a_quarter() 
         assert_eq!(err, RealTimeIterationError::NoValidTrial);
     }
 }
+
+/// [`Linear`] as a receding window that runs past its task's end: the task uses the states
+/// up to knot `last_used` only ([`Problem::last_used_knot`]).
+struct PastTheEnd<'a> {
+    linear: &'a Linear,
+    last_used: usize,
+}
+
+impl Problem for PastTheEnd<'_> {
+    type State = DVector<f64>;
+    type Workspace = ();
+    fn nx(&self) -> usize {
+        self.linear.nx()
+    }
+    fn nu(&self) -> usize {
+        self.linear.nu()
+    }
+    fn horizon(&self) -> usize {
+        self.linear.n
+    }
+    fn workspace(&self) {}
+    fn initial_state(&self) -> DVector<f64> {
+        self.linear.x0.clone()
+    }
+    fn difference(&self, y: &DVector<f64>, x: &DVector<f64>, dx: &mut DVector<f64>) {
+        self.linear.difference(y, x, dx)
+    }
+    fn step(&self, ws: &mut (), k: usize, x: &DVector<f64>, u: &DVector<f64>, next: &mut DVector<f64>) -> f64 {
+        self.linear.step(ws, k, x, u, next)
+    }
+    fn step_with_derivatives(&self, ws: &mut (), k: usize, x: &DVector<f64>, u: &DVector<f64>, next: &mut DVector<f64>, d: &mut KnotDerivatives) -> f64 {
+        self.linear.step_with_derivatives(ws, k, x, u, next, d)
+    }
+    fn terminal_cost(&self, ws: &mut (), x: &DVector<f64>) -> f64 {
+        self.linear.terminal_cost(ws, x)
+    }
+    fn terminal_cost_derivatives(&self, ws: &mut (), x: &DVector<f64>, h_x: &mut DVector<f64>, h_xx: &mut DMatrix<f64>) -> f64 {
+        self.linear.terminal_cost_derivatives(ws, x, h_x, h_xx)
+    }
+    fn input_bounds(&self, k: usize, lower: &mut DVector<f64>, upper: &mut DVector<f64>) {
+        self.linear.input_bounds(k, lower, upper)
+    }
+    fn is_valid(&self, x: &DVector<f64>) -> bool {
+        self.linear.is_valid(x)
+    }
+    fn last_used_knot(&self) -> usize {
+        self.last_used
+    }
+}
+
+/// A window past its task's end (the closed loop stops at the end, the robot never runs the
+/// later knots) keeps a trial that stayed valid up to the task's last used knot, though that
+/// is less than a quarter of the window; one that left the valid states before it is still
+/// an error.
+#[test]
+fn a_window_past_the_tasks_end_is_held_after_the_end() {
+    use legwork::slq::RealTimeIterationError;
+    // x' = 1.2 x, the input clipped at 1e-9, valid below 1e4: from 2500 the state passes 1e4
+    // at knot 8 (2500 * 1.2^8 ~ 10750), so every trial leaves the valid states after knot 7,
+    // under a quarter of the 40 knots.
+    let linear = Linear {
+        a: DMatrix::from_element(1, 1, 1.2),
+        b: DMatrix::from_element(1, 1, 1.0),
+        q: DMatrix::identity(1, 1),
+        r: DMatrix::identity(1, 1),
+        h: DMatrix::identity(1, 1),
+        x0: DVector::from_element(1, 1.0),
+        n: 40,
+        u_max: 1e-9,
+        valid_below: 1e4,
+    };
+    let x = DVector::from_element(1, 2500.0);
+    for threads in [1, 2] {
+        for (last_used, held) in [(40, None), (8, None), (7, Some(7)), (3, Some(7))] {
+            let p = PastTheEnd { linear: &linear, last_used };
+            let mut slq = Slq::new(&p, SlqSettings { threads, ..Default::default() }).unwrap();
+            slq.start_from(&linear.x0, &Zero).unwrap();
+            slq.real_time_iteration(&linear.x0, None).unwrap();
+            match (slq.real_time_iteration(&x, None), held) {
+                (Ok(it), Some(k)) => {
+                    assert_eq!(it.held_after, Some(k), "{threads} threads, task's end at knot {last_used}");
+                    assert_eq!(it.cost, f64::INFINITY);
+                    let states = slq.states();
+                    assert!(states[k + 1..].iter().all(|s| s == &states[k]), "the states after knot {k} held at its");
+                }
+                (Err(e), None) => assert_eq!(e, RealTimeIterationError::NoValidTrial),
+                (result, expected) => panic!("{threads} threads, task's end at knot {last_used}: {:?}, expected held after {expected:?}", result.map(|it| it.held_after)),
+            }
+        }
+    }
+}

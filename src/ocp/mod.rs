@@ -735,6 +735,12 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         x.q.iter().all(|v| v.is_finite()) && x.v.iter().all(|v| v.is_finite() && v.abs() < 200.0)
     }
 
+    /// The knot at the task's end in a window that reaches it (the closed loop ends there;
+    /// the knots after it only carry the final state on), else the last.
+    fn last_used_knot(&self) -> usize {
+        self.final_knot().unwrap_or(self.knots)
+    }
+
     /// The same feet anchored (in contact) in both states: a foot that landed or lifted
     /// changes the knot's dynamics and its contact costs' derivatives.
     fn same_model_piece(&self, y: &RobotState, x: &RobotState) -> bool {

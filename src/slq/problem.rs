@@ -57,6 +57,12 @@ pub trait Problem: Sync {
     /// `true` if a state is usable (finite, not blown up): a rollout reaching an unusable
     /// state is a failed line-search trial, not a result.
     fn is_valid(&self, x: &Self::State) -> bool;
+    /// The last knot whose state the task still uses, `m <= N` (`N` by default). A window of
+    /// a receding horizon that reaches past its task's end uses the states up to the end;
+    /// [`crate::slq::Slq::real_time_iteration`] keeps a trial that stayed valid that far.
+    fn last_used_knot(&self) -> usize {
+        self.horizon()
+    }
     /// `true` if a knot's model taken at `y` may serve at `x` ([`crate::slq::ModelReuse`]):
     /// false where the two lie in different pieces of a piecewise model (another set of
     /// feet in contact), whose derivatives the kept model does not describe. By default

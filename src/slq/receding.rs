@@ -37,7 +37,8 @@ pub struct RealTimeIteration {
     pub regularization: f64,
     pub timing: IterationTiming,
     /// `Some(k)`: every trial left the valid states, and the kept one (the furthest, past a
-    /// quarter of the window) did after knot `k`: its states after `k` are held at knot `k`'s
+    /// quarter of the window or past the last knot its task uses,
+    /// [`Problem::last_used_knot`]) did after knot `k`: its states after `k` are held at knot `k`'s
     /// and its cost is infinite. The robot runs only the window's first knots before the
     /// next tick, but a tick like this has no priced trajectory.
     pub held_after: Option<usize>,
@@ -297,9 +298,11 @@ impl<'p, P: Problem> Slq<'p, P> {
                 // Every trial left the valid states (a flailing free leg past the speed
                 // limit, late in the window): the robot only runs the window's first knots
                 // before the next tick, so the trial that went furthest is kept if it held
-                // for a quarter of the window, its tail held at its last valid state.
-                let n = problem.horizon();
-                let Some((j, k)) = (0..round).filter_map(|j| self.trials[j].failed_at.map(|k| (j, k))).max_by_key(|&(_, k)| k).filter(|&(_, k)| 4 * k >= n) else {
+                // for a quarter of the window, or up to the task's end (a window past it:
+                // the robot never runs the later knots), its tail held at its last valid
+                // state.
+                let (n, used) = (problem.horizon(), problem.last_used_knot());
+                let Some((j, k)) = (0..round).filter_map(|j| self.trials[j].failed_at.map(|k| (j, k))).max_by_key(|&(_, k)| k).filter(|&(_, k)| 4 * k >= n || k >= used) else {
                     return Err(RealTimeIterationError::NoValidTrial);
                 };
                 let trial = &mut self.trials[j];
