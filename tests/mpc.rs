@@ -449,3 +449,37 @@ fn bad_settings_and_a_plan_without_its_value_function_are_named() {
     let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &MpcSettings { anchor_states: false, ..MpcSettings::default() }, "stand.toml").unwrap();
     assert_eq!(problem.receding.as_ref().unwrap().value.as_ref().unwrap().value.hessians[0].nrows(), 36);
 }
+
+/// A controller whose first window cannot be solved from the plan (here the plan's
+/// torques are NaN, so the warm start's rollout leaves the valid states) is told apart from
+/// a closed loop that ran: `try_run_on_plan` says it did not start (a benchmark records a
+/// missed row and goes on), `run_on_plan` fails with the job's error (exit code 3).
+#[test]
+fn a_controller_that_cannot_start_is_told_apart_from_a_closed_loop() {
+    use legwork::job::mpc::{ClosedLoopOutcome, ClosedLoopSim, MpcJob};
+    use legwork::job::resources::MemoryLimit;
+    use legwork::job::solve::SolveJob;
+    use legwork::job::JobErrorKind;
+    let model = embedded::load("hyq").unwrap();
+    let spec = stand(0.2);
+    let dir = std::env::temp_dir().join(format!("legwork-mpc-not-started-{}", std::process::id()));
+    let plan_dir = dir.join("plan");
+    let solve = SolveJob { spec: &spec, origin: "stand.toml", model: &model, options: SolveOptions { threads: 2, value_function: true, ..SolveOptions::default() }, mujoco: None, out: &plan_dir, memory_limit: MemoryLimit { gb: None, setting: "--memory-limit GB" }, png: false };
+    let mut plan = solve.run(|_| ()).unwrap();
+    let job = MpcJob { solve, settings: MpcSettings { horizon: 0.1, ..MpcSettings::default() }, sim: ClosedLoopSim::Legwork, latency: PolicyLatency::Fixed(0.005), pushes: Vec::new(), out: &dir };
+    // The plan as solved: the loop runs.
+    assert!(matches!(job.try_run_on_plan(&plan, |_| ()).unwrap(), ClosedLoopOutcome::Ran(_)));
+    for u in &mut plan.run.solution.inputs {
+        u.fill(f64::NAN);
+    }
+    match job.try_run_on_plan(&plan, |_| ()).unwrap() {
+        ClosedLoopOutcome::ControllerDidNotStart(e) => {
+            assert_eq!(e.kind, JobErrorKind::CouldNotFinish);
+            assert!(e.message.contains("could not start"), "{}", e.message);
+        }
+        ClosedLoopOutcome::Ran(run) => panic!("a loop ran on NaN torques: {:?}", run.closed_loop.stopped),
+    }
+    let err = job.run_on_plan(&plan, |_| ()).err().expect("no controller, no run");
+    assert_eq!(err.exit_code(), 3, "{}", err.message);
+    let _ = std::fs::remove_dir_all(&dir);
+}

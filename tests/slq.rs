@@ -384,6 +384,9 @@ struct Window {
     /// What [`Problem::same_model_piece`] answers for any two states (false: a kept model
     /// never serves).
     one_piece: bool,
+    /// [`Problem::last_used_knot`] (`None`: the last knot): a window that runs past its
+    /// task's end.
+    last_used: Option<usize>,
 }
 
 impl Window {
@@ -441,6 +444,12 @@ impl Problem for Window {
     fn same_model_piece(&self, _: &DVector<f64>, _: &DVector<f64>) -> bool {
         self.one_piece
     }
+    fn input_bounds(&self, k: usize, lower: &mut DVector<f64>, upper: &mut DVector<f64>) {
+        self.linear.input_bounds(k, lower, upper)
+    }
+    fn last_used_knot(&self) -> usize {
+        self.last_used.unwrap_or(self.linear.n)
+    }
 }
 
 #[test]
@@ -458,7 +467,7 @@ fn real_time_iterations_that_keep_the_knots_models_take_the_same_steps_on_a_quad
     let n = 40;
     for threads in [1, 2] {
         let run = |reuse: Option<ModelReuse>, one_piece: bool| {
-            let window = Window { linear: double_integrator(n, f64::INFINITY), offset: 0.into(), linearized: 0.into(), one_piece };
+            let window = Window { linear: double_integrator(n, f64::INFINITY), offset: 0.into(), linearized: 0.into(), one_piece, last_used: None };
             let mut slq = Slq::new(&window, SlqSettings { threads, ..Default::default() }).unwrap();
             let mut x0 = window.linear.x0.clone();
             slq.start_from(&x0, &Zero).unwrap();
@@ -504,16 +513,10 @@ fn real_time_iterations_that_keep_the_knots_models_take_the_same_steps_on_a_quad
     }
 }
 
-/// A real-time iteration whose every trial leaves the valid states (an MPC window whose
-/// rollouts spin a free leg past the speed limit) keeps the trial that went furthest if it
-/// held for a quarter of the window, its later states held at its last valid one, and says
-/// so (`held_after`, cost infinite); one whose trials all fail sooner is an error.
-#[test]
-fn a_window_whose_every_trial_leaves_the_valid_states_is_held_after_a_quarter() {
-    use legwork::slq::RealTimeIterationError;
-    // x' = 1.2 x, the input clipped at 1e-9 (it cannot hold the state), valid below 1e4.
-    let n = 40;
-    let p = Linear {
+/// x' = 1.2 x over `n` knots, the input clipped at 1e-9 (it cannot hold the state), valid
+/// below 1e4.
+fn unstable(n: usize) -> Linear {
+    Linear {
         a: DMatrix::from_element(1, 1, 1.2),
         b: DMatrix::from_element(1, 1, 1.0),
         q: DMatrix::identity(1, 1),
@@ -523,7 +526,18 @@ fn a_window_whose_every_trial_leaves_the_valid_states_is_held_after_a_quarter() 
         n,
         u_max: 1e-9,
         valid_below: 1e4,
-    };
+    }
+}
+
+/// A real-time iteration whose every trial leaves the valid states (an MPC window whose
+/// rollouts spin a free leg past the speed limit) keeps the trial that went furthest if it
+/// held for a quarter of the window, its later states held at its last valid one, and says
+/// so (`held_after`, cost infinite); one whose trials all fail sooner is an error.
+#[test]
+fn a_window_whose_every_trial_leaves_the_valid_states_is_held_after_a_quarter() {
+    use legwork::slq::RealTimeIterationError;
+    let n = 40;
+    let p = unstable(n);
     for threads in [1, 2] {
         let mut slq = Slq::new(&p, SlqSettings { threads, ..Default::default() }).unwrap();
         // From 1: 1.2^40 ~ 1470, valid to the end; a priced trajectory.
@@ -545,83 +559,22 @@ fn a_window_whose_every_trial_leaves_the_valid_states_is_held_after_a_quarter() 
     }
 }
 
-/// [`Linear`] as a receding window that runs past its task's end: the task uses the states
-/// up to knot `last_used` only ([`Problem::last_used_knot`]).
-struct PastTheEnd<'a> {
-    linear: &'a Linear,
-    last_used: usize,
-}
-
-impl Problem for PastTheEnd<'_> {
-    type State = DVector<f64>;
-    type Workspace = ();
-    fn nx(&self) -> usize {
-        self.linear.nx()
-    }
-    fn nu(&self) -> usize {
-        self.linear.nu()
-    }
-    fn horizon(&self) -> usize {
-        self.linear.n
-    }
-    fn workspace(&self) {}
-    fn initial_state(&self) -> DVector<f64> {
-        self.linear.x0.clone()
-    }
-    fn difference(&self, y: &DVector<f64>, x: &DVector<f64>, dx: &mut DVector<f64>) {
-        self.linear.difference(y, x, dx)
-    }
-    fn step(&self, ws: &mut (), k: usize, x: &DVector<f64>, u: &DVector<f64>, next: &mut DVector<f64>) -> f64 {
-        self.linear.step(ws, k, x, u, next)
-    }
-    fn step_with_derivatives(&self, ws: &mut (), k: usize, x: &DVector<f64>, u: &DVector<f64>, next: &mut DVector<f64>, d: &mut KnotDerivatives) -> f64 {
-        self.linear.step_with_derivatives(ws, k, x, u, next, d)
-    }
-    fn terminal_cost(&self, ws: &mut (), x: &DVector<f64>) -> f64 {
-        self.linear.terminal_cost(ws, x)
-    }
-    fn terminal_cost_derivatives(&self, ws: &mut (), x: &DVector<f64>, h_x: &mut DVector<f64>, h_xx: &mut DMatrix<f64>) -> f64 {
-        self.linear.terminal_cost_derivatives(ws, x, h_x, h_xx)
-    }
-    fn input_bounds(&self, k: usize, lower: &mut DVector<f64>, upper: &mut DVector<f64>) {
-        self.linear.input_bounds(k, lower, upper)
-    }
-    fn is_valid(&self, x: &DVector<f64>) -> bool {
-        self.linear.is_valid(x)
-    }
-    fn last_used_knot(&self) -> usize {
-        self.last_used
-    }
-}
-
 /// A window past its task's end (the closed loop stops at the end, the robot never runs the
-/// later knots) keeps a trial that stayed valid up to the task's last used knot, though that
+/// later knots; [`Window::last_used`]) keeps a trial that stayed valid up to the task's last used knot, though that
 /// is less than a quarter of the window; one that left the valid states before it is still
 /// an error.
 #[test]
 fn a_window_past_the_tasks_end_is_held_after_the_end() {
     use legwork::slq::RealTimeIterationError;
-    // x' = 1.2 x, the input clipped at 1e-9, valid below 1e4: from 2500 the state passes 1e4
-    // at knot 8 (2500 * 1.2^8 ~ 10750), so every trial leaves the valid states after knot 7,
-    // under a quarter of the 40 knots.
-    let linear = Linear {
-        a: DMatrix::from_element(1, 1, 1.2),
-        b: DMatrix::from_element(1, 1, 1.0),
-        q: DMatrix::identity(1, 1),
-        r: DMatrix::identity(1, 1),
-        h: DMatrix::identity(1, 1),
-        x0: DVector::from_element(1, 1.0),
-        n: 40,
-        u_max: 1e-9,
-        valid_below: 1e4,
-    };
+    // From 2500 the state passes 1e4 at knot 8 (2500 * 1.2^8 ~ 10750), so every trial
+    // leaves the valid states after knot 7, under a quarter of the 40 knots.
     let x = DVector::from_element(1, 2500.0);
     for threads in [1, 2] {
         for (last_used, held) in [(40, None), (8, None), (7, Some(7)), (3, Some(7))] {
-            let p = PastTheEnd { linear: &linear, last_used };
+            let p = Window { linear: unstable(40), offset: 0.into(), linearized: 0.into(), one_piece: true, last_used: Some(last_used) };
             let mut slq = Slq::new(&p, SlqSettings { threads, ..Default::default() }).unwrap();
-            slq.start_from(&linear.x0, &Zero).unwrap();
-            slq.real_time_iteration(&linear.x0, None).unwrap();
+            slq.start_from(&p.linear.x0, &Zero).unwrap();
+            slq.real_time_iteration(&p.linear.x0, None).unwrap();
             match (slq.real_time_iteration(&x, None), held) {
                 (Ok(it), Some(k)) => {
                     assert_eq!(it.held_after, Some(k), "{threads} threads, task's end at knot {last_used}");

@@ -6,7 +6,7 @@ use super::outcome::{OrCouldNotFinish, Verdict};
 use super::solve::job_error;
 use anyhow::{bail, Result};
 use legwork::export::MujocoCheck;
-use legwork::job::mpc::{ClosedLoopSim, MpcJob, MpcRun};
+use legwork::job::mpc::{ClosedLoopOutcome, ClosedLoopSim, MpcJob};
 use legwork::job::solve::{SolveJob, SolvedTask};
 use legwork::mpc::{MpcSettings, PolicyLatency};
 use legwork::ocp::{SolveOptions, TaskSpec, EMBEDDED_TASKS};
@@ -65,8 +65,9 @@ impl Planned {
         Ok(Self { spec, origin, model, solved })
     }
 
-    /// One closed loop on the plan with `settings` and `pushes`, its folder `out`.
-    fn closed_loop(&self, settings: MpcSettings, sim: &ClosedLoopSim, latency: PolicyLatency, pushes: Vec<Push>, out: &Path) -> Result<MpcRun> {
+    /// One closed loop on the plan with `settings` and `pushes`, its folder `out`
+    /// (`ControllerDidNotStart`: no closed loop, a missed row).
+    fn closed_loop(&self, settings: MpcSettings, sim: &ClosedLoopSim, latency: PolicyLatency, pushes: Vec<Push>, out: &Path) -> Result<ClosedLoopOutcome> {
         let sim = match sim {
             ClosedLoopSim::Legwork => ClosedLoopSim::Legwork,
             ClosedLoopSim::Mujoco(check) => ClosedLoopSim::Mujoco(check.clone()),
@@ -80,12 +81,17 @@ impl Planned {
             pushes,
             out,
         };
-        job.run_on_plan(&self.solved, |_| ()).map_err(job_error)
+        job.try_run_on_plan(&self.solved, |_| ()).map_err(job_error)
     }
 }
 
-/// The row of one closed loop: its verdict, tick times and why it stopped.
-fn row(run: &MpcRun) -> Value {
+/// The row of one closed loop: its verdict, tick times and why it stopped; a controller
+/// that could not start is a missed row without ticks.
+fn row(outcome: &ClosedLoopOutcome) -> Value {
+    let run = match outcome {
+        ClosedLoopOutcome::Ran(run) => run,
+        ClosedLoopOutcome::ControllerDidNotStart(e) => return json!({ "met": false, "stopped": e.message, "ticks": 0 }),
+    };
     let s = &run.summary;
     json!({
         "met": run.verdict == Verdict::Met,
@@ -125,11 +131,14 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         for &threads in bench.thread_counts {
             let settings = MpcSettings { horizon, threads, ..base.clone() };
             let folder = timing_out.join(format!("h{horizon}-t{threads}"));
-            let run = timing_plan.closed_loop(settings, &sim, PolicyLatency::Measured, Vec::new(), &folder)?;
-            let mut r = row(&run);
+            let outcome = timing_plan.closed_loop(settings, &sim, PolicyLatency::Measured, Vec::new(), &folder)?;
+            let mut r = row(&outcome);
             r["horizon_s"] = json!(horizon);
             r["threads"] = json!(threads);
-            r["knots"] = run.summary["knots"].clone();
+            r["knots"] = match &outcome {
+                ClosedLoopOutcome::Ran(run) => run.summary["knots"].clone(),
+                ClosedLoopOutcome::ControllerDidNotStart(_) => Value::Null,
+            };
             if !bench.as_json {
                 say!("tick time {} h {horizon} s, {threads} thread(s): p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms ({} of {} ticks over the period)", timing_plan.spec.name, r["tick_time_p50_s"].as_f64().unwrap_or(f64::NAN) * 1e3, r["tick_time_p99_s"].as_f64().unwrap_or(f64::NAN) * 1e3, r["tick_time_max_s"].as_f64().unwrap_or(f64::NAN) * 1e3, r["ticks_over_period"], r["ticks"]);
             }
@@ -152,7 +161,11 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         };
         let plan_met = plan.solved.verdict == Verdict::Met;
         if !bench.as_json {
-            let cell = |r: &MpcRun| if r.verdict == Verdict::Met { "met".to_string() } else { format!("MISSED{}", r.closed_loop.stopped.as_ref().map_or(String::new(), |s| format!(" ({})", s.split(':').next().unwrap_or("")))) };
+            let cell = |outcome: &ClosedLoopOutcome| match outcome {
+                ClosedLoopOutcome::Ran(r) if r.verdict == Verdict::Met => "met".to_string(),
+                ClosedLoopOutcome::Ran(r) => format!("MISSED{}", r.closed_loop.stopped.as_ref().map_or(String::new(), |s| format!(" ({})", s.split(':').next().unwrap_or("")))),
+                ClosedLoopOutcome::ControllerDidNotStart(e) => format!("MISSED ({})", e.message),
+            };
             say!("{name}: plan {}, closed loop {}, pushed {}", if plan_met { "met" } else { "MISSED" }, cell(&nominal), pushed.as_ref().map_or("-".to_string(), cell));
         }
         tasks.push(json!({

@@ -69,14 +69,28 @@ impl MpcJob<'_> {
 
     /// The closed loop on a plan already solved by this job's solve job (its value
     /// function recorded, [`crate::ocp::SolveOptions::value_function`]): one plan, several
-    /// controllers or pushes (`legwork bench mpc`).
+    /// controllers or pushes (`legwork bench mpc`). A controller that could not start is
+    /// this job's error ([`ClosedLoopOutcome::ControllerDidNotStart`]).
     pub fn run_on_plan(&self, plan: &SolvedTask, on_tick: impl FnMut(&TickRecord)) -> Result<MpcRun, JobError> {
+        match self.try_run_on_plan(plan, on_tick)? {
+            ClosedLoopOutcome::Ran(run) => Ok(*run),
+            ClosedLoopOutcome::ControllerDidNotStart(e) => Err(e),
+        }
+    }
+
+    /// [`Self::run_on_plan`], telling a controller that could not start (its first window's
+    /// iterations failed: no closed loop ran, nothing written) from the errors that stop a
+    /// benchmark (bad settings, the plant, the files).
+    pub fn try_run_on_plan(&self, plan: &SolvedTask, on_tick: impl FnMut(&TickRecord)) -> Result<ClosedLoopOutcome, JobError> {
         self.check()?;
         let (spec, model, origin) = (self.solve.spec, self.solve.model, self.solve.origin);
         let terrain = Plane::flat(0.0);
         let solution = &plan.run.solution;
         let problem = window_problem(spec, model, &terrain, solution, spec.dt, &self.settings, origin).map_err(JobError::bad_input)?;
-        let mpc = Mpc::new(&problem, solution, spec.dt, self.settings.clone()).or_could_not_finish()?;
+        let mpc = match Mpc::new(&problem, solution, spec.dt, self.settings.clone()) {
+            Ok(mpc) => mpc,
+            Err(e) => return Ok(ClosedLoopOutcome::ControllerDidNotStart(JobError::could_not_finish(ControllerDidNotStart(e)))),
+        };
         // The robot's world at the window's integration step (1 ms), the policy applied every
         // step: the gains are those of that discrete system (as the plan's SLQ-policy re-run;
         // at 0.5 ms physics the stiff contact is another system at touch-down, and the
@@ -109,9 +123,24 @@ impl MpcJob<'_> {
         let summary = summary(self, plan, &closed_loop, metrics.as_ref(), checked.as_deref(), verdict);
         let mut run = MpcRun { closed_loop, metrics, checked, verdict, summary };
         write_files(self, model, &mut run).or_could_not_finish()?;
-        Ok(run)
+        Ok(ClosedLoopOutcome::Ran(Box::new(run)))
     }
 }
+
+/// How a closed loop on a plan ended ([`MpcJob::try_run_on_plan`]).
+pub enum ClosedLoopOutcome {
+    /// It ran (to the task's end or until the motion diverged): met or missed (boxed: the
+    /// run is a thousand bytes, the other variant a message).
+    Ran(Box<MpcRun>),
+    /// The controller's first window could not be solved from the plan
+    /// ([`crate::mpc::Mpc::new`]); the error says why (exit code 3 for `legwork mpc`).
+    ControllerDidNotStart(JobError),
+}
+
+/// [`ClosedLoopOutcome::ControllerDidNotStart`]'s error: the controller's, with its cause.
+#[derive(Debug, thiserror::Error)]
+#[error("the receding-horizon controller could not start")]
+struct ControllerDidNotStart(#[source] crate::mpc::MpcError);
 
 /// Every tick's solve time, a failed tick's too (it held the solver as long).
 fn tick_times(ticks: &[TickRecord]) -> Vec<f64> {
