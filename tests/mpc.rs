@@ -483,3 +483,73 @@ fn a_controller_that_cannot_start_is_told_apart_from_a_closed_loop() {
     assert_eq!(err.exit_code(), 3, "{}", err.message);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// legwork's simulator whose measurement of one instant is garbage (a sensor glitch: NaN
+/// joint velocities at `glitch`), the physics untouched.
+struct Glitching<'a> {
+    sim: Simulator<'a>,
+    glitch: f64,
+    garbled: SimState,
+}
+
+impl legwork::sim::Plant for Glitching<'_> {
+    fn state(&self) -> &SimState {
+        let s = self.sim.state();
+        if (s.t - self.glitch).abs() < 1e-9 {
+            &self.garbled
+        } else {
+            s
+        }
+    }
+    fn physics_dt(&self) -> f64 {
+        legwork::sim::Plant::physics_dt(&self.sim)
+    }
+    fn record_dt(&self) -> f64 {
+        legwork::sim::Plant::record_dt(&self.sim)
+    }
+    fn step_recorded(&mut self, controller: &mut dyn Controller, trajectory: &mut Trajectory) -> Result<(), legwork::sim::SimError> {
+        self.sim.step_recorded(controller, trajectory)?;
+        let s = self.sim.state();
+        if (s.t - self.glitch).abs() < 1e-9 {
+            self.garbled = s.clone();
+            self.garbled.v.rows_mut(6, s.v.len() - 6).fill(f64::NAN);
+        }
+        Ok(())
+    }
+    fn record_final(&mut self, trajectory: &mut Trajectory) -> Result<(), legwork::sim::SimError> {
+        legwork::sim::Plant::record_final(&mut self.sim, trajectory)
+    }
+}
+
+/// A tick whose measurement is garbage (NaN joint velocities) fails at once: the robot runs
+/// the previous policy on, the tick's solver time counts, and the next tick moves the window
+/// on from the solution the robot's policy came from, without a restart (rollouts from the
+/// NaN state would have left NaN states to linearize around: a restart, 65 ms).
+#[test]
+fn a_failed_tick_keeps_the_running_policy_and_the_next_tick_moves_it_on() {
+    let model = embedded::load("hyq").unwrap();
+    let spec = stand(0.3);
+    let run = plan(&spec, &model);
+    let ground = Plane::flat(0.0);
+    let settings = MpcSettings::default();
+    let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
+    let mpc = Mpc::new(&problem, &run.solution, spec.dt, settings.clone()).unwrap();
+    let sim = Simulator::from_plan(&model, &ground, &run.plan, SimConfig { physics_dt: 0.001, control_dt: 0.001, ..SimConfig::default() }).unwrap();
+    let garbled = sim.state().clone();
+    let mut plant = Glitching { sim, glitch: 0.1, garbled };
+    let closed = run_closed_loop(mpc, &mut plant, spec.duration, PolicyLatency::Fixed(0.005), |_| ()).unwrap();
+    assert!(closed.stopped.is_none(), "{:?}", closed.stopped);
+    let failed: Vec<_> = closed.ticks.iter().filter(|t| t.failure.is_some()).collect();
+    assert_eq!(failed.len(), 1, "{failed:?}");
+    assert!((failed[0].t - 0.1).abs() < 1e-9 && failed[0].solve_time > 0.0 && failed[0].latency == 0.005, "{:?}", failed[0]);
+    assert!(failed[0].failure.as_deref().is_some_and(|f| f.contains("measured state is not valid")), "{:?}", failed[0].failure);
+    let after = closed.ticks.iter().find(|t| t.t > 0.1 + 1e-9).unwrap();
+    assert!(after.failure.is_none() && !after.restarted, "the tick after the glitch: {after:?}");
+    assert!(closed.ticks.iter().all(|t| !t.restarted), "no tick restarted from the plan");
+    assert_eq!(closed.ticks.len(), 60);
+    // Through the glitch the robot stood: the base within 2 cm of its stance.
+    let start = &closed.trajectory.knots[0].q;
+    for k in &closed.trajectory.knots {
+        assert!((k.q[2] - start[2]).abs() < 0.02 && (k.q[1] - start[1]).abs() < 0.02, "t {}: base at {:?}", k.t, &k.q.as_slice()[..3]);
+    }
+}

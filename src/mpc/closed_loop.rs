@@ -12,8 +12,9 @@
 //! t_{i+1} = t_i + period * max(1, ceil(L_i / period))   (an overrun skips ticks)
 //! ```
 //!
-//! A tick that fails keeps the previous policy running; its `L_i` is still its wall time
-//! (or the fixed latency), and its solve time counts in the tick-time percentiles.
+//! A tick that fails keeps the previous policy running (a tick whose measurement is not a
+//! valid state fails at once, the solver's solution left as it was); its `L_i` is still its
+//! wall time (or the fixed latency), and its solve time counts in the tick-time percentiles.
 //!
 //! While the solver works the plant waits (its steps take microseconds; a robot's
 //! physics would not wait, which the latency above accounts for): the solver has the

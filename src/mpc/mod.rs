@@ -304,6 +304,11 @@ pub enum MpcError {
     /// The plant (another simulator's process) failed; not the motion.
     #[error("the closed loop's plant: {0}")]
     Plant(#[source] crate::sim::SimError),
+    /// The measured state is not a state of the problem ([`crate::slq::Problem::is_valid`]:
+    /// not finite, or a joint past the speed limit): a sensor's glitch. The tick does no work
+    /// and leaves the solver's solution as it was.
+    #[error("tick at t = {t:.3} s: the measured state is not valid (not finite, or a joint past the speed limit)")]
+    InvalidMeasurement { t: f64 },
     #[error("tick at t = {t:.3} s: {source}")]
     Tick {
         t: f64,
@@ -536,6 +541,12 @@ impl<'p, 'a> Mpc<'p, 'a> {
     /// budget spent. The new policy is then in [`Self::write_policy`].
     pub fn tick(&mut self, t: f64, x: &RobotState) -> Result<TickReport, MpcError> {
         let started = Instant::now();
+        // A garbled measurement would leave the solution to the next tick as rollouts from
+        // it leave it (NaN states to linearize around): the next tick moves the window on
+        // by the ticks passed, from the solution the robot's policy came from.
+        if !self.problem.is_valid(x) {
+            return Err(MpcError::InvalidMeasurement { t });
+        }
         if let Some(tail) = self.problem.tail {
             // A coarse tail: the window moves by whole tick periods, a tail knot of one
             // period (split into the head's knots) or a head knot of a two-period tail.
