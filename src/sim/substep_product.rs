@@ -64,6 +64,10 @@ pub struct SubstepProduct {
     /// (`nv x nv`).
     powers_v: DMatrix<f64>,
     powers_v_next: DMatrix<f64>,
+    /// The configuration rows of `A_i^j` and the next power's (`nv x n`), without dense
+    /// anchor rows.
+    powers_q: DMatrix<f64>,
+    powers_q_next: DMatrix<f64>,
     right_factor: DMatrix<f64>,
     /// The configuration columns outside every free flyer's block (where `Jq`, `Jv` are
     /// the identity).
@@ -88,6 +92,8 @@ impl SubstepProduct {
             vx: vec![0.0; nv * n],
             powers_v: DMatrix::zeros(nv, n),
             powers_v_next: DMatrix::zeros(nv, n),
+            powers_q: DMatrix::zeros(nv, n),
+            powers_q_next: DMatrix::zeros(nv, n),
             right_factor: DMatrix::zeros(nv, nv),
             plain_columns,
         }
@@ -143,13 +149,53 @@ impl SubstepProduct {
     /// `A_i^(j+1) = A_i A_i^j` has the velocity rows `W_j = V A_i^j = W_(j-1) A_i`, the
     /// configuration rows `Jq (A_i^j)_q + h Jv W_j` and the anchor rows `R A_i^j`. Equals
     /// `k - 1` products [`Self::mul`] up to round-off.
+    ///
+    /// Without a foot's dense anchor rows only the configuration rows need the last power:
+    /// those of each power are kept apart (`nv x n`), and `a`'s anchor rows are already the
+    /// last power's (a held anchor's rows of every power are `A_i`'s, a forgotten one's zero),
+    /// so `a` is written once, at the end. The same operations on every entry as through
+    /// the whole powers.
     pub fn power(&mut self, k: usize, a: &mut DMatrix<f64>, scratch: &mut DMatrix<f64>) {
         self.powers_v.copy_from(&self.velocity_rows);
+        if self.anchor_rows.contains(&AnchorRows::Dense) {
+            for _ in 1..k {
+                self.right_mul_velocity_rows();
+                std::mem::swap(&mut self.powers_v, &mut self.powers_v_next);
+                self.assemble(a, self.powers_v.as_slice(), scratch);
+                std::mem::swap(a, scratch);
+            }
+            return;
+        }
+        let (nv, n) = (self.nv, a.nrows());
+        self.powers_q.copy_from(&a.rows(0, nv));
         for _ in 1..k {
             self.right_mul_velocity_rows();
             std::mem::swap(&mut self.powers_v, &mut self.powers_v_next);
-            self.assemble(a, self.powers_v.as_slice(), scratch);
-            std::mem::swap(a, scratch);
+            // Out of `self` for the call (an empty matrix left in its place: no allocation).
+            let mut next = std::mem::take(&mut self.powers_q_next);
+            self.configuration_rows(self.powers_q.as_slice(), nv, self.powers_v.as_slice(), next.as_mut_slice(), nv);
+            self.powers_q_next = std::mem::replace(&mut self.powers_q, next);
+        }
+        for (c, ac) in a.as_mut_slice().chunks_exact_mut(n).enumerate() {
+            ac[..nv].copy_from_slice(&self.powers_q.as_slice()[c * nv..(c + 1) * nv]);
+            ac[nv..2 * nv].copy_from_slice(&self.powers_v.as_slice()[c * nv..(c + 1) * nv]);
+        }
+    }
+
+    /// The configuration rows of `A_i X`, `dq' = Jq X_q + h Jv (V X)` (the identity on the
+    /// joints, the free flyers' blocks over it), column by column: `X`'s column `c` starts at
+    /// `c ldx` in `x`, `out`'s at `c ldo`, `V X` in `vx` (`nv x m`).
+    fn configuration_rows(&self, x: &[f64], ldx: usize, vx: &[f64], out: &mut [f64], ldo: usize) {
+        let (nv, h) = (self.nv, self.h);
+        for (c, vc) in vx.chunks_exact(nv).enumerate() {
+            let (xc, oc) = (&x[c * ldx..c * ldx + nv], &mut out[c * ldo..c * ldo + nv]);
+            for ((o, xi), vi) in oc.iter_mut().zip(xc).zip(vc) {
+                *o = xi + h * vi;
+            }
+            for (iv, jq, h_jv) in &self.free_flyers {
+                let block = jq * Vector6::from_column_slice(&xc[*iv..iv + 6]) + h_jv * Vector6::from_column_slice(&vc[*iv..iv + 6]);
+                oc[*iv..iv + 6].copy_from_slice(block.as_slice());
+            }
         }
     }
 
@@ -158,17 +204,12 @@ impl SubstepProduct {
     /// joints, the free flyers' blocks over it), dv' = V X, the held anchors copied, the
     /// forgotten ones zero, the others `R_f X`.
     fn assemble(&self, x: &DMatrix<f64>, vx: &[f64], out: &mut DMatrix<f64>) {
-        let (nv, n, h) = (self.nv, x.nrows(), self.h);
+        let (nv, n) = (self.nv, x.nrows());
+        let m = x.ncols();
         let xs = x.as_slice();
+        self.configuration_rows(xs, n, &vx[..nv * m], out.as_mut_slice(), n);
         for (c, oc) in out.as_mut_slice().chunks_exact_mut(n).enumerate() {
             let (xc, vc) = (&xs[c * n..(c + 1) * n], &vx[c * nv..(c + 1) * nv]);
-            for ((o, xi), vi) in oc[..nv].iter_mut().zip(&xc[..nv]).zip(vc) {
-                *o = xi + h * vi;
-            }
-            for (iv, jq, h_jv) in &self.free_flyers {
-                let block = jq * Vector6::from_column_slice(&xc[*iv..iv + 6]) + h_jv * Vector6::from_column_slice(&vc[*iv..iv + 6]);
-                oc[*iv..iv + 6].copy_from_slice(block.as_slice());
-            }
             oc[nv..2 * nv].copy_from_slice(vc);
             for (f, kind) in self.anchor_rows.iter().enumerate() {
                 let r0 = 2 * nv + ANCHOR_DIM * f;
