@@ -152,8 +152,8 @@ impl SubstepProduct {
     ///
     /// Without a foot's dense anchor rows only the configuration rows need the last power:
     /// those of each power are kept apart (`nv x n`), and `a`'s anchor rows are already the
-    /// last power's (a held anchor's rows of every power are `A_i`'s, a forgotten one's zero),
-    /// so `a` is written once, at the end. The same operations on every entry as through
+    /// last power's (a held anchor's rows of every power are `A_i`'s; a forgotten one's,
+    /// zero, are written again), so `a` is written once, at the end. The same operations on every entry as through
     /// the whole powers.
     pub fn power(&mut self, k: usize, a: &mut DMatrix<f64>, scratch: &mut DMatrix<f64>) {
         self.powers_v.copy_from(&self.velocity_rows);
@@ -179,6 +179,13 @@ impl SubstepProduct {
         for (c, ac) in a.as_mut_slice().chunks_exact_mut(n).enumerate() {
             ac[..nv].copy_from_slice(&self.powers_q.as_slice()[c * nv..(c + 1) * nv]);
             ac[nv..2 * nv].copy_from_slice(&self.powers_v.as_slice()[c * nv..(c + 1) * nv]);
+            // A forgotten anchor's rows as `assemble` writes them (`A_i`'s may hold -0).
+            for (f, kind) in self.anchor_rows.iter().enumerate() {
+                if *kind == AnchorRows::Zero {
+                    let r0 = 2 * nv + ANCHOR_DIM * f;
+                    ac[r0..r0 + ANCHOR_DIM].fill(0.0);
+                }
+            }
         }
     }
 
