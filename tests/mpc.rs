@@ -489,17 +489,13 @@ fn a_controller_that_cannot_start_is_told_apart_from_a_closed_loop() {
 struct Glitching<'a> {
     sim: Simulator<'a>,
     glitch: f64,
-    garbled: SimState,
+    /// The measurement while the simulator's time is `glitch`.
+    garbled: Option<SimState>,
 }
 
 impl legwork::sim::Plant for Glitching<'_> {
     fn state(&self) -> &SimState {
-        let s = self.sim.state();
-        if (s.t - self.glitch).abs() < 1e-9 {
-            &self.garbled
-        } else {
-            s
-        }
+        self.garbled.as_ref().unwrap_or_else(|| self.sim.state())
     }
     fn physics_dt(&self) -> f64 {
         legwork::sim::Plant::physics_dt(&self.sim)
@@ -510,10 +506,11 @@ impl legwork::sim::Plant for Glitching<'_> {
     fn step_recorded(&mut self, controller: &mut dyn Controller, trajectory: &mut Trajectory) -> Result<(), legwork::sim::SimError> {
         self.sim.step_recorded(controller, trajectory)?;
         let s = self.sim.state();
-        if (s.t - self.glitch).abs() < 1e-9 {
-            self.garbled = s.clone();
-            self.garbled.v.rows_mut(6, s.v.len() - 6).fill(f64::NAN);
-        }
+        self.garbled = ((s.t - self.glitch).abs() < 1e-9).then(|| {
+            let mut garbled = s.clone();
+            garbled.v.rows_mut(6, s.v.len() - 6).fill(f64::NAN);
+            garbled
+        });
         Ok(())
     }
     fn record_final(&mut self, trajectory: &mut Trajectory) -> Result<(), legwork::sim::SimError> {
@@ -535,8 +532,7 @@ fn a_failed_tick_keeps_the_running_policy_and_the_next_tick_moves_it_on() {
     let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
     let mpc = Mpc::new(&problem, &run.solution, spec.dt, settings.clone()).unwrap();
     let sim = Simulator::from_plan(&model, &ground, &run.plan, SimConfig { physics_dt: 0.001, control_dt: 0.001, ..SimConfig::default() }).unwrap();
-    let garbled = sim.state().clone();
-    let mut plant = Glitching { sim, glitch: 0.1, garbled };
+    let mut plant = Glitching { sim, glitch: 0.1, garbled: None };
     let closed = run_closed_loop(mpc, &mut plant, spec.duration, PolicyLatency::Fixed(0.005), |_| ()).unwrap();
     assert!(closed.stopped.is_none(), "{:?}", closed.stopped);
     let failed: Vec<_> = closed.ticks.iter().filter(|t| t.failure.is_some()).collect();

@@ -150,31 +150,33 @@ impl SubstepProduct {
     /// configuration rows `Jq (A_i^j)_q + h Jv W_j` and the anchor rows `R A_i^j`. Equals
     /// `k - 1` products [`Self::mul`] up to round-off.
     ///
-    /// Without a foot's dense anchor rows only the configuration rows need the last power:
-    /// those of each power are kept apart (`nv x n`), and `a`'s anchor rows are already the
-    /// last power's (a held anchor's rows of every power are `A_i`'s; a forgotten one's,
-    /// zero, are written again), so `a` is written once, at the end. The same operations on every entry as through
-    /// the whole powers.
+    /// Without a foot's dense anchor rows only the last power is needed whole: of the others,
+    /// the configuration rows are kept apart (`nv x n`, the velocity rows are already), and
+    /// `a`'s anchor rows are already the last power's (a held anchor's rows of every power are
+    /// `A_i`'s; a forgotten one's, zero, are written again), so `a` is written once, at the
+    /// end. The same operations on every entry as through the whole powers.
     pub fn power(&mut self, k: usize, a: &mut DMatrix<f64>, scratch: &mut DMatrix<f64>) {
-        self.powers_v.copy_from(&self.velocity_rows);
-        if self.anchor_rows.contains(&AnchorRows::Dense) {
-            for _ in 1..k {
-                self.right_mul_velocity_rows();
-                std::mem::swap(&mut self.powers_v, &mut self.powers_v_next);
-                self.assemble(a, self.powers_v.as_slice(), scratch);
-                std::mem::swap(a, scratch);
-            }
-            return;
-        }
         let (nv, n) = (self.nv, a.nrows());
-        self.powers_q.copy_from(&a.rows(0, nv));
+        let whole_powers = self.anchor_rows.contains(&AnchorRows::Dense);
+        self.powers_v.copy_from(&self.velocity_rows);
+        if !whole_powers {
+            self.powers_q.copy_from(&a.rows(0, nv));
+        }
         for _ in 1..k {
             self.right_mul_velocity_rows();
             std::mem::swap(&mut self.powers_v, &mut self.powers_v_next);
-            // Out of `self` for the call (an empty matrix left in its place: no allocation).
-            let mut next = std::mem::take(&mut self.powers_q_next);
-            self.configuration_rows(self.powers_q.as_slice(), nv, self.powers_v.as_slice(), next.as_mut_slice(), nv);
-            self.powers_q_next = std::mem::replace(&mut self.powers_q, next);
+            if whole_powers {
+                self.assemble(a, self.powers_v.as_slice(), scratch);
+                std::mem::swap(a, scratch);
+            } else {
+                // Out of `self` for the call (an empty matrix left in its place: no allocation).
+                let mut next = std::mem::take(&mut self.powers_q_next);
+                self.configuration_rows(self.powers_q.as_slice(), nv, self.powers_v.as_slice(), next.as_mut_slice(), nv);
+                self.powers_q_next = std::mem::replace(&mut self.powers_q, next);
+            }
+        }
+        if whole_powers {
+            return;
         }
         for (c, ac) in a.as_mut_slice().chunks_exact_mut(n).enumerate() {
             ac[..nv].copy_from_slice(&self.powers_q.as_slice()[c * nv..(c + 1) * nv]);
