@@ -96,6 +96,84 @@ fn the_shift_moves_every_knot_earlier_and_rolls_out_the_new_tail() {
 }
 
 #[test]
+fn a_window_that_reaches_the_tasks_end_ends_there_and_its_shift_rolls_out_no_new_knot() {
+    // The task ends at 0.3 s; a 0.2 s window (40 knots of 5 ms) that spans at least 0.05 s.
+    let model = embedded::load("hyq").unwrap();
+    let spec = stand(0.3);
+    let run = plan(&spec, &model);
+    let settings = MpcSettings { horizon: 0.2, ends_at_task_end: Some(0.05), ..MpcSettings::default() };
+    let ground = Plane::flat(0.0);
+    let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
+    let past_end = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &MpcSettings { ends_at_task_end: None, ..settings.clone() }, "stand.toml").unwrap();
+    let receding = |p: &legwork::ocp::WholeBodyProblem<'_>| p.receding.as_ref().unwrap().start();
+    // (start, knots, the knot with the task's final cost): the whole window until the end
+    // comes within it, then up to the end (H last), then the shortest window (H at the knot
+    // nearest the end, or last once it has passed).
+    for (start, knots, final_knot) in [(0.0, 40, 40), (0.1, 40, 40), (0.15, 30, 30), (0.28, 10, 4), (0.35, 10, 10)] {
+        for p in [&problem, &past_end] {
+            p.receding.as_ref().unwrap().set_start(start);
+        }
+        assert_eq!(receding(&problem), start);
+        assert_eq!((problem.horizon(), problem.last_used_knot()), (knots, final_knot), "start {start}");
+        assert_eq!(problem.grid().knots, knots, "start {start}");
+        assert_eq!(past_end.horizon(), 40, "start {start}: the window past the end keeps its length");
+    }
+    // H in the terminal cost exactly when the window ends on the task's final knot.
+    let mut x = run.solution.states.last().unwrap().clone();
+    x.q[1] += 0.02;
+    let mut ws = problem.workspace();
+    problem.receding.as_ref().unwrap().set_start(0.15);
+    let ending_on_h = problem.terminal_cost(&mut ws, &x);
+    past_end.receding.as_ref().unwrap().set_start(0.15);
+    let mut ws_past = past_end.workspace();
+    let ending_past = past_end.terminal_cost(&mut ws_past, &x);
+    // (Past the end, the task's H sits on a running knot; 2 cm off in y costs 0.2 under H's 1e3.)
+    assert!(ending_on_h > ending_past + 0.1, "H ends the shortened window: {ending_on_h} against {ending_past}");
+
+    // The solver shifts a solution into a window that lost as many knots as it moved: every
+    // knot's state, input and gain moved earlier, nothing rolled out.
+    problem.receding.as_ref().unwrap().set_start(0.1);
+    let pd = legwork::control::JointPd::standing(&model, problem.dt).unwrap();
+    let mut slq = Slq::new(&problem, SlqSettings { threads: 1, ..SlqSettings::default() }).unwrap();
+    slq.start_from(&problem.initial, &PdPolicy(&pd)).unwrap();
+    slq.real_time_iteration(&problem.initial, None).unwrap();
+    let (states, inputs, gains): (Vec<RobotState>, Vec<_>, Vec<_>) = (slq.states().to_vec(), slq.inputs().to_vec(), slq.gains().to_vec());
+    assert_eq!(states.len(), 41);
+    // To 0.15 s: 10 knots on, 30 left (the task's end at the window's end).
+    problem.receding.as_ref().unwrap().set_start(0.15);
+    slq.shift(10, &PdPolicy(&pd));
+    assert_eq!((slq.states().len(), slq.inputs().len(), slq.gains().len()), (31, 30, 30));
+    for k in 0..=30 {
+        assert_eq!(slq.states()[k], states[k + 10], "state {k}");
+    }
+    for k in 0..30 {
+        assert_eq!(slq.inputs()[k], inputs[k + 10], "input {k}");
+        assert_eq!(slq.gains()[k], gains[k + 10], "gain {k}");
+    }
+    // The shortened window iterates: its last knot carries H.
+    slq.real_time_iteration(&states[10], None).unwrap();
+    assert_eq!(slq.states().len(), 31);
+    // To 0.28 s (26 knots on): the shortest window, 10 knots; the old last state is knot 4,
+    // knots 4..10 are rolled out from it with the tail policy.
+    let moved = slq.states().to_vec();
+    problem.receding.as_ref().unwrap().set_start(0.28);
+    slq.shift(26, &PdPolicy(&pd));
+    assert_eq!(slq.states().len(), 11);
+    for k in 0..=4 {
+        assert_eq!(slq.states()[k], moved[k + 26], "state {k} after the second shift");
+    }
+    let mut ws = problem.workspace();
+    let mut next = problem.initial.clone();
+    for k in 4..10 {
+        let mut u = nalgebra::DVector::zeros(problem.nu());
+        pd.actuated_torques(&model, &slq.states()[k].q, &slq.states()[k].v, &mut u);
+        assert_eq!(slq.inputs()[k], u, "tail input {k}");
+        problem.step(&mut ws, k, &slq.states()[k], &slq.inputs()[k], &mut next);
+        assert_eq!(next, slq.states()[k + 1], "tail state {}", k + 1);
+    }
+}
+
+#[test]
 fn a_coarse_tail_moves_into_the_fine_head_one_tick_at_a_time() {
     let model = embedded::load("hyq").unwrap();
     let spec = stand(0.3);
@@ -241,7 +319,7 @@ fn a_window_that_holds_the_tasks_end_counts_its_final_cost_once_and_uses_its_kno
     let spec = stand(0.3);
     let run = plan(&spec, &model);
     let ground = Plane::flat(0.0);
-    let settings = MpcSettings { horizon: 0.1, ..MpcSettings::default() };
+    let settings = MpcSettings { horizon: 0.1, ends_at_task_end: None, ..MpcSettings::default() };
     let with_value = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
     let without_value = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &MpcSettings { plan_value: false, ..settings }, "stand.toml").unwrap();
     // A state off the plan, so that the value, the tracking and H all see it.
@@ -467,8 +545,13 @@ fn a_controller_that_cannot_start_is_told_apart_from_a_closed_loop() {
     let solve = SolveJob { spec: &spec, origin: "stand.toml", model: &model, options: SolveOptions { threads: 2, value_function: true, ..SolveOptions::default() }, mujoco: None, out: &plan_dir, memory_limit: MemoryLimit { gb: None, setting: "--memory-limit GB" }, png: false };
     let mut plan = solve.run(|_| ()).unwrap();
     let job = MpcJob { solve, settings: MpcSettings { horizon: 0.1, ..MpcSettings::default() }, sim: ClosedLoopSim::Legwork, latency: PolicyLatency::Fixed(0.005), pushes: Vec::new(), out: &dir };
-    // The plan as solved: the loop runs.
-    assert!(matches!(job.try_run_on_plan(&plan, |_| ()).unwrap(), ClosedLoopOutcome::Ran(_)));
+    // The plan as solved: the loop runs. Its summary's tick times of the windows that lie
+    // within the task (those with t + 0.1 <= 0.2 s; the later ones are shorter).
+    let ClosedLoopOutcome::Ran(run) = job.try_run_on_plan(&plan, |_| ()).unwrap() else { panic!("the loop did not start") };
+    let full: Vec<f64> = run.closed_loop.ticks.iter().filter(|t| t.t + 0.1 <= 0.2 + 1e-9).map(|t| t.solve_time).collect();
+    assert!(!full.is_empty() && full.len() < run.closed_loop.ticks.len(), "{} of {} ticks", full.len(), run.closed_loop.ticks.len());
+    assert_eq!(run.summary["full_window_ticks"], full.len());
+    assert_eq!(run.summary["tick_time_p99_full_window_s"].as_f64(), Some(legwork::mpc::closed_loop::percentile(full, 99.0)));
     for u in &mut plan.run.solution.inputs {
         u.fill(f64::NAN);
     }

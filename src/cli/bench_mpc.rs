@@ -38,6 +38,9 @@ pub struct MpcBench<'a> {
     /// The contact anchors as states of the windows (with them, the windows end on the
     /// plan's value function; without, on the tracking cost's terminal weights).
     pub anchor_states: bool,
+    /// Windows that end at the task's end, and their shortest length
+    /// ([`legwork::mpc::MpcSettings::ends_at_task_end`]).
+    pub ends_at_task_end: Option<f64>,
     /// Scale of the windows' tracking weights (1: the defaults).
     pub tracking: f64,
     /// What the robot's policy feeds back between ticks.
@@ -102,6 +105,9 @@ fn row(outcome: &ClosedLoopOutcome) -> Value {
         "ticks_over_period": s["ticks_over_period"],
         "tick_time_p50_s": s["tick_time_p50_s"],
         "tick_time_p99_s": s["tick_time_p99_s"],
+        "full_window_ticks": s["full_window_ticks"],
+        "tick_time_p50_full_window_s": s["tick_time_p50_full_window_s"],
+        "tick_time_p99_full_window_s": s["tick_time_p99_full_window_s"],
         "tick_time_max_s": s["tick_time_max_s"],
         "target": s["target"]["mpc"],
     })
@@ -121,7 +127,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
     let sim = if bench.mujoco { ClosedLoopSim::Mujoco(MujocoCheck::locate().or_could_not_finish()?) } else { ClosedLoopSim::Legwork };
     let sim_name = if bench.mujoco { "MuJoCo" } else { "legwork" };
     let max_threads = *bench.thread_counts.iter().max().unwrap_or(&1);
-    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, tail_ticks: bench.tail_ticks, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, feedback: bench.feedback, tracking: legwork::mpc::TrackingWeights::default().scaled(bench.tracking), ..MpcSettings::default() };
+    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, tail_ticks: bench.tail_ticks, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, ends_at_task_end: bench.ends_at_task_end, feedback: bench.feedback, tracking: legwork::mpc::TrackingWeights::default().scaled(bench.tracking), ..MpcSettings::default() };
 
     // The tick time against horizon and threads, on one task, the latency measured.
     let timing_out = bench.out.join("timing");
@@ -140,7 +146,8 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
                 ClosedLoopOutcome::ControllerDidNotStart(_) => Value::Null,
             };
             if !bench.as_json {
-                say!("tick time {} h {horizon} s, {threads} thread(s): p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms ({} of {} ticks over the period)", timing_plan.spec.name, r["tick_time_p50_s"].as_f64().unwrap_or(f64::NAN) * 1e3, r["tick_time_p99_s"].as_f64().unwrap_or(f64::NAN) * 1e3, r["tick_time_max_s"].as_f64().unwrap_or(f64::NAN) * 1e3, r["ticks_over_period"], r["ticks"]);
+                let ms = |key: &str| r[key].as_f64().unwrap_or(f64::NAN) * 1e3;
+                say!("tick time {} h {horizon} s, {threads} thread(s): p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms ({} of {} ticks over the period); the {} ticks whose window lies within the task: p50 {:.2} ms, p99 {:.2} ms", timing_plan.spec.name, ms("tick_time_p50_s"), ms("tick_time_p99_s"), ms("tick_time_max_s"), r["ticks_over_period"], r["ticks"], r["full_window_ticks"], ms("tick_time_p50_full_window_s"), ms("tick_time_p99_full_window_s"));
             }
             timing.push(r);
         }
@@ -178,7 +185,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
     }
     let period = 1.0 / bench.rate;
     // The target row (0.5 s, two threads); not measured counts as missed.
-    let p99_met = timing.iter().find(|r| r["horizon_s"] == json!(0.5) && r["threads"] == json!(2)).is_some_and(|r| r["tick_time_p99_s"].as_f64().is_some_and(|p| p <= period));
+    let p99_met = timing.iter().find(|r| r["horizon_s"] == json!(0.5) && r["threads"] == json!(2)).is_some_and(|r| r["tick_time_p99_full_window_s"].as_f64().is_some_and(|p| p <= period));
     let all_met = tasks.iter().all(|t| t["nominal"]["met"] == true && t["pushed"].get("met").is_none_or(|m| m == true));
     let verdict = Verdict::from_met(p99_met && all_met);
     let report = json!({
@@ -192,6 +199,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         "model_reuse": base.model_reuse.map(|r| json!({ "fresh_head": r.fresh_head, "refresh_period": r.refresh_period })),
         "anchor_states": base.anchor_states,
         "plan_value": base.plan_value,
+        "ends_at_task_end": base.ends_at_task_end,
         "feedback": base.feedback.name(),
         "tracking_scale": bench.tracking,
         "task_horizon_s": bench.horizon,

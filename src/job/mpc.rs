@@ -153,6 +153,10 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
     use crate::mpc::closed_loop::percentile;
     let s = &job.settings;
     let times = tick_times(&run.ticks);
+    // The ticks whose window lies within the task, its whole horizon long (a window that
+    // ends at the task's end is shorter after them, [`crate::mpc::MpcSettings::ends_at_task_end`],
+    // and its ticks cheaper): the figure for a tick time "with a horizon of h".
+    let full_window: Vec<f64> = run.ticks.iter().filter(|t| t.t + s.horizon <= job.solve.spec.duration + 1e-9).map(|t| t.solve_time).collect();
     let period = s.period();
     json!({
         "task": job.solve.spec.name,
@@ -171,6 +175,7 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
         "model_reuse": s.model_reuse.map(|r| json!({ "fresh_head": r.fresh_head, "refresh_period": r.refresh_period })),
         "threads": s.threads,
         "anchor_states": s.anchor_states,
+        "ends_at_task_end": s.ends_at_task_end.map_or(json!(false), |shortest| json!({ "shortest_window_s": shortest })),
         "feedback": s.feedback.name(),
         "tracking": s.tracking,
         "latency": match job.latency { PolicyLatency::Measured => json!("measured"), PolicyLatency::Fixed(l) => json!(l) },
@@ -183,6 +188,10 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
         "tick_time_p50_s": percentile(times.clone(), 50.0),
         "tick_time_p99_s": percentile(times.clone(), 99.0),
         "tick_time_max_s": percentile(times.clone(), 100.0),
+        "full_window_ticks": full_window.len(),
+        // None without such ticks (a task shorter than the window).
+        "tick_time_p50_full_window_s": (!full_window.is_empty()).then(|| percentile(full_window.clone(), 50.0)),
+        "tick_time_p99_full_window_s": (!full_window.is_empty()).then(|| percentile(full_window.clone(), 99.0)),
         "tick_time_mean_s": if times.is_empty() { 0.0 } else { times.iter().sum::<f64>() / times.len() as f64 },
         "stopped": run.stopped,
         "target": {

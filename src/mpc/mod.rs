@@ -9,8 +9,10 @@
 //! - **window** ([`window_problem`]): the task's own costs at their absolute times (the
 //!   waypoints' Gaussian windows, the final cost at the task's end), the plan's value
 //!   function (`P_k`, `p_k` of its last backward pass) as the cost beyond the window's end
-//!   until the window reaches the task's end (from then on the final cost, counted once),
-//!   a light tracking cost toward the plan's states and torques
+//!   until the window reaches the task's end (from then on the window ends there, on the
+//!   final cost counted once, and shortens tick by tick to at least 0.1 s:
+//!   [`MpcSettings::ends_at_task_end`]), a light tracking cost toward the plan's states and
+//!   torques
 //!   ([`crate::ocp::RecedingHorizon`]), the robot's own contact model and torque limits,
 //!   knots spaced by the tick period (5 ms, coarser than the plan's 2 ms; each integrated
 //!   in steps of the contact's stable step and linearized once, at its start), or finer
@@ -131,6 +133,16 @@ pub struct MpcSettings {
     /// (true; the plan must have one: [`crate::slq::SlqSettings::record_value_function`]).
     /// A window that reaches the task's end ends on the task's final cost, once.
     pub plan_value: bool,
+    /// A window that reaches the task's end ends there, but spans at least this many
+    /// seconds (`Some(0.1)`): its knots up to the task's end, fewer tick by tick, the task's
+    /// final cost last, as in the plan ([`crate::ocp::RecedingHorizon::ends_at_task_end`];
+    /// uniform knots only, a coarse tail keeps its length). Shorter windows turn the gains
+    /// deadbeat before the heavy final cost (sidestep with windows down to one knot: a joint
+    /// past 200 rad/s 10 ms before its end). `None`: the window keeps its length, its knots
+    /// past the end tracking the plan's final state (the closed loop never runs them; on
+    /// sidestep their rollouts leave the valid states on 92 of the last 100 ticks:
+    /// docs/experiments/mpc-14.md).
+    pub ends_at_task_end: Option<f64>,
     /// The feasibility constraints of the task's plan (friction, penetration, joint limits
     /// and speeds) in the window too, as penalties without the plan's multipliers (true).
     pub feasibility: bool,
@@ -179,7 +191,7 @@ impl MpcFeedback {
 
 impl Default for MpcSettings {
     fn default() -> Self {
-        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, tail_ticks: 1, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
+        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, tail_ticks: 1, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, ends_at_task_end: Some(0.1), feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
     }
 }
 
@@ -240,6 +252,9 @@ impl MpcSettings {
         }
         if knots > 100_000.0 {
             return bad("horizon", format!("{} s is {knots:.0} knots of {dt} s: at most 100000", self.horizon));
+        }
+        if let Some(shortest) = self.ends_at_task_end.filter(|s| !(s.is_finite() && *s >= 0.0)) {
+            return bad("ends_at_task_end", format!("expected the shortest window as a finite number of seconds >= 0, got {shortest}"));
         }
         if !(1..=2).contains(&self.tail_ticks) {
             return bad("tail_ticks", format!("expected 1 or 2 tick periods, got {}", self.tail_ticks));
@@ -364,6 +379,7 @@ pub fn window_problem<'a>(spec: &TaskSpec, model: &'a Model, terrain: &'a dyn Te
         problem.tail = Some(CoarseTail { from: head, dt: settings.tail_knot_dt(), substeps: problem.substeps * head_knots_per_tail_knot });
     }
     let mut receding = RecedingHorizon::new(0.0, spec.duration, reference);
+    receding.ends_at_task_end = settings.ends_at_task_end;
     if settings.plan_value {
         let mut value = plan.value_function.clone().ok_or(MpcError::Settings { field: "plan_value", problem: "the plan has no value function: solve it with record_value_function".into() })?;
         let (plan_nx, nx) = (value.gradients.first().map_or(0, |g| g.len()), problem.nx());

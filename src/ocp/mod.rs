@@ -148,7 +148,8 @@ pub struct WholeBodyProblem<'a> {
     /// step inside a control period. `dt / substeps` may not exceed the contact model's
     /// stable step (`model.contact.max_step`).
     pub substeps: usize,
-    /// Number of transitions.
+    /// Number of transitions (a receding window's most: it may use fewer,
+    /// [`Self::active_knots`]).
     pub knots: usize,
     /// A receding window's coarser knots after its first ones (`None`: every knot `dt`;
     /// [`Self::knot_dt`], [`Self::knot_time`]).
@@ -419,7 +420,24 @@ impl<'a> WholeBodyProblem<'a> {
     /// Where the knots fall ([`KnotGrid`]; a receding window's coarse tail as of its
     /// current start, [`CoarseTail::at_start`]).
     pub fn grid(&self) -> KnotGrid {
-        KnotGrid { dt: self.dt, knots: self.knots, tail: self.current_tail() }
+        KnotGrid { dt: self.dt, knots: self.active_knots(), tail: self.current_tail() }
+    }
+
+    /// The window's knots now ([`crate::slq::Problem::horizon`]): `knots`, but a receding
+    /// window that ends at the task's end ([`RecedingHorizon::ends_at_task_end`], uniform
+    /// knots) keeps only those up to the knot nearest it, down to its shortest length: the
+    /// task's final cost `H` then ends the window, as it ends the plan, and no knot is spent
+    /// on a motion after the task that the closed loop never runs. It only shrinks as the
+    /// window moves on (a solver allocates for the knots it starts with).
+    pub fn active_knots(&self) -> usize {
+        let (Some(r), None) = (&self.receding, self.tail) else { return self.knots };
+        let Some(shortest) = r.ends_at_task_end else { return self.knots };
+        let to_end = ((r.final_time - r.start()).max(shortest) / self.dt).round();
+        if to_end >= self.knots as f64 {
+            self.knots
+        } else {
+            to_end.max(1.0) as usize
+        }
     }
 
     /// The coarse tail as of the window's current start (the start read only if there is
@@ -460,13 +478,14 @@ impl<'a> WholeBodyProblem<'a> {
     /// final cost if it falls on `k`, and the reference motion's tracking cost.
     fn receding_cost(&self, ws: &mut WholeBodyWorkspace<'a>, k: usize, x: &RobotState) -> f64 {
         let Some(r) = &self.receding else { return 0.0 };
+        let n = self.active_knots();
         let mut cost = 0.0;
-        if k < self.knots && self.final_knot() == Some(k) {
+        if k < n && self.final_knot() == Some(k) {
             cost += self.state_cost(ws, &self.terminal, 1.0, x);
         }
-        let (weights, scale) = if k < self.knots { (&r.reference.weights, self.knot_dt(k)) } else { (&r.reference.terminal_weights, 1.0) };
+        let (weights, scale) = if k < n { (&r.reference.weights, self.knot_dt(k)) } else { (&r.reference.terminal_weights, 1.0) };
         cost += self.deviation_cost(ws, r.reference.at(self.knot_time(k)), weights, &[], scale, x);
-        if k == self.knots && self.ends_on_plan_value() {
+        if k == n && self.ends_on_plan_value() {
             cost += self.plan_value(ws, x, None);
         }
         cost
@@ -489,7 +508,8 @@ impl<'a> WholeBodyProblem<'a> {
     /// as the identity, as the solver's own tangent-space model does).
     fn plan_value(&self, ws: &mut WholeBodyWorkspace<'a>, x: &RobotState, derivatives: Option<(&mut DVector<f64>, &mut DMatrix<f64>)>) -> f64 {
         let Some(plan) = self.receding.as_ref().and_then(|r| r.value.as_ref()) else { return 0.0 };
-        let j = plan.knot_at(self.knot_time(self.knots));
+        let n = self.active_knots();
+        let j = plan.knot_at(self.knot_time(n));
         let (p_mat, p_vec) = (&plan.value.hessians[j], &plan.value.gradients[j]);
         if p_vec.len() != ws.value_dx.len() {
             return 0.0;
@@ -508,13 +528,14 @@ impl<'a> WholeBodyProblem<'a> {
     /// [`Self::receding_cost`] with its derivatives added to `(l_x, l_xx)`.
     fn add_receding_cost_derivatives(&self, ws: &mut WholeBodyWorkspace<'a>, k: usize, x: &RobotState, l_x: &mut DVector<f64>, l_xx: &mut DMatrix<f64>) -> f64 {
         let Some(r) = &self.receding else { return 0.0 };
+        let n = self.active_knots();
         let mut cost = 0.0;
-        if k < self.knots && self.final_knot() == Some(k) {
+        if k < n && self.final_knot() == Some(k) {
             cost += self.add_state_cost_derivatives(ws, &self.terminal, 1.0, x, l_x, l_xx);
         }
-        let (weights, scale) = if k < self.knots { (&r.reference.weights, self.knot_dt(k)) } else { (&r.reference.terminal_weights, 1.0) };
+        let (weights, scale) = if k < n { (&r.reference.weights, self.knot_dt(k)) } else { (&r.reference.terminal_weights, 1.0) };
         cost += self.add_deviation_cost_derivatives(ws, r.reference.at(self.knot_time(k)), weights, &[], scale, x, l_x, l_xx);
-        if k == self.knots && self.ends_on_plan_value() {
+        if k == n && self.ends_on_plan_value() {
             cost += self.plan_value(ws, x, Some((l_x, l_xx)));
         }
         cost
@@ -568,7 +589,8 @@ impl WholeBodyProblem<'_> {
     /// evaluated there.
     fn for_each_knot_contact(&self, states: &[RobotState], mut f: impl FnMut(usize, &RobotState, &crate::contact::ContactParams, &[crate::sim::FootState])) {
         let mut ws = ContactModelWorkspace::new(self.model, self.terrain).with_joint_limits(self.joint_limits);
-        for (k, x) in states.iter().enumerate().take(self.knots + usize::from(self.terminal_constrained())) {
+        let n = self.active_knots();
+        for (k, x) in states.iter().enumerate().take(n + usize::from(self.terminal_constrained())) {
             ws.evaluate_contacts(&x.q, &x.v, &x.anchors);
             f(k, x, ws.params(), ws.feet());
         }
@@ -614,7 +636,7 @@ impl<'a> Problem for WholeBodyProblem<'a> {
         self.nu_()
     }
     fn horizon(&self) -> usize {
-        self.knots
+        self.active_knots()
     }
     fn workspace(&self) -> WholeBodyWorkspace<'a> {
         let (model, nv) = (self.model, self.model.nv);
@@ -694,16 +716,18 @@ impl<'a> Problem for WholeBodyProblem<'a> {
     /// without them the terminal cost is cheapest met by a last stamp and drag of the feet
     /// (docs/experiments/feasible-slq-3.md, turn).
     fn terminal_cost(&self, ws: &mut WholeBodyWorkspace<'a>, x: &RobotState) -> f64 {
-        let mut cost = if self.final_knot() == Some(self.knots) { self.state_cost(ws, &self.terminal, 1.0, x) } else { 0.0 };
-        cost += self.receding_cost(ws, self.knots, x);
+        let n = self.active_knots();
+        let mut cost = if self.final_knot() == Some(n) { self.state_cost(ws, &self.terminal, 1.0, x) } else { 0.0 };
+        cost += self.receding_cost(ws, n, x);
         if let Some(constraints) = self.feasibility.as_ref().filter(|c| c.settings.terminal_knot) {
             ws.dynamics.evaluate_contacts(&x.q, &x.v, &x.anchors);
             let at = KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params: ws.dynamics.params(), feet: ws.dynamics.feet() };
-            cost += constraints.cost(self.knots, self.knot_dt(self.knots.saturating_sub(1)), at);
+            cost += constraints.cost(n, self.knot_dt(n.saturating_sub(1)), at);
         }
         cost
     }
     fn terminal_cost_derivatives(&self, ws: &mut WholeBodyWorkspace<'a>, x: &RobotState, h_x: &mut DVector<f64>, h_xx: &mut DMatrix<f64>) -> f64 {
+        let n = self.active_knots();
         h_x.fill(0.0);
         h_xx.fill(0.0);
         let mut cost = 0.0;
@@ -715,14 +739,14 @@ impl<'a> Problem for WholeBodyProblem<'a> {
             ws.tau.fill(0.0);
             let s = &mut ws.terminal_scratch;
             ws.derivatives.step(&mut ws.dynamics, &mut s.q, &mut s.v, &mut s.anchors, &ws.tau, self.dt / self.substeps as f64);
-            let dt = self.knot_dt(self.knots.saturating_sub(1));
+            let dt = self.knot_dt(n.saturating_sub(1));
             let at = KnotContacts { q: &x.q, v: &x.v, anchors: &x.anchors, params: ws.dynamics.params(), feet: ws.dynamics.feet() };
-            cost += constraints.add_derivatives(self.knots, dt, at, &ws.derivatives, self.anchor_states, &mut ws.constraint_row, (h_x, h_xx));
+            cost += constraints.add_derivatives(n, dt, at, &ws.derivatives, self.anchor_states, &mut ws.constraint_row, (h_x, h_xx));
         }
-        if self.final_knot() == Some(self.knots) {
+        if self.final_knot() == Some(n) {
             cost += self.add_state_cost_derivatives(ws, &self.terminal, 1.0, x, h_x, h_xx);
         }
-        cost + self.add_receding_cost_derivatives(ws, self.knots, x, h_x, h_xx)
+        cost + self.add_receding_cost_derivatives(ws, n, x, h_x, h_xx)
     }
     /// `-effort <= u <= effort`, the joints' effort limits.
     fn input_bounds(&self, _k: usize, lower: &mut DVector<f64>, upper: &mut DVector<f64>) {
@@ -738,7 +762,8 @@ impl<'a> Problem for WholeBodyProblem<'a> {
     /// The knot at the task's end in a window that reaches it (the closed loop ends there;
     /// the knots after it only carry the final state on), else the last.
     fn last_used_knot(&self) -> usize {
-        self.final_knot().unwrap_or(self.knots)
+        let n = self.active_knots();
+        self.final_knot().unwrap_or(n)
     }
 
     /// The same feet anchored (in contact) in both states: a foot that landed or lifted

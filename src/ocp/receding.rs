@@ -14,7 +14,9 @@
 //! 0.5 s window of a 3 s gallop sees no reason to keep moving. With a [`PlanValue`] the
 //! plan's value function at the window's end adds to it while the task's end lies beyond
 //! the window; a window that holds the task's end has `H` in it, and the value (which
-//! includes `H`) would count it twice.
+//! includes `H`) would count it twice. With [`RecedingHorizon::ends_at_task_end`] such a
+//! window ends at the task's end, `H` on its last knot (`N` the knots up to the end,
+//! [`super::WholeBodyProblem::active_knots`]), as the plan's problem ends.
 
 use super::RobotState;
 use crate::slq::ValueFunction;
@@ -166,6 +168,11 @@ pub struct RecedingHorizon {
     /// The plan's cost-to-go as the window's terminal cost (`None`: the reference's
     /// terminal weights only).
     pub value: Option<PlanValue>,
+    /// `Some(shortest)`: the window ends at the task's end once it reaches it, its final
+    /// cost last, but spans at least `shortest` seconds (past the end by what it lacks)
+    /// ([`super::WholeBodyProblem::active_knots`]; uniform knots only). `None`: the window
+    /// keeps its length, its knots past the end tracking the final state held.
+    pub ends_at_task_end: Option<f64>,
 }
 
 /// A plan's states (every `dt` from `t = 0`, as [`ReferenceMotion`]'s samples) and the local
@@ -193,7 +200,7 @@ impl PlanValue {
 
 impl RecedingHorizon {
     pub fn new(start: f64, final_time: f64, reference: ReferenceMotion) -> Self {
-        Self { start: AtomicU64::new(start.to_bits()), final_time, reference, value: None }
+        Self { start: AtomicU64::new(start.to_bits()), final_time, reference, value: None, ends_at_task_end: None }
     }
 
     /// The absolute time of knot 0 (s).
@@ -223,13 +230,13 @@ impl RecedingHorizon {
 
 impl Clone for RecedingHorizon {
     fn clone(&self) -> Self {
-        Self { value: self.value.clone(), ..Self::new(self.start(), self.final_time, self.reference.clone()) }
+        Self { value: self.value.clone(), ends_at_task_end: self.ends_at_task_end, ..Self::new(self.start(), self.final_time, self.reference.clone()) }
     }
 }
 
 impl PartialEq for RecedingHorizon {
     fn eq(&self, other: &Self) -> bool {
-        self.start() == other.start() && self.final_time == other.final_time && self.reference == other.reference && self.value == other.value
+        self.start() == other.start() && self.final_time == other.final_time && self.reference == other.reference && self.value == other.value && self.ends_at_task_end == other.ends_at_task_end
     }
 }
 

@@ -321,6 +321,10 @@ pub struct Slq<'p, P: Problem> {
     recording: bool,
     /// The real-time iterations' step size, adapted tick to tick ([`Slq::real_time_iteration`]).
     real_time_step: f64,
+    /// The knots of the window the solution was made for: a receding window may end at its
+    /// task's end and lose knots as it moves on ([`Problem::horizon`]; the buffers keep the
+    /// first window's length).
+    window_knots: usize,
 }
 
 /// Where a knot's model was taken ([`ModelReuse`]), and scratch to move it.
@@ -746,6 +750,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             value: settings.record_value_function.then(|| ValueFunction { hessians: vec![DMatrix::zeros(nx, nx); n + 1], gradients: vec![DVector::zeros(nx); n + 1] }),
             recording: false,
             real_time_step: 1.0,
+            window_knots: n,
             regularization: settings.initial_regularization,
             settings,
             pool,
@@ -767,7 +772,7 @@ impl<'p, P: Problem> Slq<'p, P> {
         let threads = self.workspaces.len();
         let chunk = n.div_ceil(threads);
         let (states, inputs, points, reused) = (&self.states, &self.inputs, &self.points, &self.reused);
-        let jobs = self.derivatives.chunks_mut(chunk).zip(self.workspaces.iter_mut().zip(self.scratch_states.iter_mut())).enumerate();
+        let jobs = self.derivatives[..n].chunks_mut(chunk).zip(self.workspaces.iter_mut().zip(self.scratch_states.iter_mut())).enumerate();
         for_each_job(self.pool.as_ref(), jobs, |(c, (derivs, (ws, scratch)))| {
             for (i, d) in derivs.iter_mut().enumerate() {
                 let k = c * chunk + i;
@@ -1000,8 +1005,9 @@ impl<'p, P: Problem> Slq<'p, P> {
 
     /// RMS over knots of the feedforward increments.
     fn feedforward_norm(&self) -> f64 {
-        let sum: f64 = self.feedforward.iter().map(|l| l.norm_squared()).sum();
-        (sum / self.feedforward.len() as f64).sqrt()
+        let n = self.problem.horizon();
+        let sum: f64 = self.feedforward[..n].iter().map(|l| l.norm_squared()).sum();
+        (sum / n as f64).sqrt()
     }
 
     /// Algorithm 1. `on_iteration` sees each iteration's record as it finishes (for a

@@ -80,19 +80,20 @@ impl<'p, P: Problem> Slq<'p, P> {
         self.problem
     }
 
-    /// The states `x_0 .. x_N` of the current solution.
+    /// The states `x_0 .. x_N` of the current solution (`N` the window's knots now,
+    /// [`Problem::horizon`]).
     pub fn states(&self) -> &[P::State] {
-        &self.states
+        &self.states[..=self.problem.horizon()]
     }
 
     /// The inputs `u_0 .. u_{N-1}` of the current solution.
     pub fn inputs(&self) -> &[DVector<f64>] {
-        &self.inputs
+        &self.inputs[..self.problem.horizon()]
     }
 
     /// The feedback gains `K_k` of the last backward pass (`u = u_k + K_k (x (-) x_k)`).
     pub fn gains(&self) -> &[DMatrix<f64>] {
-        &self.gains
+        &self.gains[..self.problem.horizon()]
     }
 
     /// Rolls `policy` out from `x0` and makes it the current solution (the warm start of
@@ -114,12 +115,15 @@ impl<'p, P: Problem> Slq<'p, P> {
     /// Moves the solution `knots` knots earlier (the window has moved on by as much): knot
     /// `k` takes knot `k + knots`'s state, input and gain; the last `knots` inputs come from
     /// `tail` (the gains repeat the last shifted one) and their states are rolled out with
-    /// them. Call it after moving the problem's window, so the tail's knots are the new
+    /// them (none, or fewer, where the window lost as many knots at its task's end). Call it after moving the problem's window, so the tail's knots are the new
     /// window's. A tail step that leaves the valid states holds the state before it;
     /// returns how many did.
     pub fn shift(&mut self, knots: usize, tail: &dyn Policy<P>) -> usize {
-        let n = self.problem.horizon();
-        let m = knots.min(n);
+        // A window that ends at its task's end may have lost knots as it moved: the tail
+        // to roll out is what the moved solution does not cover.
+        let (before, n) = (self.window_knots, self.problem.horizon());
+        self.window_knots = n;
+        let m = knots.min(before);
         let mut held_states = 0;
         if m == 0 {
             return held_states;
@@ -132,10 +136,10 @@ impl<'p, P: Problem> Slq<'p, P> {
             self.derivatives.rotate_left(m);
             self.points.rotate_left(m);
             self.shifted_knots += m;
-            self.forget_models(n - m);
+            self.forget_models(before - m);
         }
-        // The old last state is now at n - m: the new tail starts from it.
-        for k in n - m..n {
+        // The old last state is now at before - m: the new tail starts from it.
+        for k in before - m..n {
             held_states += usize::from(self.roll_out_tail_knot(k, tail));
         }
         held_states
