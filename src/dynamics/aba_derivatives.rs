@@ -28,7 +28,7 @@ const ROOT: usize = usize::MAX;
 /// return the strict lower triangle holds `L` (unit diagonal implied) and the diagonal `D`.
 /// `chains`, `starts`: each degree of freedom's branch to the root, itself first
 /// ([`Data`]'s `dof_chains`); only the entries on a branch are touched.
-fn ltdl_in_place(h: &mut [f64], n: usize, (chains, starts): (&[usize], &[usize])) {
+pub(super) fn ltdl_in_place(h: &mut [f64], n: usize, (chains, starts): (&[usize], &[usize])) {
     let chain = |k: usize| &chains[starts[k]..starts[k + 1]];
     for k in (0..n).rev() {
         let hkk = h[k + k * n];
@@ -53,7 +53,7 @@ fn ltdl_in_place(h: &mut [f64], n: usize, (chains, starts): (&[usize], &[usize])
 /// summed from `b` towards the root; `L^-1[a, k]` is zero unless `k` is on `a`'s branch, so
 /// column `b` is summed for every `a >= b` at once, a column of `L^-1` at a time (vector
 /// operations; each entry's sum in the same order).
-fn minv_from_ltdl(h: &[f64], n: usize, (chains, starts): (&[usize], &[usize]), linv: &mut [f64], d_inv: &mut [f64], column: &mut [f64], out: &mut [f64]) {
+pub(super) fn minv_from_ltdl(h: &[f64], n: usize, (chains, starts): (&[usize], &[usize]), linv: &mut [f64], d_inv: &mut [f64], column: &mut [f64], out: &mut [f64]) {
     let chain = |k: usize| &chains[starts[k]..starts[k + 1]];
     for k in 0..n {
         d_inv[k] = 1.0 / h[k + k * n];
@@ -95,7 +95,18 @@ pub fn compute_minverse<'d>(model: &Model, data: &'d mut Data, q: &DVector<f64>)
     &data.minv
 }
 
+/// `data.minv` from `data.mass_matrix`: on a trunk with equal serial limbs by
+/// [`super::minverse_limbs`] (the same bits), otherwise by the general factor below (which
+/// leaves `L^T D L` in `data.ltdl`).
 fn invert_mass_matrix(model: &Model, data: &mut Data) {
+    if let Some(layout) = data.limb_layout {
+        super::minverse_limbs::invert(layout, &data.mass_matrix, &mut data.minv);
+        return;
+    }
+    invert_mass_matrix_general(model, data);
+}
+
+fn invert_mass_matrix_general(model: &Model, data: &mut Data) {
     let n = model.nv;
     data.ltdl.copy_from(&data.mass_matrix);
     ltdl_in_place(data.ltdl.as_mut_slice(), n, (&data.dof_chains, &data.dof_chain_starts));
@@ -170,6 +181,30 @@ pub fn compute_aba_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>,
 mod tests {
     use super::*;
     use crate::dynamics::random_configuration;
+
+    /// The limbs' path gives the general factorization's bits (HyQ and A1, random
+    /// configurations, including ones far from the stance).
+    #[test]
+    fn limbs_path_matches_the_general_factorization_to_the_bit() {
+        for robot in ["hyq", "a1"] {
+            let model = crate::model::embedded::load(robot).unwrap();
+            let mut data = Data::new(&model);
+            assert_eq!(data.limb_layout, Some(super::super::minverse_limbs::LimbLayout { count: 4, len: 3 }), "{robot}");
+            let mut seed = 11u64;
+            let mut uniform = || {
+                seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                (seed >> 11) as f64 / (1u64 << 53) as f64
+            };
+            for _ in 0..20 {
+                let q = random_configuration(&model, &mut uniform);
+                let fast = compute_minverse(&model, &mut data, &q).clone();
+                invert_mass_matrix_general(&model, &mut data);
+                for (k, (x, y)) in fast.iter().zip(data.minv.iter()).enumerate() {
+                    assert_eq!(x.to_bits(), y.to_bits(), "{robot}: M^-1 entry {k}: {x:e} against {y:e}");
+                }
+            }
+        }
+    }
 
     /// `mass_matrix_solve` against `M^-1 x` of the inverse (A1, random configurations).
     #[test]

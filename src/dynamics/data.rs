@@ -107,6 +107,8 @@ pub struct Data {
     pub(crate) dof_chain_starts: Vec<usize>,
     /// A column of `M^-1` as it is summed.
     pub(crate) minv_column: Vec<f64>,
+    /// The tree's shape if `M^-1` has the specialized path (a trunk with equal serial limbs).
+    pub(crate) limb_layout: Option<super::minverse_limbs::LimbLayout>,
 }
 
 impl Data {
@@ -114,15 +116,7 @@ impl Data {
     pub fn new(model: &Model) -> Self {
         let n = model.njoints();
         let nv = model.nv;
-        let (mut dof_chains, mut dof_chain_starts) = (Vec::new(), vec![0]);
-        for k in 0..nv {
-            let mut j = k;
-            while j < nv {
-                dof_chains.push(j);
-                j = model.dof_parent[j];
-            }
-            dof_chain_starts.push(dof_chains.len());
-        }
+        let (dof_chains, dof_chain_starts) = dof_chains(&model.dof_parent);
         Self {
             li_m_i: vec![SE3::identity(); n],
             o_m_i: vec![SE3::identity(); n],
@@ -190,6 +184,23 @@ impl Data {
             dof_chains,
             dof_chain_starts,
             minv_column: vec![0.0; nv],
+            limb_layout: super::minverse_limbs::LimbLayout::detect(&model.dof_parent),
         }
     }
+}
+
+/// Each degree of freedom's branch to the root, itself first (`Data::dof_chains` and
+/// `Data::dof_chain_starts`), from each one's parent (`usize::MAX` for the root).
+pub(super) fn dof_chains(dof_parent: &[usize]) -> (Vec<usize>, Vec<usize>) {
+    let nv = dof_parent.len();
+    let (mut chains, mut starts) = (Vec::new(), vec![0]);
+    for k in 0..nv {
+        let mut j = k;
+        while j < nv {
+            chains.push(j);
+            j = dof_parent[j];
+        }
+        starts.push(chains.len());
+    }
+    (chains, starts)
 }

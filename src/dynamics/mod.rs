@@ -16,7 +16,8 @@
 //! | centroidal momentum and its matrix | `centroidal.rs` | Orin, Goswami & Lee 2013 |
 //! | integrate / difference on the configuration manifold | `configuration.rs` | Sola et al. 2018 |
 //! | RNEA derivatives | `rnea_derivatives.rs` | Carpentier & Mansard 2018, Alg. 1 |
-//! | ABA derivatives | `aba_derivatives.rs` | Carpentier & Mansard 2018, §IV |
+//! | ABA derivatives, `M^-1` | `aba_derivatives.rs` | Carpentier & Mansard 2018, §IV; Featherstone 2008, Table 6.3 |
+//! | `M^-1` of a trunk with equal serial limbs (the same bits, faster) | `minverse_limbs.rs` | Featherstone 2008, Table 6.3 |
 
 mod aba;
 mod aba_derivatives;
@@ -28,6 +29,7 @@ mod data;
 mod frames;
 mod jacobian;
 mod kinematics;
+mod minverse_limbs;
 mod rnea;
 mod rnea_derivatives;
 
