@@ -24,7 +24,7 @@ use nalgebra::DVector;
 /// assert!((m * qdd + nle - tau).norm() < 1e-9);
 /// ```
 pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &DVector<f64>, v: &DVector<f64>, tau: &DVector<f64>) -> &'d DVector<f64> {
-    aba_impl(model, data, q, v, tau, None, Placements::Compute)
+    aba_impl::<false>(model, data, q, v, tau, None, Placements::Compute)
 }
 
 /// ABA with an external spatial force on each joint's body, expressed in that joint's
@@ -38,7 +38,7 @@ pub fn aba_with_external_forces<'d>(
     f_ext: &[Force],
 ) -> &'d DVector<f64> {
     assert_eq!(f_ext.len(), model.njoints(), "f_ext needs one force per joint (including the universe)");
-    aba_impl(model, data, q, v, tau, Some(f_ext), Placements::Compute)
+    aba_impl::<false>(model, data, q, v, tau, Some(f_ext), Placements::Compute)
 }
 
 /// [`aba_with_external_forces`] after a forward kinematics at the same `q`
@@ -55,17 +55,23 @@ pub fn aba_with_external_forces_after_kinematics<'d>(
     f_ext: &[Force],
 ) -> &'d DVector<f64> {
     assert_eq!(f_ext.len(), model.njoints(), "f_ext needs one force per joint (including the universe)");
-    aba_impl(model, data, q, v, tau, Some(f_ext), Placements::Known)
+    aba_impl::<false>(model, data, q, v, tau, Some(f_ext), Placements::Known)
 }
 
-/// Whether ABA's first pass computes the joint placements or finds them in `data`.
+/// [`aba`] that also keeps each body's world inertia in `data.o_y_body` (for the RNEA
+/// derivatives at the same configuration, [`super::compute_aba_derivatives`]).
+pub(super) fn aba_keeping_body_inertias<'d>(model: &Model, data: &'d mut Data, q: &DVector<f64>, v: &DVector<f64>, tau: &DVector<f64>) -> &'d DVector<f64> {
+    aba_impl::<true>(model, data, q, v, tau, None, Placements::Compute)
+}
+
+/// Whether an algorithm's first pass computes the joint placements or finds them in `data`.
 #[derive(Clone, Copy, PartialEq, Eq)]
-enum Placements {
+pub(super) enum Placements {
     Compute,
     Known,
 }
 
-fn aba_impl<'d>(
+fn aba_impl<'d, const KEEP_BODY_INERTIAS: bool>(
     model: &Model,
     data: &'d mut Data,
     q: &DVector<f64>,
@@ -105,6 +111,9 @@ fn aba_impl<'d>(
         };
         let oy = data.body_moments[i].transformed(&omi);
         data.y_aba[i] = oy.matrix();
+        if KEEP_BODY_INERTIAS {
+            data.o_y_body[i] = oy;
+        }
         let mut pa = ov.cross_force(&oy.mul_motion(&ov));
         if let Some(fe) = f_ext {
             pa -= omi.act_force(&fe[i]);

@@ -14,9 +14,9 @@
 //! §6.5, Table 6.3), which exploits that `M_ij = 0` unless `i` and `j` lie on one branch.
 
 use crate::linalg::gemm;
-use super::aba::aba;
+use super::aba::aba_keeping_body_inertias;
 use super::crba::crba;
-use super::rnea_derivatives::compute_rnea_derivatives;
+use super::rnea_derivatives::compute_rnea_derivatives_after_aba;
 use super::Data;
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
@@ -168,9 +168,9 @@ pub fn mass_matrix_factored_solve(model: &Model, data: &Data, x: &mut [f64]) {
 /// `data.ddq_dv` (tangent-space convention of `shared/fixtures/README.md`) and
 /// `data.minv` (`= d qdd / d tau`). Also sets `data.ddq`.
 pub fn compute_aba_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, tau: &DVector<f64>) {
-    aba(model, data, q, v, tau);
+    aba_keeping_body_inertias(model, data, q, v, tau);
     let qdd = std::mem::replace(&mut data.ddq, DVector::zeros(0));
-    compute_rnea_derivatives(model, data, q, v, &qdd);
+    compute_rnea_derivatives_after_aba(model, data, q, v, &qdd);
     data.ddq = qdd;
     invert_mass_matrix(model, data);
     gemm(&mut data.ddq_dq, -1.0, &data.minv, &data.dtau_dq, 0.0);
@@ -202,6 +202,34 @@ mod tests {
                 for (k, (x, y)) in fast.iter().zip(data.minv.iter()).enumerate() {
                     assert_eq!(x.to_bits(), y.to_bits(), "{robot}: M^-1 entry {k}: {x:e} against {y:e}");
                 }
+            }
+        }
+    }
+
+    /// `compute_aba_derivatives` (ABA's placements and world inertias reused) gives the bits
+    /// of ABA followed by the stand-alone RNEA derivatives and `M^-1` (A1, random states).
+    #[test]
+    fn aba_derivatives_reuse_aba_placements_to_the_bit() {
+        use crate::dynamics::{aba, compute_rnea_derivatives};
+        let model = crate::model::embedded::load("a1").unwrap();
+        let (mut shared, mut separate) = (Data::new(&model), Data::new(&model));
+        let mut seed = 5u64;
+        let mut uniform = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..5 {
+            let q = random_configuration(&model, &mut uniform);
+            let v = DVector::from_fn(model.nv, |_, _| 4.0 * uniform() - 2.0);
+            let tau = DVector::from_fn(model.nv, |_, _| 40.0 * uniform() - 20.0);
+            compute_aba_derivatives(&model, &mut shared, &q, &v, &tau);
+            let qdd = aba(&model, &mut separate, &q, &v, &tau).clone();
+            compute_rnea_derivatives(&model, &mut separate, &q, &v, &qdd);
+            invert_mass_matrix(&model, &mut separate);
+            gemm(&mut separate.ddq_dq, -1.0, &separate.minv, &separate.dtau_dq, 0.0);
+            gemm(&mut separate.ddq_dv, -1.0, &separate.minv, &separate.dtau_dv, 0.0);
+            for (name, x, y) in [("ddq_dq", &shared.ddq_dq, &separate.ddq_dq), ("ddq_dv", &shared.ddq_dv, &separate.ddq_dv), ("minv", &shared.minv, &separate.minv)] {
+                assert!(x.iter().zip(y.iter()).all(|(x, y)| x.to_bits() == y.to_bits()), "{name} differs");
             }
         }
     }

@@ -70,6 +70,8 @@ pub struct Data {
     pub(crate) u_scalar: Vec<f64>,
     pub(crate) y_crb: Vec<InertiaMoments>,
     pub(crate) o_y_crb: Vec<InertiaMoments>,
+    /// Each body's inertia in the world frame, as ABA left it for the ABA derivatives.
+    pub(crate) o_y_body: Vec<InertiaMoments>,
     pub(crate) ov: Vec<Motion>,
     /// World-frame spatial acceleration of each joint after [`super::aba`], with gravity as a
     /// fictitious base acceleration `a_0 = -g` (a body in free fall has `oa = 0`).
@@ -161,6 +163,7 @@ impl Data {
             u_scalar: vec![0.0; n],
             y_crb: vec![InertiaMoments::zero(); n],
             o_y_crb: vec![InertiaMoments::zero(); n],
+            o_y_body: vec![InertiaMoments::zero(); n],
             ov: vec![Motion::zero(); n],
             oa: vec![Motion::zero(); n],
             of: vec![Force::zero(); n],

@@ -7,6 +7,7 @@
 //! tangent space of the configuration manifold: `d/dq` means `d/d delta` at `delta = 0` with
 //! `q (+) delta`, the base perturbed by a right (local) SE(3) increment, as Pinocchio.
 
+use super::aba::Placements;
 use super::kinematics::{joint_motion, local_placement};
 use super::Data;
 use crate::model::{JointKind, Model};
@@ -121,7 +122,18 @@ fn add_to_parent(data: &mut Data, i: usize, parent: usize) {
 /// dtau/dv likewise with dA/dv and J.
 /// ```
 pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>) {
-    forward_pass(model, data, q, v, a);
+    rnea_derivatives(model, data, q, v, a, Placements::Compute);
+}
+
+/// [`compute_rnea_derivatives`] right after [`super::aba`] at the same `q`: the joint
+/// placements and the bodies' world inertias are ABA's (the same functions of `q`, so the
+/// same bits), not computed again.
+pub(super) fn compute_rnea_derivatives_after_aba(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>) {
+    rnea_derivatives(model, data, q, v, a, Placements::Known);
+}
+
+fn rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>, placements: Placements) {
+    forward_pass(model, data, q, v, a, placements);
     let n = model.njoints();
     // ---- backward pass
     let nv = model.nv;
@@ -184,26 +196,36 @@ pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>
 /// The forward pass of [`compute_rnea_derivatives`]: placements, world velocities and
 /// accelerations, the bodies' world inertias `oY_i`, forces `f_i` and inertia variations
 /// `dY_i` (not yet summed over the subtrees), and the columns `J`, `dV/dq`, `dA/dq`, `dA/dv`.
-fn forward_pass(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>) {
+/// With [`Placements::Known`], `data.li_m_i`, `data.o_m_i` and `data.o_y_body` hold `q`'s.
+fn forward_pass(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>, placements: Placements) {
     let n = model.njoints();
     let minus_g = -model.gravity;
     for i in 1..n {
         let jnt = &model.joints[i];
         let p = jnt.parent;
-        let li = local_placement(model, data, i, q);
+        let (li, omi) = match placements {
+            Placements::Known => (data.li_m_i[i], data.o_m_i[i]),
+            Placements::Compute => {
+                let li = local_placement(model, data, i, q);
+                (li, if p > 0 { data.o_m_i[p] * li } else { li })
+            }
+        };
         let vj = joint_motion(model, i, v);
         let aj = joint_motion(model, i, a);
-        let (vi, ai, omi) = if p > 0 {
+        let (vi, ai) = if p > 0 {
             let vi = li.act_inv(&data.v[p]) + vj;
-            (vi, li.act_inv(&data.a[p]) + aj + vi.cross(&vj), data.o_m_i[p] * li)
+            (vi, li.act_inv(&data.a[p]) + aj + vi.cross(&vj))
         } else {
-            (vj, aj + vj.cross(&vj), li)
+            (vj, aj + vj.cross(&vj))
         };
         data.li_m_i[i] = li;
         data.o_m_i[i] = omi;
         data.v[i] = vi;
         data.a[i] = ai;
-        let oy = data.body_moments[i].transformed(&omi);
+        let oy = match placements {
+            Placements::Known => data.o_y_body[i],
+            Placements::Compute => data.body_moments[i].transformed(&omi),
+        };
         let ov = omi.act(&vi);
         let oa_gf = omi.act(&ai) + minus_g;
         let oh = oy.mul_motion(&ov);
@@ -243,7 +265,7 @@ fn forward_pass(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f6
 /// also `data.mass_matrix` (`M[k, sub] = J_k^T oYc J_sub`, mirrored), to the bit the one
 /// [`compute_rnea_derivatives`] forms.
 pub fn rnea_derivatives_forward(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>, mass_matrix: bool) {
-    forward_pass(model, data, q, v, a);
+    forward_pass(model, data, q, v, a, Placements::Compute);
     let nv = model.nv;
     for i in (1..model.njoints()).rev() {
         let jnt = &model.joints[i];
