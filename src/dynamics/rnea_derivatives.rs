@@ -125,9 +125,9 @@ pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>
     rnea_derivatives(model, data, q, v, a, Placements::Compute);
 }
 
-/// [`compute_rnea_derivatives`] right after [`super::aba`] at the same `q`: the joint
-/// placements and the bodies' world inertias are ABA's (the same functions of `q`, so the
-/// same bits), not computed again.
+/// [`compute_rnea_derivatives`] right after `aba_keeping_body_inertias` at the same `q`: the
+/// joint placements and the bodies' world inertias are ABA's (the same functions of `q`, so
+/// the same bits), not computed again.
 pub(super) fn compute_rnea_derivatives_after_aba(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>) {
     rnea_derivatives(model, data, q, v, a, Placements::Known);
 }
