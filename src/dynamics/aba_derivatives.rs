@@ -182,6 +182,14 @@ mod tests {
     use super::*;
     use crate::dynamics::random_configuration;
 
+    /// Uniform numbers in [0, 1) from a 64-bit LCG (reproducible test states).
+    fn uniform_from(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
     /// The limbs' path gives the general factorization's bits (HyQ and A1, random
     /// configurations, including ones far from the stance).
     #[test]
@@ -190,11 +198,7 @@ mod tests {
             let model = crate::model::embedded::load(robot).unwrap();
             let mut data = Data::new(&model);
             assert_eq!(data.limb_layout, Some(super::super::minverse_limbs::LimbLayout { count: 4, len: 3 }), "{robot}");
-            let mut seed = 11u64;
-            let mut uniform = || {
-                seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                (seed >> 11) as f64 / (1u64 << 53) as f64
-            };
+            let mut uniform = uniform_from(11);
             for _ in 0..20 {
                 let q = random_configuration(&model, &mut uniform);
                 let fast = compute_minverse(&model, &mut data, &q).clone();
@@ -213,11 +217,7 @@ mod tests {
         use crate::dynamics::{aba, compute_rnea_derivatives};
         let model = crate::model::embedded::load("a1").unwrap();
         let (mut shared, mut separate) = (Data::new(&model), Data::new(&model));
-        let mut seed = 5u64;
-        let mut uniform = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut uniform = uniform_from(5);
         for _ in 0..5 {
             let q = random_configuration(&model, &mut uniform);
             let v = DVector::from_fn(model.nv, |_, _| 4.0 * uniform() - 2.0);
@@ -239,11 +239,7 @@ mod tests {
     fn mass_matrix_solve_matches_the_inverse() {
         let model = crate::model::embedded::load("a1").unwrap();
         let mut data = Data::new(&model);
-        let mut seed = 3u64;
-        let mut uniform = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut uniform = uniform_from(3);
         for _ in 0..3 {
             let q = random_configuration(&model, &mut uniform);
             let x = DVector::from_fn(model.nv, |i, _| (i as f64 * 0.7).sin() * 3.0);
