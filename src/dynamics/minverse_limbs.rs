@@ -28,7 +28,17 @@ const TRUNK: usize = 6;
 pub(crate) const SHAPES: [(usize, usize); 4] = [(4, 3), (4, 4), (6, 3), (2, 6)];
 
 /// Degrees of freedom of the largest shape in [`SHAPES`] (the stack arrays' length).
-const MAX_NV: usize = 24;
+const MAX_NV: usize = {
+    let (mut most, mut i) = (0, 0);
+    while i < SHAPES.len() {
+        let nv = TRUNK + SHAPES[i].0 * SHAPES[i].1;
+        if nv > most {
+            most = nv;
+        }
+        i += 1;
+    }
+    most
+};
 
 /// The shape [`invert`] handles: degrees of freedom `0..6` a chain (the trunk), then `count`
 /// limbs of `len` degrees of freedom each, limb `c` at `6 + c len ..`, each a chain whose
