@@ -66,7 +66,7 @@ pub(super) fn aba_keeping_body_inertias<'d>(model: &Model, data: &'d mut Data, q
 
 /// Whether an algorithm's first pass computes the joint placements or finds them in `data`.
 #[derive(Clone, Copy, PartialEq, Eq)]
-pub(super) enum Placements {
+enum Placements {
     Compute,
     Known,
 }

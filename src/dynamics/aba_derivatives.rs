@@ -16,6 +16,7 @@
 use crate::linalg::gemm;
 use super::aba::aba_keeping_body_inertias;
 use super::crba::crba;
+use super::minverse_limbs::neg_minv_times_limb_sparse;
 use super::rnea_derivatives::compute_rnea_derivatives_after_aba;
 use super::Data;
 use crate::model::Model;
@@ -167,14 +168,22 @@ pub fn mass_matrix_factored_solve(model: &Model, data: &Data, x: &mut [f64]) {
 /// Partial derivatives of forward dynamics `qdd = ABA(q, v, tau)`: `data.ddq_dq`,
 /// `data.ddq_dv` (tangent-space convention of `shared/fixtures/README.md`) and
 /// `data.minv` (`= d qdd / d tau`). Also sets `data.ddq`.
+///
+/// ABA, then the RNEA derivatives at its `qdd` on its own placements, inertias, velocities and
+/// accelerations, `M^-1` from their `M`, and the products `-M^-1 dtau`; on a trunk with equal
+/// serial limbs these skip `dtau`'s zero blocks between two limbs
+/// ([`super::minverse_limbs::neg_minv_times_limb_sparse`]).
 pub fn compute_aba_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, tau: &DVector<f64>) {
     aba_keeping_body_inertias(model, data, q, v, tau);
-    let qdd = std::mem::replace(&mut data.ddq, DVector::zeros(0));
-    compute_rnea_derivatives_after_aba(model, data, q, v, &qdd);
-    data.ddq = qdd;
+    compute_rnea_derivatives_after_aba(model, data);
     invert_mass_matrix(model, data);
-    gemm(&mut data.ddq_dq, -1.0, &data.minv, &data.dtau_dq, 0.0);
-    gemm(&mut data.ddq_dv, -1.0, &data.minv, &data.dtau_dv, 0.0);
+    if let Some(layout) = data.limb_layout {
+        neg_minv_times_limb_sparse(layout, &data.minv, &data.dtau_dq, &mut data.ddq_dq);
+        neg_minv_times_limb_sparse(layout, &data.minv, &data.dtau_dv, &mut data.ddq_dv);
+    } else {
+        gemm(&mut data.ddq_dq, -1.0, &data.minv, &data.dtau_dq, 0.0);
+        gemm(&mut data.ddq_dv, -1.0, &data.minv, &data.dtau_dv, 0.0);
+    }
 }
 
 #[cfg(test)]
@@ -210,26 +219,33 @@ mod tests {
         }
     }
 
-    /// `compute_aba_derivatives` (ABA's placements and world inertias reused) gives the bits
-    /// of ABA followed by the stand-alone RNEA derivatives and `M^-1` (A1, random states).
+    /// `compute_aba_derivatives` (the RNEA derivatives on ABA's own kinematics, the products
+    /// on the limbs' zero blocks) against ABA, the stand-alone RNEA derivatives at its `qdd`,
+    /// `M^-1` and dense products (HyQ and A1, random states): `M^-1` to the bit (it depends on
+    /// the placements and inertias only), the derivatives to round-off.
     #[test]
-    fn aba_derivatives_reuse_aba_placements_to_the_bit() {
+    fn aba_derivatives_match_their_definition() {
         use crate::dynamics::{aba, compute_rnea_derivatives};
-        let model = crate::model::embedded::load("a1").unwrap();
-        let (mut shared, mut separate) = (Data::new(&model), Data::new(&model));
-        let mut uniform = uniform_from(5);
-        for _ in 0..5 {
-            let q = random_configuration(&model, &mut uniform);
-            let v = DVector::from_fn(model.nv, |_, _| 4.0 * uniform() - 2.0);
-            let tau = DVector::from_fn(model.nv, |_, _| 40.0 * uniform() - 20.0);
-            compute_aba_derivatives(&model, &mut shared, &q, &v, &tau);
-            let qdd = aba(&model, &mut separate, &q, &v, &tau).clone();
-            compute_rnea_derivatives(&model, &mut separate, &q, &v, &qdd);
-            invert_mass_matrix(&model, &mut separate);
-            gemm(&mut separate.ddq_dq, -1.0, &separate.minv, &separate.dtau_dq, 0.0);
-            gemm(&mut separate.ddq_dv, -1.0, &separate.minv, &separate.dtau_dv, 0.0);
-            for (name, x, y) in [("ddq_dq", &shared.ddq_dq, &separate.ddq_dq), ("ddq_dv", &shared.ddq_dv, &separate.ddq_dv), ("minv", &shared.minv, &separate.minv)] {
-                assert!(x.iter().zip(y.iter()).all(|(x, y)| x.to_bits() == y.to_bits()), "{name} differs");
+        for robot in ["hyq", "a1"] {
+            let model = crate::model::embedded::load(robot).unwrap();
+            let (mut shared, mut separate) = (Data::new(&model), Data::new(&model));
+            let mut uniform = uniform_from(5);
+            for _ in 0..10 {
+                let q = random_configuration(&model, &mut uniform);
+                let v = DVector::from_fn(model.nv, |_, _| 4.0 * uniform() - 2.0);
+                let tau = DVector::from_fn(model.nv, |_, _| 40.0 * uniform() - 20.0);
+                compute_aba_derivatives(&model, &mut shared, &q, &v, &tau);
+                let qdd = aba(&model, &mut separate, &q, &v, &tau).clone();
+                compute_rnea_derivatives(&model, &mut separate, &q, &v, &qdd);
+                invert_mass_matrix_general(&model, &mut separate);
+                gemm(&mut separate.ddq_dq, -1.0, &separate.minv, &separate.dtau_dq, 0.0);
+                gemm(&mut separate.ddq_dv, -1.0, &separate.minv, &separate.dtau_dv, 0.0);
+                assert!(shared.ddq.iter().zip(qdd.iter()).all(|(x, y)| x.to_bits() == y.to_bits()), "{robot}: qdd is ABA's");
+                assert!(shared.minv.iter().zip(separate.minv.iter()).all(|(x, y)| x.to_bits() == y.to_bits()), "{robot}: M^-1 differs");
+                for (name, x, y) in [("ddq_dq", &shared.ddq_dq, &separate.ddq_dq), ("ddq_dv", &shared.ddq_dv, &separate.ddq_dv)] {
+                    let err = (x - y).amax();
+                    assert!(err <= 1e-11 * y.amax(), "{robot}: {name} off by {err:.2e} of {:.2e}", y.amax());
+                }
             }
         }
     }

@@ -7,11 +7,10 @@
 //! tangent space of the configuration manifold: `d/dq` means `d/d delta` at `delta = 0` with
 //! `q (+) delta`, the base perturbed by a right (local) SE(3) increment, as Pinocchio.
 
-use super::aba::Placements;
 use super::kinematics::{joint_motion, local_placement};
 use super::Data;
 use crate::model::{JointKind, Model};
-use crate::spatial::{skew, Force, InertiaMoments, Matrix3, Motion, Vector3};
+use crate::spatial::{skew, Force, InertiaMoments, Matrix3, Motion, Vector3, SE3};
 use nalgebra::{DVector, Matrix6xX, Vector6};
 
 /// The inertia variation of Carpentier & Mansard 2018 (eq. (14)-(15)) for a world inertia
@@ -122,20 +121,25 @@ fn add_to_parent(data: &mut Data, i: usize, parent: usize) {
 /// dtau/dv likewise with dA/dv and J.
 /// ```
 pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>) {
-    rnea_derivatives(model, data, q, v, a, Placements::Compute);
+    forward_pass(model, data, q, v, a);
+    backward_pass(model, data);
 }
 
-/// [`compute_rnea_derivatives`] right after `aba_keeping_body_inertias` at the same `q`: the
-/// joint placements and the bodies' world inertias are ABA's (the same functions of `q`, so
-/// the same bits), not computed again.
-pub(super) fn compute_rnea_derivatives_after_aba(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>) {
-    rnea_derivatives(model, data, q, v, a, Placements::Known);
+/// [`compute_rnea_derivatives`] at `a = qdd` right after `aba_keeping_body_inertias`: the
+/// placements, world inertias, velocities and accelerations are ABA's
+/// ([`forward_pass_after_aba`]). `data.mass_matrix` has the bits of
+/// [`compute_rnea_derivatives`]' (it depends on the placements and inertias only);
+/// `dtau/dq`, `dtau/dv` and `tau` agree with it up to round-off.
+pub(super) fn compute_rnea_derivatives_after_aba(model: &Model, data: &mut Data) {
+    forward_pass_after_aba(model, data);
+    backward_pass(model, data);
 }
 
-fn rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>, placements: Placements) {
-    forward_pass(model, data, q, v, a, placements);
+/// The backward pass of [`compute_rnea_derivatives`] (see there) from the forward pass's
+/// quantities in `data`.
+#[inline(always)]
+fn backward_pass(model: &Model, data: &mut Data) {
     let n = model.njoints();
-    // ---- backward pass
     let nv = model.nv;
     for i in (1..n).rev() {
         let jnt = &model.joints[i];
@@ -196,20 +200,14 @@ fn rnea_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVecto
 /// The forward pass of [`compute_rnea_derivatives`]: placements, world velocities and
 /// accelerations, the bodies' world inertias `oY_i`, forces `f_i` and inertia variations
 /// `dY_i` (not yet summed over the subtrees), and the columns `J`, `dV/dq`, `dA/dq`, `dA/dv`.
-/// With [`Placements::Known`], `data.li_m_i`, `data.o_m_i` and `data.o_y_body` hold `q`'s.
-fn forward_pass(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>, placements: Placements) {
+fn forward_pass(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>) {
     let n = model.njoints();
     let minus_g = -model.gravity;
     for i in 1..n {
         let jnt = &model.joints[i];
         let p = jnt.parent;
-        let (li, omi) = match placements {
-            Placements::Known => (data.li_m_i[i], data.o_m_i[i]),
-            Placements::Compute => {
-                let li = local_placement(model, data, i, q);
-                (li, if p > 0 { data.o_m_i[p] * li } else { li })
-            }
-        };
+        let li = local_placement(model, data, i, q);
+        let omi = if p > 0 { data.o_m_i[p] * li } else { li };
         let vj = joint_motion(model, i, v);
         let aj = joint_motion(model, i, a);
         let (vi, ai) = if p > 0 {
@@ -222,41 +220,62 @@ fn forward_pass(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f6
         data.o_m_i[i] = omi;
         data.v[i] = vi;
         data.a[i] = ai;
-        let oy = match placements {
-            Placements::Known => data.o_y_body[i],
-            Placements::Compute => data.body_moments[i].transformed(&omi),
-        };
-        let ov = omi.act(&vi);
-        let oa_gf = omi.act(&ai) + minus_g;
-        let oh = oy.mul_motion(&ov);
-        data.of[i] = oy.mul_motion(&oa_gf) + ov.cross_force(&oh);
-        data.o_y_crb[i] = oy;
-        data.ov[i] = ov;
-        data.oa[i] = oa_gf;
-        data.oh[i] = oh;
-        let (ov_p, oa_gf_p) = if p > 0 { (data.ov[p], data.oa[p]) } else { (Motion::zero(), minus_g) };
-        for k in jnt.idx_v..jnt.idx_v + jnt.nv {
-            let s_local = match jnt.kind {
-                JointKind::FreeFlyer => {
-                    let mut e = Vector6::zeros();
-                    e[k - jnt.idx_v] = 1.0;
-                    Motion::from_vector(&e)
-                }
-                kind => kind.subspace(),
-            };
-            let jc = omi.act(&s_local);
-            let dvdq = ov_p.cross(&jc);
-            let dadq = oa_gf_p.cross(&jc) + ov_p.cross(&dvdq);
-            let dadv = ov.cross(&jc) + dvdq; // dJ + dV/dq
-            set_col(&mut data.jacobian, k, &jc);
-            set_col(&mut data.dvdq, k, &dvdq);
-            set_col(&mut data.dadq, k, &dadq);
-            set_col(&mut data.dadv, k, &dadv);
-        }
-        let (t, b) = inertia_variation(&oy, &ov, &oh);
-        data.do_y_top[i] = t;
-        data.do_y_b[i] = b;
+        let oy = data.body_moments[i].transformed(&omi);
+        let (ov, oa_gf) = (omi.act(&vi), omi.act(&ai) + minus_g);
+        world_forces_and_columns(model, data, i, &omi, oy, ov, oa_gf, minus_g);
     }
+}
+
+/// The forward pass of [`compute_rnea_derivatives_after_aba`] at ABA's own `qdd`: ABA's
+/// pass 1 left the placements, world velocities `ov_i` and bodies' world inertias, its pass 3
+/// the world accelerations `oa_i = a_i - g`, so only the forces and the columns remain (as
+/// Pinocchio's `computeABADerivatives` reuses its ABA's sweeps). The velocities and
+/// accelerations are ABA's world-frame recursions, not the local-frame ones of
+/// [`forward_pass`]: equal up to round-off.
+fn forward_pass_after_aba(model: &Model, data: &mut Data) {
+    let minus_g = -model.gravity;
+    for i in 1..model.njoints() {
+        let (omi, oy, ov, oa_gf) = (data.o_m_i[i], data.o_y_body[i], data.ov[i], data.oa[i]);
+        world_forces_and_columns(model, data, i, &omi, oy, ov, oa_gf, minus_g);
+    }
+}
+
+/// Of joint `i` with world inertia `oY`, velocity `ov` and acceleration `oa^gf = a - g`:
+/// `f_i = oY oa^gf + ov x* oY ov`, `dY_i`, and the columns `J`, `dV/dq`, `dA/dq`, `dA/dv` of
+/// its dofs (the parent's `ov`, `oa^gf` already in `data`).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn world_forces_and_columns(model: &Model, data: &mut Data, i: usize, omi: &SE3, oy: InertiaMoments, ov: Motion, oa_gf: Motion, minus_g: Motion) {
+    let jnt = &model.joints[i];
+    let p = jnt.parent;
+    let oh = oy.mul_motion(&ov);
+    data.of[i] = oy.mul_motion(&oa_gf) + ov.cross_force(&oh);
+    data.o_y_crb[i] = oy;
+    data.ov[i] = ov;
+    data.oa[i] = oa_gf;
+    data.oh[i] = oh;
+    let (ov_p, oa_gf_p) = if p > 0 { (data.ov[p], data.oa[p]) } else { (Motion::zero(), minus_g) };
+    for k in jnt.idx_v..jnt.idx_v + jnt.nv {
+        let s_local = match jnt.kind {
+            JointKind::FreeFlyer => {
+                let mut e = Vector6::zeros();
+                e[k - jnt.idx_v] = 1.0;
+                Motion::from_vector(&e)
+            }
+            kind => kind.subspace(),
+        };
+        let jc = omi.act(&s_local);
+        let dvdq = ov_p.cross(&jc);
+        let dadq = oa_gf_p.cross(&jc) + ov_p.cross(&dvdq);
+        let dadv = ov.cross(&jc) + dvdq; // dJ + dV/dq
+        set_col(&mut data.jacobian, k, &jc);
+        set_col(&mut data.dvdq, k, &dvdq);
+        set_col(&mut data.dadq, k, &dadq);
+        set_col(&mut data.dadv, k, &dadv);
+    }
+    let (t, b) = inertia_variation(&oy, &ov, &oh);
+    data.do_y_top[i] = t;
+    data.do_y_b[i] = b;
 }
 
 /// The first half of [`rnea_derivatives_tr_mul`]: the forward pass of
@@ -265,7 +284,7 @@ fn forward_pass(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f6
 /// also `data.mass_matrix` (`M[k, sub] = J_k^T oYc J_sub`, mirrored), to the bit the one
 /// [`compute_rnea_derivatives`] forms.
 pub fn rnea_derivatives_forward(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, a: &DVector<f64>, mass_matrix: bool) {
-    forward_pass(model, data, q, v, a, Placements::Compute);
+    forward_pass(model, data, q, v, a);
     let nv = model.nv;
     for i in (1..model.njoints()).rev() {
         let jnt = &model.joints[i];
