@@ -35,7 +35,9 @@ import time
 import mujoco
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+# The checker's module lives in the Python package's folder (python/legwork/); appended, not
+# prepended, so that the package's own `mujoco.py` does not shadow MuJoCo's.
+sys.path.append(os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "python", "legwork"))
 from mujoco_check import Robot, load_json, quat_xyzw_to_matrix  # noqa: E402
 
 
