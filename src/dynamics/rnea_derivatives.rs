@@ -65,6 +65,116 @@ fn dot3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// The backward pass's two blocks for joint dofs `iv..iv + nvj`, subtree columns up to
+/// `sub_end`: its rows and its columns in the strict subtree's rows (see
+/// [`compute_rnea_derivatives`]).
+#[inline(always)]
+#[allow(clippy::type_complexity)]
+fn joint_rows_and_columns(
+    nv: usize,
+    (iv, nvj): (usize, usize),
+    sub_end: usize,
+    (js, dfda, dytj, dfdq, dfdv): (&[f64], &[f64], &[f64], &[f64], &[f64]),
+    (dvdq_s, dadq_s, dadv_s): (&[f64], &[f64], &[f64]),
+    (mm, dq, dv): (&mut [f64], &mut [f64], &mut [f64]),
+) {
+    // Rows of the joint, columns of its subtree: M, dtau/dq, dtau/dv = J_k^T (dF/da, dF/dq, dF/dv)_c
+    for c in iv..sub_end {
+        let (fa, fq, fv) = (col6(dfda, c), col6(dfdq, c), col6(dfdv, c));
+        for k in iv..iv + nvj {
+            let jc = col6(js, k);
+            mm[k + c * nv] = dot6(&jc, &fa);
+            dq[k + c * nv] = dot6(&jc, &fq);
+            dv[k + c * nv] = dot6(&jc, &fv);
+        }
+    }
+    // Rows of the strict subtree, columns of the joint:
+    //   dtau/dq[r, k] = (dF/da)_r . dA/dq_k + (dY^T J)_r . dV/dq_k   ((dY^T J)_r is angular only)
+    for k in iv..iv + nvj {
+        let (jc, dvdq, dadq, dadv) = (col6(js, k), col6(dvdq_s, k), col6(dadq_s, k), col6(dadv_s, k));
+        let (dvdq_w, jc_w) = ([dvdq[3], dvdq[4], dvdq[5]], [jc[3], jc[4], jc[5]]);
+        for r in iv + nvj..sub_end {
+            let (fa, yt) = (col6(dfda, r), col3(dytj, r));
+            dq[r + k * nv] = dot6(&fa, &dadq) + dot3(&yt, &dvdq_w);
+            dv[r + k * nv] = dot6(&fa, &dadv) + dot3(&yt, &jc_w);
+        }
+    }
+}
+
+/// Degrees of freedom of a free flyer: its six rows are summed side by side.
+const FREE_FLYER_DOFS: usize = 6;
+
+/// Six values, one per degree of freedom of a six-dof joint, padded to a vector register's
+/// eight lanes (the padding is never stored).
+type SixLanes = [f64; 8];
+
+/// Lane `k`: `sum_e a[e][k] b[e]` summed from `e = 0` up, each product then a sum: the
+/// operations of [`dot6`] (resp. [`dot3`] with `E = 3`) in their order, for six pairs at once,
+/// so the same bits.
+#[inline(always)]
+fn lanes_dot<const E: usize>(a: &[SixLanes; E], b: &[f64; E]) -> SixLanes {
+    let mut acc = [0.0; 8];
+    for (acc, a) in acc.iter_mut().zip(&a[0]) {
+        *acc = a * b[0];
+    }
+    for (a, b) in a.iter().zip(b).skip(1) {
+        for (acc, a) in acc.iter_mut().zip(a) {
+            *acc += a * b;
+        }
+    }
+    acc
+}
+
+/// Of six columns `x_k` (column-major, 6 rows each, from `first`): entry `e` of every column
+/// in the lanes of `out[e]`.
+#[inline(always)]
+fn transpose_six<const E: usize>(x: &[f64], first: usize, rows: usize, offset: usize) -> [SixLanes; E] {
+    let mut out = [[0.0; 8]; E];
+    for k in 0..FREE_FLYER_DOFS {
+        for (e, out) in out.iter_mut().enumerate() {
+            out[k] = x[rows * (first + k) + offset + e];
+        }
+    }
+    out
+}
+
+/// The backward pass's two blocks for a six-dof joint (the free flyer at the root) at
+/// degrees of freedom `iv..iv + 6`, subtree columns up to `sub_end`: its rows
+/// (`J_k^T (dF/da, dF/dq, dF/dv)_c`) and its columns in the strict subtree's rows
+/// (`(dF/da)_r . dA/dq_k + (dY^T J)_r . dV/dq_k`, likewise with `dA/dv`, `J`), with its six
+/// degrees of freedom in the lanes of one sum: the root's block is the largest of the pass
+/// (18 x 6 of HyQ's entries per matrix) and the per-entry sums are the scalar loop's.
+#[inline(always)]
+#[allow(clippy::type_complexity)]
+fn free_flyer_rows_and_columns(
+    nv: usize,
+    iv: usize,
+    sub_end: usize,
+    (js, dfda, dytj, dfdq, dfdv): (&[f64], &[f64], &[f64], &[f64], &[f64]),
+    (dvdq_s, dadq_s, dadv_s): (&[f64], &[f64], &[f64]),
+    (mm, dq, dv): (&mut [f64], &mut [f64], &mut [f64]),
+) {
+    let n = FREE_FLYER_DOFS;
+    let jt = transpose_six::<6>(js, iv, 6, 0);
+    for c in iv..sub_end {
+        let rows = iv + c * nv..iv + c * nv + n;
+        mm[rows.clone()].copy_from_slice(&lanes_dot(&jt, &col6(dfda, c))[..n]);
+        dq[rows.clone()].copy_from_slice(&lanes_dot(&jt, &col6(dfdq, c))[..n]);
+        dv[rows].copy_from_slice(&lanes_dot(&jt, &col6(dfdv, c))[..n]);
+    }
+    let (dadq_t, dadv_t) = (transpose_six::<6>(dadq_s, iv, 6, 0), transpose_six::<6>(dadv_s, iv, 6, 0));
+    let (dvdq_w_t, jc_w_t) = (transpose_six::<3>(dvdq_s, iv, 6, 3), transpose_six::<3>(js, iv, 6, 3));
+    for r in iv + n..sub_end {
+        let (fa, yt) = (col6(dfda, r), col3(dytj, r));
+        let (q6, q3) = (lanes_dot(&dadq_t, &fa), lanes_dot(&dvdq_w_t, &yt));
+        let (v6, v3) = (lanes_dot(&dadv_t, &fa), lanes_dot(&jc_w_t, &yt));
+        for k in 0..n {
+            dq[r + (iv + k) * nv] = q6[k] + q3[k];
+            dv[r + (iv + k) * nv] = v6[k] + v3[k];
+        }
+    }
+}
+
 /// Column `k`'s `dF/dq` (without the ancestors' `J x* f`, added where the rows need it) and
 /// `dF/dv` of a joint with composite inertia `oYc` and inertia variation `dYc = (t, B)`
 /// (`dY x = [t x x_w; B x_w]`; the root's children have no `dV/dq` term):
@@ -164,26 +274,11 @@ fn backward_pass(model: &Model, data: &mut Data) {
             (data.jacobian.as_slice(), data.dfda.as_slice(), data.dytj.as_slice(), data.dfdq.as_slice(), data.dfdv.as_slice());
         let (dvdq_s, dadq_s, dadv_s) = (data.dvdq.as_slice(), data.dadq.as_slice(), data.dadv.as_slice());
         let (mm, dq, dv) = (data.mass_matrix.as_mut_slice(), data.dtau_dq.as_mut_slice(), data.dtau_dv.as_mut_slice());
-        // Rows of the joint, columns of its subtree: M, dtau/dq, dtau/dv = J_k^T (dF/da, dF/dq, dF/dv)_c
-        for c in iv..sub_end {
-            let (fa, fq, fv) = (col6(dfda, c), col6(dfdq, c), col6(dfdv, c));
-            for k in iv..iv + nvj {
-                let jc = col6(js, k);
-                mm[k + c * nv] = dot6(&jc, &fa);
-                dq[k + c * nv] = dot6(&jc, &fq);
-                dv[k + c * nv] = dot6(&jc, &fv);
-            }
-        }
-        // Rows of the strict subtree, columns of the joint:
-        //   dtau/dq[r, k] = (dF/da)_r . dA/dq_k + (dY^T J)_r . dV/dq_k   ((dY^T J)_r is angular only)
-        for k in iv..iv + nvj {
-            let (jc, dvdq, dadq, dadv) = (col6(js, k), col6(dvdq_s, k), col6(dadq_s, k), col6(dadv_s, k));
-            let (dvdq_w, jc_w) = ([dvdq[3], dvdq[4], dvdq[5]], [jc[3], jc[4], jc[5]]);
-            for r in iv + nvj..sub_end {
-                let (fa, yt) = (col6(dfda, r), col3(dytj, r));
-                dq[r + k * nv] = dot6(&fa, &dadq) + dot3(&yt, &dvdq_w);
-                dv[r + k * nv] = dot6(&fa, &dadv) + dot3(&yt, &jc_w);
-            }
+        let (columns, variations, out) = ((js, dfda, dytj, dfdq, dfdv), (dvdq_s, dadq_s, dadv_s), (mm, dq, dv));
+        if nvj == FREE_FLYER_DOFS {
+            free_flyer_rows_and_columns(nv, iv, sub_end, columns, variations, out);
+        } else {
+            joint_rows_and_columns(nv, (iv, nvj), sub_end, columns, variations, out);
         }
         // dF/dq += J x* f, for the ancestors' rows
         for k in iv..iv + nvj {
@@ -385,6 +480,35 @@ pub fn rnea_derivatives_tr_mul(model: &Model, data: &mut Data, w: &[f64], w_dtau
         if p > 0 {
             data.w_dfda[p] += s_i;
             data.w_dytj[p] += t_i;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The free flyer's lanes give the scalar loop's bits (random columns, HyQ's sizes: the
+    /// root's six dofs and a subtree of 18 columns).
+    #[test]
+    fn free_flyer_lanes_match_the_scalar_loop_to_the_bit() {
+        let (nv, iv, nvj) = (18, 0, 6);
+        let mut seed = 23u64;
+        let mut uniform = move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut columns = |rows: usize| (0..rows * nv).map(|_| uniform()).collect::<Vec<f64>>();
+        let (js, dfda, dytj, dfdq, dfdv) = (columns(6), columns(6), columns(3), columns(6), columns(6));
+        let (dvdq, dadq, dadv) = (columns(6), columns(6), columns(6));
+        let mut lanes = (vec![0.0; nv * nv], vec![0.0; nv * nv], vec![0.0; nv * nv]);
+        let mut scalar = lanes.clone();
+        let inputs = ((&js[..], &dfda[..], &dytj[..], &dfdq[..], &dfdv[..]), (&dvdq[..], &dadq[..], &dadv[..]));
+        free_flyer_rows_and_columns(nv, iv, nv, inputs.0, inputs.1, (&mut lanes.0, &mut lanes.1, &mut lanes.2));
+        joint_rows_and_columns(nv, (iv, nvj), nv, inputs.0, inputs.1, (&mut scalar.0, &mut scalar.1, &mut scalar.2));
+        for (name, x, y) in [("M", &lanes.0, &scalar.0), ("dtau/dq", &lanes.1, &scalar.1), ("dtau/dv", &lanes.2, &scalar.2)] {
+            assert!(x.iter().zip(y).all(|(x, y)| x.to_bits() == y.to_bits()), "{name} differs");
+            assert!(x.iter().any(|x| *x != 0.0), "{name} not written");
         }
     }
 }
