@@ -17,6 +17,9 @@
 //! two give the same bits (tested); the terms the general code adds as zeros, where one
 //! degree of freedom is not on the other's branch, are left out (adding `+-0` to a sum that
 //! started at `+0` changes nothing: it is never `-0`).
+//!
+//! On the same shape, [`neg_minv_times_limb_sparse`] forms the ABA derivatives' `-M^-1 dtau`
+//! without `dtau`'s zero blocks between two limbs.
 
 use nalgebra::DMatrix;
 

@@ -125,8 +125,8 @@ fn lanes_dot<const E: usize>(a: &[SixLanes; E], b: &[f64; E]) -> SixLanes {
     acc
 }
 
-/// Of six columns `x_k` (column-major, 6 rows each, from `first`): entry `e` of every column
-/// in the lanes of `out[e]`.
+/// Of the six columns `x_k`, `k = first..first + 6`, of a column-major slice with `rows` rows:
+/// entry `offset + e` of every column in the lanes of `out[e]`, `e < E`.
 #[inline(always)]
 fn transpose_six<const E: usize>(x: &[f64], first: usize, rows: usize, offset: usize) -> [SixLanes; E] {
     let mut out = [[0.0; 8]; E];
