@@ -189,15 +189,7 @@ pub fn compute_aba_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>,
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dynamics::random_configuration;
-
-    /// Uniform numbers in [0, 1) from a 64-bit LCG (reproducible test states).
-    fn uniform_from(mut seed: u64) -> impl FnMut() -> f64 {
-        move || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        }
-    }
+    use crate::dynamics::{random_configuration, uniform_from};
 
     /// The limbs' path gives the general factorization's bits (HyQ and A1, random
     /// configurations, including ones far from the stance).

@@ -376,6 +376,7 @@ mod tests {
     use super::*;
     use crate::dynamics::aba_derivatives::{ltdl_in_place, minv_from_ltdl};
     use crate::dynamics::data::dof_chains;
+    use crate::dynamics::uniform_from;
 
     const R: usize = usize::MAX;
 
@@ -412,11 +413,8 @@ mod tests {
     /// random `M^-1` and random `B` with zero blocks between limbs.
     #[test]
     fn limb_sparse_product_matches_the_dense_product() {
-        let mut seed = 17u64;
-        let mut uniform = move || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut uniform_01 = uniform_from(17);
+        let mut uniform = move || uniform_01() - 0.5;
         for (count, len) in SHAPES {
             let nv = TRUNK + count * len;
             let limb = |k: usize| (k >= TRUNK).then(|| (k - TRUNK) / len);
@@ -438,11 +436,7 @@ mod tests {
     /// triangular with the tree's branch pattern), the same bits as the general code.
     #[test]
     fn every_shape_matches_the_general_factorization_to_the_bit() {
-        let mut seed = 7u64;
-        let mut uniform = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut uniform = uniform_from(7);
         for (count, len) in SHAPES {
             let parents = limbs(count, len);
             let nv = parents.len();

@@ -48,3 +48,13 @@ pub use jacobian::{compute_joint_jacobians, frame_jacobian, ReferenceFrame};
 pub use kinematics::{forward_kinematics, forward_kinematics_velocity, joint_transform};
 pub use rnea::{generalized_gravity, nonlinear_effects, rnea};
 pub use rnea_derivatives::{compute_rnea_derivatives, rnea_derivatives_forward, rnea_derivatives_tr_mul};
+
+/// Uniform numbers in [0, 1) from a 64-bit LCG: the reproducible random states of the
+/// dynamics' tests.
+#[cfg(test)]
+pub(crate) fn uniform_from(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    }
+}

@@ -493,11 +493,8 @@ mod tests {
     #[test]
     fn free_flyer_lanes_match_the_scalar_loop_to_the_bit() {
         let (nv, iv, nvj) = (18, 0, 6);
-        let mut seed = 23u64;
-        let mut uniform = move || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut uniform_01 = crate::dynamics::uniform_from(23);
+        let mut uniform = move || uniform_01() - 0.5;
         let mut columns = |rows: usize| (0..rows * nv).map(|_| uniform()).collect::<Vec<f64>>();
         let (js, dfda, dytj, dfdq, dfdv) = (columns(6), columns(6), columns(3), columns(6), columns(6));
         let (dvdq, dadq, dadv) = (columns(6), columns(6), columns(6));
