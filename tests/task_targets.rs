@@ -73,6 +73,8 @@ fn bad_targets_are_named() {
         ("[[target]]\nmax_lateral_correlation = 0.0\n[[target]]\nmax_lateral_correlation = 0.1", vec!["target[1].max_lateral_correlation", "give it once"]),
         ("[[target]]\nfeet_up_from = 0.5", vec!["target[0].feet_up_from", "without feet_up"]),
         ("[[target]]\nfeet_up = [\"lf_foot\"]\nfeet_up_from = 3.0", vec!["target[0].feet_up_from", "0-1 s"]),
+        ("[[target]]\nmin_base_height = nan", vec!["target[0].min_base_height", "a height in m", "NaN"]),
+        ("[[target]]\nmin_base_height = 0.4\n[[target]]\nmin_base_height = 0.5", vec!["target[1].min_base_height", "give it once"]),
     ] {
         let message = error_of(targets, &model);
         for part in expected {
@@ -184,4 +186,35 @@ fn a_task_without_targets_has_none_and_every_embedded_task_has_one() {
         let target = spec.target(&embedded::load(&spec.robot).unwrap(), name).unwrap();
         assert!(!target.is_empty(), "{name} declares no target");
     }
+}
+
+#[test]
+fn the_lowest_base_height_tells_a_robot_that_fell_from_one_that_stood() {
+    let model = embedded::load("hyq").unwrap();
+    let spec = task("[[target]]\nbase_position = [0.3, \"any\", \"any\"]\nposition_tolerance = 0.05\nmin_base_height = 0.4").unwrap();
+    let target = spec.target(&model, "shift.toml").unwrap();
+    let standing = motion(&model, 0.3, 0.0);
+    let stance_height = standing.knots[0].q[2];
+    assert!(stance_height > 0.5, "HyQ stands with its base at {stance_height} m");
+    let results = target.check(&model, &standing, 2.0);
+    assert!(all_met(&results), "{results:#?}");
+    assert_eq!(by_what(&results, "lowest base height").required, ">= 0.400 m");
+
+    // The same distance, but the base down to 0.2 m from 0.5 to 0.7 s: the position is met,
+    // the height is not, at any scale of the tolerances (a bound, not a tolerance).
+    let mut fell = standing.clone();
+    for knot in fell.knots.iter_mut().filter(|k| (0.5..0.7).contains(&k.t)) {
+        knot.q[2] = 0.2;
+    }
+    for scale in [1.0, 2.0, 10.0] {
+        let results = target.check(&model, &fell, scale);
+        assert!(by_what(&results, "base x at the end").met);
+        let low = by_what(&results, "lowest base height");
+        assert!(!low.met && low.value == "0.200 m at 0.50 s", "{low:?}");
+    }
+
+    // A diverged run (a NaN height) misses.
+    let mut diverged = standing;
+    diverged.knots[60].q[2] = f64::NAN;
+    assert!(!by_what(&target.check(&model, &diverged, 2.0), "lowest base height").met);
 }

@@ -20,9 +20,12 @@
 //! min_flight_time = 0.1                # s with all feet off the ground (whole motion)
 //! min_diagonal_correlation = 0.8       # contact flags of LF-RH and RF-LH, each at least this (whole motion; four feet)
 //! max_lateral_correlation = 0.0        # contact flags of LF-RF and LH-RH, each at most this (whole motion; four feet)
+//! min_base_height = 0.45               # m, world z: the base never lower than this (whole motion)
 //! ```
 //!
-//! There are no default tolerances: a target names its own.
+//! There are no default tolerances: a target names its own. `min_base_height` is a bound,
+//! not a tolerance: re-runs are held to it as it stands (a robot that fell and slid to its
+//! goal must not meet a distance target).
 
 use super::metrics::{flight_time, liftoffs, pair_correlations, Snapshot};
 use super::task::TaskError;
@@ -73,6 +76,7 @@ pub struct TargetSpec {
     pub min_flight_time: Option<f64>,
     pub min_diagonal_correlation: Option<f64>,
     pub max_lateral_correlation: Option<f64>,
+    pub min_base_height: Option<f64>,
 }
 
 /// When a resolved target is checked.
@@ -109,6 +113,7 @@ pub struct Target {
     min_flight_time: Option<f64>,
     min_diagonal_correlation: Option<f64>,
     max_lateral_correlation: Option<f64>,
+    min_base_height: Option<f64>,
     foot_names: Vec<String>,
 }
 
@@ -135,6 +140,7 @@ impl Target {
         let mut liftoffs_per_foot = None;
         let mut min_flight_time = None;
         let (mut min_diagonal_correlation, mut max_lateral_correlation) = (None, None);
+        let mut min_base_height = None;
         for (i, spec) in specs.iter().enumerate() {
             let field = |name: &str| format!("target[{i}].{name}");
             let bad = |name: &str, problem: String| TaskError::Invalid { origin: origin.into(), field: field(name), problem };
@@ -246,20 +252,29 @@ impl Target {
                     *slot = Some(c);
                 }
             }
-            let whole_motion = [spec.liftoffs_per_foot.is_some(), spec.min_flight_time.is_some(), spec.min_diagonal_correlation.is_some(), spec.max_lateral_correlation.is_some()];
+            if let Some(h) = spec.min_base_height {
+                if !h.is_finite() {
+                    return Err(bad("min_base_height", format!("expected a height in m, got {h}")));
+                }
+                if min_base_height.is_some() {
+                    return Err(bad("min_base_height", "given in two targets; it holds over the whole motion, give it once".into()));
+                }
+                min_base_height = Some(h);
+            }
+            let whole_motion = [spec.liftoffs_per_foot.is_some(), spec.min_flight_time.is_some(), spec.min_diagonal_correlation.is_some(), spec.max_lateral_correlation.is_some(), spec.min_base_height.is_some()];
             if checks.is_empty() && !whole_motion.contains(&true) {
-                return Err(TaskError::Invalid { origin: origin.into(), field: format!("target[{i}]"), problem: "checks nothing: give base_position, base_rpy_deg, feet, feet_down, feet_up, liftoffs_per_foot, min_flight_time, min_diagonal_correlation or max_lateral_correlation".into() });
+                return Err(TaskError::Invalid { origin: origin.into(), field: format!("target[{i}]"), problem: "checks nothing: give base_position, base_rpy_deg, feet, feet_down, feet_up, liftoffs_per_foot, min_flight_time, min_diagonal_correlation, max_lateral_correlation or min_base_height".into() });
             }
             if !checks.is_empty() {
                 entries.push((at, checks));
             }
         }
-        Ok(Self { entries, liftoffs_per_foot, min_flight_time, min_diagonal_correlation, max_lateral_correlation, foot_names: model.feet.iter().map(|f| f.name.clone()).collect() })
+        Ok(Self { entries, liftoffs_per_foot, min_flight_time, min_diagonal_correlation, max_lateral_correlation, min_base_height, foot_names: model.feet.iter().map(|f| f.name.clone()).collect() })
     }
 
     /// True if the task declares no target.
     pub fn is_empty(&self) -> bool {
-        self.entries.is_empty() && self.liftoffs_per_foot.is_none() && self.min_flight_time.is_none() && self.min_diagonal_correlation.is_none() && self.max_lateral_correlation.is_none()
+        self.entries.is_empty() && self.liftoffs_per_foot.is_none() && self.min_flight_time.is_none() && self.min_diagonal_correlation.is_none() && self.max_lateral_correlation.is_none() && self.min_base_height.is_none()
     }
 
     /// Checks `traj` (a motion of `model`, at least one knot) with every tolerance multiplied
@@ -338,6 +353,13 @@ impl Target {
         if let Some(t) = self.min_flight_time {
             let flight = flight_time(&traj.knots);
             results.push(TargetResult { what: "flight time (all feet up)".into(), value: format!("{flight:.3} s"), required: format!(">= {t:.3} s"), met: flight >= t });
+        }
+        if let Some(least) = self.min_base_height {
+            // The lowest knot, not interpolated: a fall lasts far longer than a knot. A knot
+            // that is not finite (a diverged run) misses.
+            let lowest = traj.knots.iter().min_by(|a, b| a.q[2].total_cmp(&b.q[2])).map_or((f64::NAN, 0.0), |k| (k.q[2], k.t));
+            let finite = traj.knots.iter().all(|k| k.q[2].is_finite());
+            results.push(TargetResult { what: "lowest base height".into(), value: format!("{:.3} m at {:.2} s", lowest.0, lowest.1), required: format!(">= {least:.3} m"), met: finite && lowest.0 >= least });
         }
         results
     }
