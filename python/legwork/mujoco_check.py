@@ -66,9 +66,30 @@ def skew(w):
     return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
 
 
+# The plant's state and contacts go through the three functions below, written out in
+# Python's floats: numpy hands even a 3-vector's norm or a 3 x 3 product to BLAS, whose
+# kernels (picked per CPU) round differently, and a closed loop in MuJoCo then differs
+# from one CPU to another (docs/experiments/mpc-15.md).
+
+def unit_wxyz(w, x, y, z):
+    """The quaternion divided by its norm, as a numpy array (w, x, y, z)."""
+    w, x, y, z = float(w), float(x), float(y), float(z)
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    return np.array([w / n, x / n, y / n, z / n])
+
+
+def mat_vec3(r, x):
+    """r x for a 3 x 3 r, each row summed left to right."""
+    return np.array([float(r[i, 0]) * float(x[0]) + float(r[i, 1]) * float(x[1]) + float(r[i, 2]) * float(x[2]) for i in range(3)])
+
+
+def mat_t_vec3(r, x):
+    """r^T x for a 3 x 3 r, each column summed top to bottom."""
+    return np.array([float(r[0, j]) * float(x[0]) + float(r[1, j]) * float(x[1]) + float(r[2, j]) * float(x[2]) for j in range(3)])
+
+
 def quat_xyzw_to_matrix(q):
-    wxyz = np.array([q[3], q[0], q[1], q[2]], dtype=float)
-    wxyz /= np.linalg.norm(wxyz)
+    wxyz = unit_wxyz(q[3], q[0], q[1], q[2])
     mat = np.zeros(9)
     mujoco.mju_quat2Mat(mat, wxyz)
     return mat.reshape(3, 3)
@@ -186,15 +207,15 @@ class Robot:
         d.qpos[3:7] = [q[6], q[3], q[4], q[5]]
         d.qpos[self.joint_qadr] = q[7:]
         r = quat_xyzw_to_matrix(q[3:7])
-        d.qvel[:3] = r @ v[:3]
+        d.qvel[:3] = mat_vec3(r, v[:3])
         d.qvel[3:6] = v[3:6]
         d.qvel[self.joint_dadr] = v[6:]
 
     def state(self, d):
-        wxyz = d.qpos[3:7] / np.linalg.norm(d.qpos[3:7])
+        wxyz = unit_wxyz(*d.qpos[3:7])
         q = np.concatenate([d.qpos[:3], [wxyz[1], wxyz[2], wxyz[3], wxyz[0]], d.qpos[self.joint_qadr]])
         r = quat_xyzw_to_matrix(q[3:7])
-        v = np.concatenate([r.T @ d.qvel[:3], d.qvel[3:6], d.qvel[self.joint_dadr]])
+        v = np.concatenate([mat_t_vec3(r, d.qvel[:3]), d.qvel[3:6], d.qvel[self.joint_dadr]])
         return q, v
 
     def tangent_map(self, d):
@@ -233,7 +254,7 @@ class Robot:
                 # The contact frame's rows are its axes (normal first, from geom1 to geom2);
                 # f6 is the force geom1 exerts on geom2 in that frame.
                 frame = np.asarray(con.frame).reshape(3, 3)
-                forces[i] += sign * (frame.T @ f6[:3])
+                forces[i] += sign * mat_t_vec3(frame, f6[:3])
                 if f6[0] > 0.0:
                     touching[i] = True
         return forces, touching
