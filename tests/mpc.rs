@@ -2,7 +2,7 @@
 //! loop's tick schedule, HyQ standing under a 100 N lateral push in legwork's simulator and
 //! in MuJoCo, the physical feedback's control loop, and the settings' errors.
 
-use legwork::export::{MujocoCheck, MujocoPlant};
+use legwork::export::MujocoPlant;
 use legwork::io::Trajectory;
 use legwork::model::{embedded, Model};
 use legwork::mpc::{run_closed_loop, window_problem, Mpc, MpcError, MpcFeedback, MpcPolicy, MpcPolicyController, MpcSettings, PolicyLatency};
@@ -14,6 +14,9 @@ use nalgebra::{DMatrix, DVector, Vector3};
 #[path = "support/counting_allocator.rs"]
 mod counting_allocator;
 use counting_allocator::allocations;
+#[path = "support/mujoco.rs"]
+mod mujoco;
+use mujoco::mujoco_or_skip;
 
 /// HyQ holding its stance for `duration` seconds: the standing task of the push test.
 fn stand(duration: f64) -> TaskSpec {
@@ -397,11 +400,7 @@ fn assert_stood_through_the_push(trajectory: &Trajectory, duration: f64) {
 /// Without the checker's Python the test fails when `CI` is set, and otherwise skips.
 #[test]
 fn standing_hyq_rejects_a_100_n_lateral_push_in_mujoco() {
-    let check = match MujocoCheck::locate() {
-        Ok(check) => check,
-        Err(e) if std::env::var_os("CI").is_some() => panic!("{e}, and CI is set"),
-        Err(e) => return eprintln!("skipped: {e}"),
-    };
+    let Some(check) = mujoco_or_skip() else { return };
     let model = embedded::load("hyq").unwrap();
     let spec = stand(1.0);
     let run = plan(&spec, &model);
@@ -427,6 +426,44 @@ fn standing_hyq_rejects_a_100_n_lateral_push_in_mujoco() {
     assert!((normal - weight).abs() < 0.05 * weight, "the feet carry {normal:.0} N of {weight:.0} N");
     assert_stood_through_the_push(&closed.trajectory, 1.0);
     std::fs::remove_dir_all(&folder).ok();
+}
+
+/// The MuJoCo plant's depth estimate (`MujocoPlant::set_depth_matching`): HyQ standing
+/// under its joint PD in MuJoCo rests 1.0-1.3 mm deep, where legwork's contact model would
+/// carry a few percent of its weight; the state the controllers read has the base lowered
+/// to the depth at which legwork's contact carries MuJoCo's measured forces (legwork's feet
+/// rest 4.3-5.0 mm deep: about 3.5 mm), and the recorded motion stays MuJoCo's own.
+#[test]
+fn the_mujoco_plant_lowers_the_base_to_legworks_contact_depth() {
+    let Some(check) = mujoco_or_skip() else { return };
+    let model = embedded::load("hyq").unwrap();
+    let run = plan(&stand(0.3), &model);
+    let ground = Plane::flat(0.0);
+    let config = SimConfig { physics_dt: 0.001, control_dt: 0.001, ..SimConfig::default() };
+    let standing = |depth_matching: bool| {
+        let mut pd = legwork::control::JointPd::standing(&model, 0.001).unwrap();
+        let folder = std::env::temp_dir().join(format!("legwork-mpc-depth-{depth_matching}-{}", std::process::id()));
+        let mut plant = MujocoPlant::from_plan(&check, &model, &ground, &run.plan, config.clone(), &folder).unwrap();
+        plant.set_depth_matching(depth_matching);
+        let mut trajectory = Trajectory::new(&model, "stand", 0.001, legwork::terrain::Terrain::spec(&ground));
+        for _ in 0..300 {
+            legwork::sim::Plant::step_recorded(&mut plant, &mut pd, &mut trajectory).unwrap();
+        }
+        let (offset, read_z) = (plant.depth_offset(), legwork::sim::Plant::state(&plant).q[2]);
+        std::fs::remove_dir_all(&folder).ok();
+        (offset, read_z, trajectory)
+    };
+    let (none, raw_z, raw) = standing(false);
+    let (offset, read_z, matched) = standing(true);
+    eprintln!("standing in MuJoCo: the base read {offset:.5} m lower than measured ({raw_z:.5} m)");
+    assert_eq!(none, 0.0);
+    assert!((0.0025..0.0045).contains(&offset), "lowered by {offset} m");
+    // The recorded motion is MuJoCo's: the same with the estimate on or off (the torques
+    // here do not read the base height), and the state read is it lowered.
+    let last = |t: &Trajectory| t.knots.last().unwrap().q.clone();
+    assert_eq!(raw.knots.len(), matched.knots.len());
+    assert_eq!(last(&raw), last(&matched));
+    assert!((raw_z - offset - read_z).abs() < 1e-12, "read {read_z}, measured {raw_z}, offset {offset}");
 }
 
 /// `MpcFeedback::Physical`: the robot's torque is the knot's feedforward plus the knot's

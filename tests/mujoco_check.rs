@@ -7,7 +7,7 @@
 //! they skipped (the rule of tests/replay_browser.rs for Chromium).
 
 use legwork::dynamics::{crba, forward_kinematics, frame_position, rnea, Data};
-use legwork::export::{check_plan_in_mujoco, mjcf_model, stand_in_mujoco, MjcfSettings, MujocoCheck, StandingFigures};
+use legwork::export::{check_plan_in_mujoco, mjcf_model, stand_in_mujoco, MjcfSettings, StandingFigures};
 use legwork::model::embedded;
 use legwork::ocp::{solve_task, Rerun, SolveOptions, TaskSpec, EMBEDDED_TASKS};
 use legwork::sim::{standing_on_ground, SimConfig, Simulator};
@@ -16,18 +16,10 @@ use nalgebra::DVector;
 use std::path::PathBuf;
 
 mod common;
+#[path = "support/mujoco.rs"]
+mod mujoco;
+use mujoco::mujoco_or_skip;
 
-/// The checker, or `None` (the test skips) when its environment is missing outside CI.
-fn mujoco_or_skip() -> Option<MujocoCheck> {
-    match MujocoCheck::locate() {
-        Ok(check) => Some(check),
-        Err(e) if std::env::var_os("CI").is_some() => panic!("{e}, and CI is set"),
-        Err(e) => {
-            eprintln!("skipped: {e}");
-            None
-        }
-    }
-}
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("legwork-mujoco-{}-{name}", std::process::id()));

@@ -119,6 +119,10 @@ pub enum BenchCommand {
         /// The physics of the closed loops.
         #[arg(long, value_enum, default_value_t = super::mpc::SimChoice::Legwork)]
         sim: super::mpc::SimChoice,
+        /// With `--sim mujoco`: the controllers read MuJoCo's state as measured
+        /// (`legwork mpc --measured-depth`).
+        #[arg(long)]
+        measured_depth: bool,
         /// Print the results as JSON.
         #[arg(long)]
         json: bool,
@@ -246,10 +250,10 @@ pub fn run(cmd: BenchCommand) -> Result<Verdict> {
         BenchCommand::Jumps { json, repeats, knots, trials, jumps: names, barrier_contact_timing, barrier_full_body, barrier_curvature, threads } => jumps(json, repeats, knots, trials, &names, [barrier_contact_timing, barrier_full_body, barrier_curvature], super::capped_threads(threads)),
         BenchCommand::Slq { json, threads, iterations, check, out } => slq(json, super::capped_threads(threads), iterations, check.is_some(), &out),
         BenchCommand::Terrain { trials, json, threads, scenarios, out } => terrain(trials, json, super::capped_threads(threads), &scenarios, &out),
-        BenchCommand::Mpc { tasks, timing_task, horizons, thread_counts, push, rate, knot_dt, fine_head, tail_ticks, horizon, reuse_models, no_anchor_states, window_past_end, tracking, feedback, latency, sim, json, out } => {
+        BenchCommand::Mpc { tasks, timing_task, horizons, thread_counts, push, rate, knot_dt, fine_head, tail_ticks, horizon, reuse_models, no_anchor_states, window_past_end, tracking, feedback, latency, sim, measured_depth, json, out } => {
             let thread_counts: Vec<usize> = thread_counts.iter().map(|&t| super::capped_threads(t)).collect();
             let latency = super::mpc::parse_latency(&latency)?;
-            super::bench_mpc::run(&super::bench_mpc::MpcBench { tasks: &tasks, timing_task: &timing_task, horizons: &horizons, thread_counts: &thread_counts, push, mujoco: sim == super::mpc::SimChoice::Mujoco, latency, rate, knot_dt, fine_head, tail_ticks, horizon, model_reuse: reuse_models.as_deref().map(super::mpc::parse_model_reuse).transpose()?, anchor_states: !no_anchor_states, ends_at_task_end: if window_past_end { None } else { legwork::mpc::MpcSettings::default().ends_at_task_end }, tracking, feedback: feedback.into(), as_json: json, out: &out })
+            super::bench_mpc::run(&super::bench_mpc::MpcBench { tasks: &tasks, timing_task: &timing_task, horizons: &horizons, thread_counts: &thread_counts, push, mujoco: sim == super::mpc::SimChoice::Mujoco, depth_matching: !measured_depth, latency, rate, knot_dt, fine_head, tail_ticks, horizon, model_reuse: reuse_models.as_deref().map(super::mpc::parse_model_reuse).transpose()?, anchor_states: !no_anchor_states, ends_at_task_end: if window_past_end { None } else { legwork::mpc::MpcSettings::default().ends_at_task_end }, tracking, feedback: feedback.into(), as_json: json, out: &out })
         }
     }
 }

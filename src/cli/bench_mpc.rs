@@ -25,6 +25,8 @@ pub struct MpcBench<'a> {
     /// Lateral push of each task's pushed run (N; 0: no pushed runs), 0.2 s from the task's middle.
     pub push: f64,
     pub mujoco: bool,
+    /// With `mujoco`: the controllers read the base lowered to legwork's contact depth.
+    pub depth_matching: bool,
     pub latency: PolicyLatency,
     pub rate: f64,
     /// Knot spacing of every window (s; `None`: the tick period).
@@ -73,7 +75,7 @@ impl Planned {
     fn closed_loop(&self, settings: MpcSettings, sim: &ClosedLoopSim, latency: PolicyLatency, pushes: Vec<Push>, out: &Path) -> Result<ClosedLoopOutcome> {
         let sim = match sim {
             ClosedLoopSim::Legwork => ClosedLoopSim::Legwork,
-            ClosedLoopSim::Mujoco(check) => ClosedLoopSim::Mujoco(check.clone()),
+            ClosedLoopSim::Mujoco { check, depth_matching } => ClosedLoopSim::Mujoco { check: check.clone(), depth_matching: *depth_matching },
         };
         let plan_out = out.join("plan");
         let job = MpcJob {
@@ -124,7 +126,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         bail!("--push: expected a force >= 0 N, got {}", bench.push);
     }
     // A missing MuJoCo environment is reported before the benchmark, not after it.
-    let sim = if bench.mujoco { ClosedLoopSim::Mujoco(MujocoCheck::locate().or_could_not_finish()?) } else { ClosedLoopSim::Legwork };
+    let sim = if bench.mujoco { ClosedLoopSim::Mujoco { check: MujocoCheck::locate().or_could_not_finish()?, depth_matching: bench.depth_matching } } else { ClosedLoopSim::Legwork };
     let sim_name = if bench.mujoco { "MuJoCo" } else { "legwork" };
     let max_threads = *bench.thread_counts.iter().max().unwrap_or(&1);
     let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, tail_ticks: bench.tail_ticks, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, ends_at_task_end: bench.ends_at_task_end, feedback: bench.feedback, tracking: legwork::mpc::TrackingWeights::default().scaled(bench.tracking), ..MpcSettings::default() };

@@ -105,6 +105,12 @@ pub struct MpcArgs {
     /// Python, `scripts/install-mujoco.sh`).
     #[arg(long, value_enum, default_value_t = SimChoice::Legwork)]
     sim: SimChoice,
+    /// With `--sim mujoco`: the controller reads MuJoCo's state as measured, instead of with
+    /// the base lowered to the depth at which legwork's contact model carries MuJoCo's
+    /// measured foot forces (legwork's feet rest 3-4 mm deeper than MuJoCo's; on MuJoCo's
+    /// depth its contact would carry a few percent of the weight).
+    #[arg(long)]
+    measured_depth: bool,
     /// Also write every plot as PNG beside its SVG.
     #[arg(long)]
     png: bool,
@@ -167,7 +173,7 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
     let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, fine_head: args.fine_head, tail_ticks: args.tail_ticks, iterations_per_tick: args.iterations_per_tick, threads, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, ends_at_task_end: (!args.window_past_end).then_some(args.shortest_window), anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), model_reuse: args.reuse_models.as_deref().map(parse_model_reuse).transpose()?, feedback: args.feedback.into(), ..MpcSettings::default() };
     let sim = match args.sim {
         SimChoice::Legwork => ClosedLoopSim::Legwork,
-        SimChoice::Mujoco => ClosedLoopSim::Mujoco(legwork::export::MujocoCheck::locate()?),
+        SimChoice::Mujoco => ClosedLoopSim::Mujoco { check: legwork::export::MujocoCheck::locate()?, depth_matching: !args.measured_depth },
     };
     let job = MpcJob {
         solve: SolveJob {

@@ -184,6 +184,28 @@ impl ContactParams {
             (p - 0.5 * self.alpha, 1.0)
         }
     }
+
+    /// The penetration at which the foot, at rest, carries a normal force `f_n`: the inverse
+    /// of the static part of eq. (9), `f_n = k_n s(p)`, so `s = f_n / k_n` and
+    /// `p = sqrt(2 alpha s)` below `s = alpha / 2`, `s + alpha / 2` above (0 for `f_n <= 0`).
+    ///
+    /// ```
+    /// let c = legwork::contact::ContactParams::for_foot_load(86.8 / 4.0);
+    /// let p = c.static_penetration(86.8 / 4.0 * 9.81);
+    /// assert!((c.normal_stiffness * c.profile(p).0 - 86.8 / 4.0 * 9.81).abs() < 1e-9);
+    /// assert!(p > 0.004 && p < 0.005);  // HyQ's feet rest 4.3-5.0 mm deep
+    /// ```
+    pub fn static_penetration(&self, f_n: f64) -> f64 {
+        if f_n.is_nan() || f_n <= 0.0 {
+            return 0.0;
+        }
+        let s = f_n / self.normal_stiffness;
+        if s < 0.5 * self.alpha {
+            (2.0 * self.alpha * s).sqrt()
+        } else {
+            s + 0.5 * self.alpha
+        }
+    }
 }
 
 /// Where the surface is under a foot: the local tangent plane.

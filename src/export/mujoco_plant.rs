@@ -13,6 +13,22 @@
 //! anchors moved by [`crate::contact::update_anchor`] every step, starting from the plan's
 //! initial anchors. A controller whose state includes the anchors (the receding-horizon
 //! SLQ with anchor states) reads that estimate.
+//!
+//! The feet's depth is estimated too ([`MujocoPlant::set_depth_matching`], on by default).
+//! MuJoCo's contact holds HyQ's feet 1.0-1.3 mm deep, legwork's 4.3-5.0 mm
+//! ([`crate::contact::ContactParams`]): on MuJoCo's measured feet legwork's contact model
+//! would carry about 6 % of the robot's weight, and a controller that predicts with it sees a
+//! robot in free fall at every measurement. The state the controllers read has the base
+//! lowered by `delta`, the loaded feet's depth difference weighted by their load:
+//!
+//! ```text
+//! delta = sum_i F_i (p_i* - p_i) / sum_i F_i,   p_i* = the depth where legwork's contact
+//!         carries F_i at rest (ContactParams::static_penetration)
+//! ```
+//!
+//! with `F_i` MuJoCo's normal force on foot `i` (the contacts of the step's start) and `p_i`
+//! the foot's depth in legwork's model at the measured state; `delta = 0` with no foot
+//! loaded. The recorded motion is MuJoCo's own.
 
 use super::mjcf::{mjcf_model, MjcfSettings};
 use super::mujoco_check::{MujocoCheck, MujocoCheckError, CHECKER_SCRIPT};
@@ -70,7 +86,14 @@ pub struct MujocoPlant<'a> {
     stderr_path: PathBuf,
     line: String,
     request: String,
+    /// The state the controllers read: MuJoCo's, the base lowered by `depth_offset`.
     state: SimState,
+    /// MuJoCo's configuration as measured (recorded).
+    measured_q: DVector<f64>,
+    /// Whether the base is lowered to legwork's contact depth (module docs).
+    depth_matching: bool,
+    /// The last `delta` (m).
+    depth_offset: f64,
     /// legwork's contact model on the measured motion: the anchors' estimate.
     contacts: ContactModelWorkspace<'a>,
     tau: DVector<f64>,
@@ -134,6 +157,9 @@ impl<'a> MujocoPlant<'a> {
             line: String::new(),
             request: String::new(),
             state: SimState { t: 0.0, q: DVector::from_column_slice(&first.q), v: DVector::from_column_slice(&first.v), anchors },
+            measured_q: DVector::from_column_slice(&first.q),
+            depth_matching: true,
+            depth_offset: 0.0,
             contacts,
             tau: DVector::zeros(model.nv),
             pushes: Vec::new(),
@@ -146,8 +172,19 @@ impl<'a> MujocoPlant<'a> {
         if (answer.dt - plant.config.physics_dt).abs() > 1e-12 {
             return Err(MujocoCheckError::Input(format!("{}: MuJoCo's time step is {} s, expected the physics step {} s", mjcf.display(), answer.dt, plant.config.physics_dt)));
         }
-        plant.set_measured(answer.t, &answer.q, &answer.v).map_err(|e| MujocoCheckError::Input(e.to_string()))?;
+        plant.set_measured(answer.t, &answer.q, &answer.v, None).map_err(|e| MujocoCheckError::Input(e.to_string()))?;
         Ok(plant)
+    }
+
+    /// Lower the base the controllers read to legwork's contact depth (`true`, the default;
+    /// module docs) or hand them MuJoCo's state as it is (`false`).
+    pub fn set_depth_matching(&mut self, on: bool) {
+        self.depth_matching = on;
+    }
+
+    /// The base's last lowering (m): `delta` of the module docs.
+    pub fn depth_offset(&self) -> f64 {
+        self.depth_offset
     }
 
     /// Adds a push on the base (world frame, at the base frame's origin).
@@ -179,11 +216,13 @@ impl<'a> MujocoPlant<'a> {
     }
 
     /// Takes MuJoCo's measured state, checked as legwork's simulator checks its own.
-    fn set_measured(&mut self, t: f64, q: &[f64], v: &[f64]) -> Result<(), SimError> {
+    /// `forces`: MuJoCo's contact forces per foot (world frame), for the depth's estimate.
+    fn set_measured(&mut self, t: f64, q: &[f64], v: &[f64], forces: Option<&[[f64; 3]]>) -> Result<(), SimError> {
         if q.len() != self.model.nq || v.len() != self.model.nv {
             return Err(self.external(format!("a state of {} and {} entries, expected q of {} and v of {}", q.len(), v.len(), self.model.nq, self.model.nv)));
         }
         self.state.t = t;
+        self.measured_q.copy_from_slice(q);
         self.state.q.copy_from_slice(q);
         self.state.v.copy_from_slice(v);
         let reason = if let Some(i) = q.iter().position(|x| !x.is_finite()) {
@@ -191,9 +230,33 @@ impl<'a> MujocoPlant<'a> {
         } else {
             v.iter().position(|x| !x.is_finite() || x.abs() > self.config.max_speed).map(|i| format!("|v[{i}]| = {:.3e} exceeds max_speed = {}", v[i].abs(), self.config.max_speed))
         };
-        match reason {
-            Some(reason) => Err(SimError::Diverged { step: self.step, t, reason: format!("in MuJoCo: {reason}"), q: q.to_vec(), v: v.to_vec() }),
-            None => Ok(()),
+        if let Some(reason) = reason {
+            return Err(SimError::Diverged { step: self.step, t, reason: format!("in MuJoCo: {reason}"), q: q.to_vec(), v: v.to_vec() });
+        }
+        self.depth_offset = match forces {
+            Some(forces) if self.depth_matching => self.depth_difference(forces),
+            _ => 0.0,
+        };
+        self.state.q[2] -= self.depth_offset;
+        Ok(())
+    }
+
+    /// `delta` of the module docs at the measured state in `self.state`.
+    fn depth_difference(&mut self, forces: &[[f64; 3]]) -> f64 {
+        self.contacts.evaluate_contacts(&self.state.q, &self.state.v, &self.state.anchors);
+        let params = *self.contacts.params();
+        let (mut weighted, mut total) = (0.0, 0.0);
+        for (foot, force) in self.contacts.feet().iter().zip(forces) {
+            let f_n = foot.normal.dot(&Vector3::from(*force));
+            if f_n > 0.0 {
+                weighted += f_n * (params.static_penetration(f_n) - foot.contact.penetration);
+                total += f_n;
+            }
+        }
+        if total > 0.0 {
+            weighted / total
+        } else {
+            0.0
         }
     }
 
@@ -201,7 +264,7 @@ impl<'a> MujocoPlant<'a> {
         let nj = self.model.nv - 6;
         Knot {
             t: self.state.t,
-            q: self.state.q.iter().copied().collect(),
+            q: self.measured_q.iter().copied().collect(),
             v: self.state.v.iter().copied().collect(),
             tau: self.tau.rows(6, nj).iter().copied().collect(),
             contact_force: forces.to_vec(),
@@ -250,7 +313,7 @@ impl Plant for MujocoPlant<'_> {
         if let Some(reason) = answer.failed {
             return Err(SimError::Diverged { step: self.step, t: answer.t, reason: format!("in MuJoCo: {reason}"), q: answer.q, v: answer.v });
         }
-        self.set_measured(answer.t, &answer.q, &answer.v)
+        self.set_measured(answer.t, &answer.q, &answer.v, Some(&answer.forces))
     }
 
     fn record_final(&mut self, trajectory: &mut Trajectory) -> Result<(), SimError> {

@@ -20,8 +20,10 @@ use serde_json::json;
 pub enum ClosedLoopSim {
     /// legwork's simulator: the optimizer's own world.
     Legwork,
-    /// MuJoCo through the checker's Python (physics nobody on the team wrote).
-    Mujoco(MujocoCheck),
+    /// MuJoCo through the checker's Python (physics nobody on the team wrote);
+    /// `depth_matching`: the controllers read the base lowered to legwork's contact depth
+    /// ([`MujocoPlant::set_depth_matching`]).
+    Mujoco { check: MujocoCheck, depth_matching: bool },
 }
 
 /// A closed-loop run to make: the plan's solve job (its `out` is the plan's folder), the
@@ -105,8 +107,9 @@ impl MpcJob<'_> {
                 }
                 run_closed_loop(mpc, &mut sim, spec.duration, self.latency, on_tick).or_could_not_finish()?
             }
-            ClosedLoopSim::Mujoco(check) => {
+            ClosedLoopSim::Mujoco { check, depth_matching } => {
                 let mut plant = MujocoPlant::from_plan(check, model, &terrain, &plan.run.plan, config, &self.out.join("mujoco")).or_could_not_finish()?;
+                plant.set_depth_matching(*depth_matching);
                 for push in &self.pushes {
                     plant.add_push(*push);
                 }
@@ -163,7 +166,8 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
         "robot": job.solve.model.name,
         "verdict": verdict.as_str(),
         "exit_code": verdict.exit_code(),
-        "sim": match &job.sim { ClosedLoopSim::Legwork => json!("legwork"), ClosedLoopSim::Mujoco(check) => json!(format!("MuJoCo {}", check.version().unwrap_or_default())) },
+        "sim": match &job.sim { ClosedLoopSim::Legwork => json!("legwork"), ClosedLoopSim::Mujoco { check, .. } => json!(format!("MuJoCo {}", check.version().unwrap_or_default())) },
+        "mujoco_depth_matching": matches!(job.sim, ClosedLoopSim::Mujoco { depth_matching: true, .. }),
         "horizon_s": s.horizon,
         "rate_hz": s.rate,
         "knot_dt_s": s.knot_dt(),
