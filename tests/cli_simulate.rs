@@ -209,6 +209,9 @@ fn absurd_runs_are_refused_before_they_start() {
     refused(&["simulate", "--drop-height", "1e6", "--out", out], &["--drop-height", "0-10 m"]);
     refused(&["simulate", "--physics-rate", "1e12", "--out", out], &["--physics-rate", "at most 100000 Hz"]);
     refused(&["simulate", "--duration", "nan", "--out", out], &["--duration", "positive"]);
+    // A MuJoCo-only option on legwork's own simulator is refused, not ignored.
+    refused(&["mpc", "sidestep", "--measured-depth", "--out", out], &["--measured-depth", "--sim mujoco only"]);
+    refused(&["bench", "mpc", "--measured-depth", "--tasks", "sidestep", "--out", out], &["--measured-depth", "--sim mujoco only"]);
     let long = dir.join("long.toml");
     std::fs::write(&long, SHIFT_TASK.replace("duration = 0.6", "duration = 2000.0")).unwrap();
     refused(&["--memory-limit", "16", "solve", long.to_str().unwrap(), "--out", out], &["long.toml", "1000000 knots", "would need about 64.0 GB", "limit of 16.0 GB (--memory-limit 16)"]);

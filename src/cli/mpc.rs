@@ -165,6 +165,9 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
         Some(robot) => super::robot::load(robot)?.0,
         None => spec.load_robot(&origin)?,
     };
+    if args.measured_depth && args.sim != SimChoice::Mujoco {
+        anyhow::bail!("--measured-depth: applies to --sim mujoco only (legwork's simulator has legwork's own contact depth)");
+    }
     let latency = parse_latency(&args.latency)?;
     let pushes = args.push.iter().map(|p| Push::parse(p).map_err(anyhow::Error::msg)).collect::<Result<Vec<_>>>()?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join("mpc").join(&spec.name));
