@@ -20,7 +20,6 @@ mod common;
 mod mujoco;
 use mujoco::mujoco_or_skip;
 
-
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("legwork-mujoco-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

@@ -252,9 +252,7 @@ pub fn run(cmd: BenchCommand) -> Result<Verdict> {
         BenchCommand::Terrain { trials, json, threads, scenarios, out } => terrain(trials, json, super::capped_threads(threads), &scenarios, &out),
         BenchCommand::Mpc { tasks, timing_task, horizons, thread_counts, push, rate, knot_dt, fine_head, tail_ticks, horizon, reuse_models, no_anchor_states, window_past_end, tracking, feedback, latency, sim, measured_depth, json, out } => {
             let thread_counts: Vec<usize> = thread_counts.iter().map(|&t| super::capped_threads(t)).collect();
-            if measured_depth && sim != super::mpc::SimChoice::Mujoco {
-                anyhow::bail!("--measured-depth: applies to --sim mujoco only (legwork's simulator has legwork's own contact depth)");
-            }
+            super::mpc::check_measured_depth(measured_depth, sim)?;
             let latency = super::mpc::parse_latency(&latency)?;
             super::bench_mpc::run(&super::bench_mpc::MpcBench { tasks: &tasks, timing_task: &timing_task, horizons: &horizons, thread_counts: &thread_counts, push, mujoco: sim == super::mpc::SimChoice::Mujoco, depth_matching: !measured_depth, latency, rate, knot_dt, fine_head, tail_ticks, horizon, model_reuse: reuse_models.as_deref().map(super::mpc::parse_model_reuse).transpose()?, anchor_states: !no_anchor_states, ends_at_task_end: if window_past_end { None } else { legwork::mpc::MpcSettings::default().ends_at_task_end }, tracking, feedback: feedback.into(), as_json: json, out: &out })
         }

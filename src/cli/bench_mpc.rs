@@ -73,10 +73,7 @@ impl Planned {
     /// One closed loop on the plan with `settings` and `pushes`, its folder `out`
     /// (`ControllerDidNotStart`: no closed loop, a missed row).
     fn closed_loop(&self, settings: MpcSettings, sim: &ClosedLoopSim, latency: PolicyLatency, pushes: Vec<Push>, out: &Path) -> Result<ClosedLoopOutcome> {
-        let sim = match sim {
-            ClosedLoopSim::Legwork => ClosedLoopSim::Legwork,
-            ClosedLoopSim::Mujoco { check, depth_matching } => ClosedLoopSim::Mujoco { check: check.clone(), depth_matching: *depth_matching },
-        };
+        let sim = sim.clone();
         let plan_out = out.join("plan");
         let job = MpcJob {
             solve: SolveJob { spec: &self.spec, origin: &self.origin, model: &self.model, options: SolveOptions { threads: settings.threads, max_iterations: None, exploration: None, value_function: true }, mujoco: None, out: &plan_out, memory_limit: super::resources::memory_limit(), png: false },

@@ -148,6 +148,14 @@ pub fn parse_latency(text: &str) -> Result<PolicyLatency> {
     }
 }
 
+/// `--measured-depth` names MuJoCo's measured state: refused with any other physics.
+pub fn check_measured_depth(measured_depth: bool, sim: SimChoice) -> Result<()> {
+    if measured_depth && sim != SimChoice::Mujoco {
+        anyhow::bail!("--measured-depth: applies to --sim mujoco only (legwork's simulator has legwork's own contact depth)");
+    }
+    Ok(())
+}
+
 /// `HEAD,PERIOD` of `--reuse-models`.
 pub fn parse_model_reuse(text: &str) -> Result<legwork::slq::ModelReuse> {
     let parsed = text.split_once(',').and_then(|(head, period)| Some((head.trim().parse().ok()?, period.trim().parse().ok()?)));
@@ -165,9 +173,7 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
         Some(robot) => super::robot::load(robot)?.0,
         None => spec.load_robot(&origin)?,
     };
-    if args.measured_depth && args.sim != SimChoice::Mujoco {
-        anyhow::bail!("--measured-depth: applies to --sim mujoco only (legwork's simulator has legwork's own contact depth)");
-    }
+    check_measured_depth(args.measured_depth, args.sim)?;
     let latency = parse_latency(&args.latency)?;
     let pushes = args.push.iter().map(|p| Push::parse(p).map_err(anyhow::Error::msg)).collect::<Result<Vec<_>>>()?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join("mpc").join(&spec.name));

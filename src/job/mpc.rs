@@ -17,6 +17,7 @@ use crate::terrain::Plane;
 use serde_json::json;
 
 /// The physics the closed loop runs in.
+#[derive(Clone, Debug)]
 pub enum ClosedLoopSim {
     /// legwork's simulator: the optimizer's own world.
     Legwork,
