@@ -212,6 +212,9 @@ fn absurd_runs_are_refused_before_they_start() {
     // A MuJoCo-only option on legwork's own simulator is refused, not ignored.
     refused(&["mpc", "sidestep", "--measured-depth", "--out", out], &["--measured-depth", "--sim mujoco only"]);
     refused(&["bench", "mpc", "--measured-depth", "--tasks", "sidestep", "--out", out], &["--measured-depth", "--sim mujoco only"]);
+    // A real-time priority outside SCHED_FIFO's range, before the plan's solve.
+    refused(&["mpc", "sidestep", "--realtime-priority", "0", "--out", out], &["--realtime-priority 0", "1..=99"]);
+    refused(&["bench", "mpc", "--realtime-priority", "100", "--tasks", "sidestep", "--out", out], &["--realtime-priority 100", "1..=99"]);
     let long = dir.join("long.toml");
     std::fs::write(&long, SHIFT_TASK.replace("duration = 0.6", "duration = 2000.0")).unwrap();
     refused(&["--memory-limit", "16", "solve", long.to_str().unwrap(), "--out", out], &["long.toml", "1000000 knots", "would need about 64.0 GB", "limit of 16.0 GB (--memory-limit 16)"]);

@@ -538,6 +538,8 @@ fn bad_settings_and_a_plan_without_its_value_function_are_named() {
         (MpcSettings { horizon: f64::NAN, ..MpcSettings::default() }, "horizon"),
         (MpcSettings { iterations_per_tick: 0, ..MpcSettings::default() }, "iterations_per_tick"),
         (MpcSettings { regularization: -1.0, ..MpcSettings::default() }, "regularization"),
+        (MpcSettings { realtime_priority: Some(0), ..MpcSettings::default() }, "realtime_priority"),
+        (MpcSettings { realtime_priority: Some(100), ..MpcSettings::default() }, "realtime_priority"),
         (MpcSettings { model_reuse: Some(ModelReuse { fresh_head: 10, refresh_period: 0 }), ..MpcSettings::default() }, "model_reuse"),
         (MpcSettings { knot_dt: Some(0.001), fine_head: Some(0.05), model_reuse: Some(ModelReuse { fresh_head: 10, refresh_period: 5 }), ..MpcSettings::default() }, "model_reuse"),
     ] {
@@ -602,6 +604,55 @@ fn a_controller_that_cannot_start_is_told_apart_from_a_closed_loop() {
     let err = job.run_on_plan(&plan, |_| ()).err().expect("no controller, no run");
     assert_eq!(err.exit_code(), 3, "{}", err.message);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Threads of this process under `SCHED_FIFO` (field 41 of `/proc/self/task/*/stat`, the
+/// scheduling policy: 1).
+#[cfg(target_os = "linux")]
+fn fifo_threads() -> usize {
+    let tasks = std::fs::read_dir("/proc/self/task").unwrap();
+    tasks
+        .filter_map(|t| std::fs::read_to_string(t.ok()?.path().join("stat")).ok())
+        .filter(|stat| stat.rsplit_once(')').and_then(|(_, fields)| fields.split_whitespace().nth(41 - 3).map(|p| p == "1")).unwrap_or(false))
+        .count()
+}
+
+/// `realtime_priority` puts the solver's thread and its pool's two threads under
+/// `SCHED_FIFO` for the closed loop (not the plant's) and changes nothing in the motion: at
+/// a fixed latency the run is the same to the bit. Where the system refuses (no root, no
+/// CAP_SYS_NICE), the controller does not start and the error names the setting.
+#[cfg(target_os = "linux")]
+#[test]
+fn the_solvers_threads_run_under_sched_fifo_and_the_motion_is_the_same() {
+    let model = embedded::load("hyq").unwrap();
+    let spec = stand(0.2);
+    let run = plan(&spec, &model);
+    let ground = Plane::flat(0.0);
+    let closed_loop = |settings: MpcSettings, fifo_during: &mut Vec<usize>| {
+        let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
+        let mpc = Mpc::new(&problem, &run.solution, spec.dt, settings.clone())?;
+        let mut sim = Simulator::from_plan(&model, &ground, &run.plan, SimConfig::default()).unwrap();
+        Ok::<_, MpcError>(run_closed_loop(mpc, &mut sim, spec.duration, PolicyLatency::Fixed(0.005), |_| fifo_during.push(fifo_threads())).unwrap())
+    };
+    let mut fifo_default = Vec::new();
+    let plain = closed_loop(MpcSettings::default(), &mut fifo_default).unwrap();
+    assert!(fifo_default.iter().all(|&n| n == 0), "{fifo_default:?}");
+    let mut fifo_during = Vec::new();
+    let realtime = match closed_loop(MpcSettings { realtime_priority: Some(1), ..MpcSettings::default() }, &mut fifo_during) {
+        Ok(run) => run,
+        Err(e) => {
+            let message = e.to_string();
+            assert!(message.contains("`realtime_priority`") && message.contains("SCHED_FIFO"), "{message}");
+            eprintln!("SCHED_FIFO refused here, checked the refusal only: {message}");
+            return;
+        }
+    };
+    // The solver's thread and the two threads of its pool; the plant's (this one) not.
+    assert!(!fifo_during.is_empty() && fifo_during.iter().all(|&n| n == 3), "{fifo_during:?}");
+    assert_eq!(realtime.ticks.len(), plain.ticks.len());
+    for (a, b) in realtime.trajectory.knots.iter().zip(&plain.trajectory.knots) {
+        assert_eq!((&a.q, &a.v, &a.tau), (&b.q, &b.v, &b.tau), "t {}", a.t);
+    }
 }
 
 /// legwork's simulator whose measurement of one instant is garbage (a sensor glitch: NaN

@@ -47,6 +47,8 @@ pub struct MpcBench<'a> {
     pub tracking: f64,
     /// What the robot's policy feeds back between ticks.
     pub feedback: legwork::mpc::MpcFeedback,
+    /// SCHED_FIFO priority of the solvers' threads (`None`: the default scheduling).
+    pub realtime_priority: Option<i32>,
     pub as_json: bool,
     pub out: &'a Path,
 }
@@ -126,7 +128,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
     let sim = if bench.mujoco { ClosedLoopSim::Mujoco { check: MujocoCheck::locate().or_could_not_finish()?, depth_matching: bench.depth_matching } } else { ClosedLoopSim::Legwork };
     let sim_name = if bench.mujoco { "MuJoCo" } else { "legwork" };
     let max_threads = *bench.thread_counts.iter().max().unwrap_or(&1);
-    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, tail_ticks: bench.tail_ticks, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, ends_at_task_end: bench.ends_at_task_end, feedback: bench.feedback, tracking: legwork::mpc::TrackingWeights::default().scaled(bench.tracking), ..MpcSettings::default() };
+    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, tail_ticks: bench.tail_ticks, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, ends_at_task_end: bench.ends_at_task_end, feedback: bench.feedback, tracking: legwork::mpc::TrackingWeights::default().scaled(bench.tracking), realtime_priority: bench.realtime_priority, ..MpcSettings::default() };
 
     // The tick time against horizon and threads, on one task, the latency measured.
     let timing_out = bench.out.join("timing");
@@ -201,6 +203,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         "ends_at_task_end": base.ends_at_task_end,
         "feedback": base.feedback.name(),
         "tracking_scale": bench.tracking,
+        "realtime_priority": base.realtime_priority,
         "task_horizon_s": bench.horizon,
         "latency": match bench.latency { PolicyLatency::Measured => json!("measured"), PolicyLatency::Fixed(l) => json!(l) },
         "cpu": super::bench::cpu_name(),

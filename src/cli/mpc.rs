@@ -48,6 +48,11 @@ pub struct MpcArgs {
     /// Threads of the controller's solver (and of the plan's solve).
     #[arg(long, default_value_t = 2)]
     threads: usize,
+    /// Run the solver's threads under SCHED_FIFO at this priority (1-99), as robot
+    /// controllers run their MPC (Linux; root, CAP_SYS_NICE or an rtprio limit). Default:
+    /// the operating system's scheduling. The plant keeps the default.
+    #[arg(long, value_name = "PRIORITY")]
+    realtime_priority: Option<i32>,
     /// When a tick's policy reaches the robot: `measured` (after the solve's wall time, as
     /// on a robot) or a fixed number of seconds (reproducible runs).
     #[arg(long, default_value = "measured")]
@@ -156,6 +161,18 @@ pub fn check_measured_depth(measured_depth: bool, sim: SimChoice) -> Result<()> 
     Ok(())
 }
 
+/// `--realtime-priority`: tried on a short-lived thread first, so that a machine that
+/// refuses SCHED_FIFO is told before the plan's solve, not after it.
+pub fn check_realtime_priority(priority: Option<i32>) -> Result<()> {
+    let Some(priority) = priority else { return Ok(()) };
+    let tried = std::thread::spawn(move || legwork::slq::set_realtime_priority(priority)).join();
+    match tried {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => anyhow::bail!("--realtime-priority {priority}: {e}"),
+        Err(_) => anyhow::bail!("--realtime-priority {priority}: the thread trying it panicked"),
+    }
+}
+
 /// `HEAD,PERIOD` of `--reuse-models`.
 pub fn parse_model_reuse(text: &str) -> Result<legwork::slq::ModelReuse> {
     let parsed = text.split_once(',').and_then(|(head, period)| Some((head.trim().parse().ok()?, period.trim().parse().ok()?)));
@@ -174,12 +191,13 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
         None => spec.load_robot(&origin)?,
     };
     check_measured_depth(args.measured_depth, args.sim)?;
+    check_realtime_priority(args.realtime_priority)?;
     let latency = parse_latency(&args.latency)?;
     let pushes = args.push.iter().map(|p| Push::parse(p).map_err(anyhow::Error::msg)).collect::<Result<Vec<_>>>()?;
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join("mpc").join(&spec.name));
     let plan_out = out.join("plan");
     let threads = super::capped_threads(args.threads);
-    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, fine_head: args.fine_head, tail_ticks: args.tail_ticks, iterations_per_tick: args.iterations_per_tick, threads, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, ends_at_task_end: (!args.window_past_end).then_some(args.shortest_window), anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), model_reuse: args.reuse_models.as_deref().map(parse_model_reuse).transpose()?, feedback: args.feedback.into(), ..MpcSettings::default() };
+    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, fine_head: args.fine_head, tail_ticks: args.tail_ticks, iterations_per_tick: args.iterations_per_tick, threads, realtime_priority: args.realtime_priority, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, ends_at_task_end: (!args.window_past_end).then_some(args.shortest_window), anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), model_reuse: args.reuse_models.as_deref().map(parse_model_reuse).transpose()?, feedback: args.feedback.into(), ..MpcSettings::default() };
     let sim = match args.sim {
         SimChoice::Legwork => ClosedLoopSim::Legwork,
         SimChoice::Mujoco => ClosedLoopSim::Mujoco { check: legwork::export::MujocoCheck::locate()?, depth_matching: !args.measured_depth },
@@ -203,7 +221,7 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
     };
     job.check().map_err(job_error)?;
     let s = &job.settings;
-    say!("Planning {} ({}) for {}: {} s, then MPC in {} at {} Hz on a {} s window of {} knots of {} s{}, {} iteration(s) per tick{}, {} thread(s)", spec.name, spec.summary, model.name, spec.duration, if args.sim == SimChoice::Mujoco { "MuJoCo" } else { "legwork's simulator" }, s.rate, s.horizon, s.knot_counts().0, s.knot_dt(), if s.knot_counts().1 > 0 { format!(" and {} of {} s", s.knot_counts().1, s.tail_knot_dt()) } else { String::new() }, s.iterations_per_tick, s.model_reuse.map(|r| format!(" (models kept: the first {} knots, the new ones and every {}th other relinearized)", r.fresh_head, r.refresh_period)).unwrap_or_default(), s.threads);
+    say!("Planning {} ({}) for {}: {} s, then MPC in {} at {} Hz on a {} s window of {} knots of {} s{}, {} iteration(s) per tick{}, {} thread(s){}", spec.name, spec.summary, model.name, spec.duration, if args.sim == SimChoice::Mujoco { "MuJoCo" } else { "legwork's simulator" }, s.rate, s.horizon, s.knot_counts().0, s.knot_dt(), if s.knot_counts().1 > 0 { format!(" and {} of {} s", s.knot_counts().1, s.tail_knot_dt()) } else { String::new() }, s.iterations_per_tick, s.model_reuse.map(|r| format!(" (models kept: the first {} knots, the new ones and every {}th other relinearized)", r.fresh_head, r.refresh_period)).unwrap_or_default(), s.threads, s.realtime_priority.map(|p| format!(" under SCHED_FIFO priority {p}")).unwrap_or_default());
     let (plan, run) = job.run(|_| {}, |_| {}).map_err(job_error)?;
     let sum = &run.summary;
     let ms = |key: &str| sum[key].as_f64().unwrap_or(f64::NAN) * 1e3;

@@ -179,6 +179,7 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
         "iterations_per_tick": s.iterations_per_tick,
         "model_reuse": s.model_reuse.map(|r| json!({ "fresh_head": r.fresh_head, "refresh_period": r.refresh_period })),
         "threads": s.threads,
+        "realtime_priority": s.realtime_priority,
         "anchor_states": s.anchor_states,
         "ends_at_task_end": s.ends_at_task_end.map_or(json!(false), |shortest| json!({ "shortest_window_s": shortest })),
         "feedback": s.feedback.name(),

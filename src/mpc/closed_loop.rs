@@ -24,6 +24,7 @@ use super::{Mpc, MpcError, MpcPolicy, MpcPolicyController, TickReport};
 use crate::io::Trajectory;
 use crate::ocp::RobotState;
 use crate::sim::{Plant, SimError};
+use crate::slq::{set_realtime_priority, RealtimePriorityError};
 use std::sync::mpsc;
 use std::time::Instant;
 
@@ -138,8 +139,17 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
     };
     let (to_solver, requests) = mpsc::sync_channel::<Request>(1);
     let (to_loop, replies) = mpsc::sync_channel::<Reply>(1);
+    let priority = mpc.settings().realtime_priority;
+    let (to_starter, started) = mpsc::sync_channel::<Result<(), RealtimePriorityError>>(1);
     std::thread::scope(|scope| -> Result<(), MpcError> {
         scope.spawn(move || {
+            // The solver's own thread runs the tick's serial parts; its pool's threads
+            // already run at the priority (Slq::new).
+            let scheduled = priority.map_or(Ok(()), set_realtime_priority);
+            let refused = scheduled.is_err();
+            if to_starter.send(scheduled).is_err() || refused {
+                return;
+            }
             for Request { t, x, mut policy } in requests {
                 let started = Instant::now();
                 let report = mpc.tick(t, &x);
@@ -152,6 +162,9 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
                 }
             }
         });
+        if let Ok(Err(e)) = started.recv() {
+            return Err(MpcError::Settings { field: "realtime_priority", problem: e.to_string() });
+        }
         let mut t_tick = 0.0;
         let result = (|| -> Result<(), SimError> {
             while t_tick < duration - 0.5 * physics_dt {

@@ -123,6 +123,11 @@ pub struct MpcSettings {
     pub initial_iterations: usize,
     /// Threads of the solver (2).
     pub threads: usize,
+    /// `SCHED_FIFO` priority (1-99) of the solver's threads (`None`, the default: the
+    /// operating system's scheduling), as robot controllers run their MPC
+    /// ([`crate::slq::set_realtime_priority`]; Linux, root or `CAP_SYS_NICE`). The closed
+    /// loop's plant keeps the default scheduling.
+    pub realtime_priority: Option<i32>,
     /// The contact anchors as states of the linearization (true, as the tasks' plans).
     pub anchor_states: bool,
     /// Keep the task's own state costs (running, waypoints, final) in the window beside the
@@ -191,7 +196,7 @@ impl MpcFeedback {
 
 impl Default for MpcSettings {
     fn default() -> Self {
-        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, tail_ticks: 1, iterations_per_tick: 1, initial_iterations: 10, threads: 2, anchor_states: true, task_costs: true, plan_value: true, ends_at_task_end: Some(0.1), feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
+        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, tail_ticks: 1, iterations_per_tick: 1, initial_iterations: 10, threads: 2, realtime_priority: None, anchor_states: true, task_costs: true, plan_value: true, ends_at_task_end: Some(0.1), feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
     }
 }
 
@@ -255,6 +260,9 @@ impl MpcSettings {
         }
         if let Some(shortest) = self.ends_at_task_end.filter(|s| !(s.is_finite() && *s >= 0.0)) {
             return bad("ends_at_task_end", format!("expected the shortest window as a finite number of seconds >= 0, got {shortest}"));
+        }
+        if let Some(priority) = self.realtime_priority.filter(|p| !(1..=99).contains(p)) {
+            return bad("realtime_priority", format!("expected a SCHED_FIFO priority in 1..=99, got {priority}"));
         }
         if !(1..=2).contains(&self.tail_ticks) {
             return bad("tail_ticks", format!("expected 1 or 2 tick periods, got {}", self.tail_ticks));
@@ -531,7 +539,7 @@ impl<'p, 'a> Mpc<'p, 'a> {
         }
         let receding = problem.receding.as_ref().ok_or(MpcError::Settings { field: "problem", problem: "not a receding-horizon window (build it with mpc::window_problem)".into() })?;
         receding.set_start(0.0);
-        let slq_settings = SlqSettings { threads: settings.threads, min_regularization: settings.regularization, initial_regularization: settings.regularization, ..SlqSettings::default() };
+        let slq_settings = SlqSettings { threads: settings.threads, realtime_priority: settings.realtime_priority, min_regularization: settings.regularization, initial_regularization: settings.regularization, ..SlqSettings::default() };
         let mut slq = Slq::new(problem, slq_settings)?;
         let plan_policy = PlanPolicy::new(plan, plan_dt);
         let initial = problem.initial.clone();

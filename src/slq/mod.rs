@@ -23,11 +23,13 @@
 mod box_qp;
 mod cholesky;
 mod problem;
+mod realtime;
 mod receding;
 mod warm_start;
 
 pub use box_qp::{BoxQp, BoxQpSettings, BoxQpStatus};
 pub use problem::{KnotDerivatives, Policy, Problem};
+pub use realtime::{set_realtime_priority, RealtimePriorityError};
 pub use receding::{RealTimeIteration, RealTimeIterationError};
 pub use warm_start::SolutionPolicy;
 
@@ -68,6 +70,11 @@ pub struct SlqSettings {
     pub convergence_regularization: f64,
     /// Threads for the linearization (0 = rayon's default: one per core).
     pub threads: usize,
+    /// `SCHED_FIFO` priority (1-99) of the solver's pool threads (`None`: the operating
+    /// system's default scheduling). With it the pool is built even for one thread, and
+    /// the parallel steps run on it. See [`set_realtime_priority`]; [`Slq::new`] fails
+    /// with [`SlqError::Settings`] if the system refuses.
+    pub realtime_priority: Option<i32>,
     /// With two or more threads, run the backward pass while the linearization is still
     /// under way (true): the knots are linearized from the last one down, and the pass
     /// takes each as soon as it is ready, its thread linearizing the next unclaimed knot
@@ -155,6 +162,7 @@ impl Default for SlqSettings {
             short_step: 0.0,
             short_step_regularization_growth: 10.0,
             threads: 0,
+            realtime_priority: None,
             overlap_backward_pass: true,
             control_limits: ControlLimits::ProjectedRollout,
             box_qp: BoxQpSettings::default(),
@@ -708,10 +716,17 @@ impl<'p, P: Problem> Slq<'p, P> {
             return Err(SlqError::Settings { field: "horizon", problem: "the problem has no knots".into() });
         }
         let threads = if settings.threads == 0 { rayon::current_num_threads() } else { settings.threads };
-        let pool = if threads == 1 {
+        let pool = if threads == 1 && settings.realtime_priority.is_none() {
             None
         } else {
-            Some(rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| SlqError::Settings { field: "threads", problem: e.to_string() })?)
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| SlqError::Settings { field: "threads", problem: e.to_string() })?;
+            if let Some(priority) = settings.realtime_priority {
+                let refused = pool.broadcast(|_| set_realtime_priority(priority)).into_iter().find_map(Result::err);
+                if let Some(e) = refused {
+                    return Err(SlqError::Settings { field: "realtime_priority", problem: e.to_string() });
+                }
+            }
+            Some(pool)
         };
         let x0 = problem.initial_state();
         let (lower, upper) = input_boxes(problem);
