@@ -655,6 +655,46 @@ fn the_solvers_threads_run_under_sched_fifo_and_the_motion_is_the_same() {
     }
 }
 
+/// A paced loop starts each tick at its time on the wall clock, as a robot's control loop
+/// (tick `i` no earlier than `t_i` after the loop's start), where the unpaced one runs its
+/// ticks back to back, faster than real time; the ticks' times in the task are the same
+/// rule in both (`t_{i+1} = t_i + period * ceil(L_i / period)`).
+#[test]
+fn a_paced_loop_ticks_on_the_wall_clock() {
+    let model = embedded::load("hyq").unwrap();
+    let spec = stand(0.3);
+    let run = plan(&spec, &model);
+    let ground = Plane::flat(0.0);
+    let settings = MpcSettings { horizon: 0.05, ..MpcSettings::default() };
+    let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
+    // Wall time of each tick's end after the loop's start, beside the tick's time.
+    let closed_loop = |latency: PolicyLatency| {
+        let mpc = Mpc::new(&problem, &run.solution, spec.dt, settings.clone()).unwrap();
+        let mut sim = Simulator::from_plan(&model, &ground, &run.plan, SimConfig::default()).unwrap();
+        let started = std::time::Instant::now();
+        let mut ends = Vec::new();
+        let closed = run_closed_loop(mpc, &mut sim, spec.duration, latency, |tick| ends.push((tick.t, tick.solve_time, started.elapsed().as_secs_f64()))).unwrap();
+        assert!(closed.stopped.is_none(), "{:?}", closed.stopped);
+        for pair in closed.ticks.windows(2) {
+            let periods = (pair[0].latency / 0.005 - 1e-9).ceil().max(1.0);
+            assert!((pair[1].t - pair[0].t - periods * 0.005).abs() < 1e-9, "{} -> {}", pair[0].t, pair[1].t);
+        }
+        ends
+    };
+    let paced = closed_loop(PolicyLatency::Paced);
+    // Each tick ended at least its time plus its solve after the start (the measurement
+    // waits for its time); the last one near the task's end.
+    for &(t, solve, end) in &paced {
+        assert!(end >= t + solve - 1e-4, "tick at {t} s ended {end} s after the start");
+    }
+    let last = paced.last().unwrap();
+    assert!(last.2 >= spec.duration - 0.01, "{last:?}");
+    // The same loop unpaced: its 0.05 s windows solve in well under a period, so its ticks
+    // run ahead of the wall clock and the whole loop is over in a fraction of 0.3 s.
+    let unpaced = closed_loop(PolicyLatency::Measured);
+    assert!(unpaced.iter().any(|&(t, _, end)| end < t - 0.01), "{:?}", &unpaced[unpaced.len() - 3..]);
+}
+
 /// legwork's simulator whose measurement of one instant is garbage (a sensor glitch: NaN
 /// joint velocities at `glitch`), the physics untouched.
 struct Glitching<'a> {

@@ -28,6 +28,8 @@ pub struct MpcBench<'a> {
     /// With `mujoco`: the controllers read the base lowered to legwork's contact depth.
     pub depth_matching: bool,
     pub latency: PolicyLatency,
+    /// The tick-time table's latency: measured, or measured and paced on the wall clock.
+    pub timing_latency: PolicyLatency,
     pub rate: f64,
     /// Knot spacing of every window (s; `None`: the tick period).
     pub knot_dt: Option<f64>,
@@ -138,7 +140,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         for &threads in bench.thread_counts {
             let settings = MpcSettings { horizon, threads, ..base.clone() };
             let folder = timing_out.join(format!("h{horizon}-t{threads}"));
-            let outcome = timing_plan.closed_loop(settings, &sim, PolicyLatency::Measured, Vec::new(), &folder)?;
+            let outcome = timing_plan.closed_loop(settings, &sim, bench.timing_latency, Vec::new(), &folder)?;
             let mut r = row(&outcome);
             r["horizon_s"] = json!(horizon);
             r["threads"] = json!(threads);
@@ -205,7 +207,8 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         "tracking_scale": bench.tracking,
         "realtime_priority": base.realtime_priority,
         "task_horizon_s": bench.horizon,
-        "latency": match bench.latency { PolicyLatency::Measured => json!("measured"), PolicyLatency::Fixed(l) => json!(l) },
+        "latency": bench.latency.to_json(),
+        "timing_latency": bench.timing_latency.to_json(),
         "cpu": super::bench::cpu_name(),
         "timing_task": bench.timing_task,
         "timing": timing,

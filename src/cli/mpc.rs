@@ -54,7 +54,9 @@ pub struct MpcArgs {
     #[arg(long, value_name = "PRIORITY")]
     realtime_priority: Option<i32>,
     /// When a tick's policy reaches the robot: `measured` (after the solve's wall time, as
-    /// on a robot) or a fixed number of seconds (reproducible runs).
+    /// on a robot; ticks back to back), `paced` (measured, and each tick starts at its time
+    /// on the wall clock, as a robot's control loop) or a fixed number of seconds
+    /// (reproducible runs).
     #[arg(long, default_value = "measured")]
     latency: String,
     /// A push on the base: X,Y,Z@T:DUR (N in the world frame, start and duration in s), e.g.
@@ -144,12 +146,14 @@ pub enum SimChoice {
 
 /// `measured` or seconds.
 pub fn parse_latency(text: &str) -> Result<PolicyLatency> {
-    if text == "measured" {
-        return Ok(PolicyLatency::Measured);
+    match text {
+        "measured" => return Ok(PolicyLatency::Measured),
+        "paced" => return Ok(PolicyLatency::Paced),
+        _ => {}
     }
     match text.parse::<f64>() {
         Ok(l) if l.is_finite() && l >= 0.0 => Ok(PolicyLatency::Fixed(l)),
-        _ => anyhow::bail!("--latency {text}: expected `measured` or a number of seconds >= 0"),
+        _ => anyhow::bail!("--latency {text}: expected `measured`, `paced` or a number of seconds >= 0"),
     }
 }
 

@@ -184,7 +184,7 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
         "ends_at_task_end": s.ends_at_task_end.map_or(json!(false), |shortest| json!({ "shortest_window_s": shortest })),
         "feedback": s.feedback.name(),
         "tracking": s.tracking,
-        "latency": match job.latency { PolicyLatency::Measured => json!("measured"), PolicyLatency::Fixed(l) => json!(l) },
+        "latency": job.latency.to_json(),
         "pushes": job.pushes.iter().map(|p| json!({ "force_n": [p.force.x, p.force.y, p.force.z], "start_s": p.start, "duration_s": p.duration })).collect::<Vec<_>>(),
         "ticks": run.ticks.len(),
         "failed_ticks": run.ticks.iter().filter(|t| t.failure.is_some()).count(),

@@ -32,9 +32,26 @@ use std::time::Instant;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum PolicyLatency {
     /// After the solve's measured wall time (as on a robot; the run depends on the machine).
+    /// The next tick starts as soon as the plant has stepped to its time: the solver runs
+    /// tick after tick with no pause, faster than real time.
     Measured,
+    /// As [`Self::Measured`], and each tick starts no earlier than its time on the wall
+    /// clock (tick `i` at `t_i` seconds after the loop's start), as a robot's control loop:
+    /// the solver idles for the rest of each period, and the run takes the task's duration.
+    Paced,
     /// After this many seconds whatever the solve took (reproducible runs).
     Fixed(f64),
+}
+
+impl PolicyLatency {
+    /// `measured`, `paced` or the seconds (the summaries' `latency`).
+    pub fn to_json(self) -> serde_json::Value {
+        match self {
+            Self::Measured => "measured".into(),
+            Self::Paced => "paced".into(),
+            Self::Fixed(l) => l.into(),
+        }
+    }
 }
 
 /// One tick of a closed-loop run.
@@ -150,7 +167,13 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
             if to_starter.send(scheduled).is_err() || refused {
                 return;
             }
+            let loop_started = Instant::now();
             for Request { t, x, mut policy } in requests {
+                if latency == PolicyLatency::Paced {
+                    // Tick i's measurement is due t_i after the loop's start.
+                    let due = loop_started + std::time::Duration::from_secs_f64(t);
+                    std::thread::sleep(due.saturating_duration_since(Instant::now()));
+                }
                 let started = Instant::now();
                 let report = mpc.tick(t, &x);
                 let elapsed = started.elapsed().as_secs_f64();
@@ -183,7 +206,7 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
                     Ok(report) => {
                         let last = report.iterations.last();
                         let wait = match latency {
-                            PolicyLatency::Measured => report.solve_time,
+                            PolicyLatency::Measured | PolicyLatency::Paced => report.solve_time,
                             PolicyLatency::Fixed(l) => l,
                         };
                         (TickRecord { t: t_tick, solve_time: report.solve_time, latency: wait, cost: report.cost.is_finite().then_some(report.cost), held_after_knot: report.iterations.iter().rev().find_map(|i| i.held_after).filter(|_| !report.cost.is_finite()), alpha: last.map(|i| i.alpha), regularization: last.map(|i| i.regularization), iterations: report.iterations.len(), restarted: report.restarted, linearization_time: report.iterations.iter().map(|i| i.timing.linearization).sum(), backward_pass_time: report.iterations.iter().map(|i| i.timing.backward_pass).sum(), rollout_time: report.iterations.iter().map(|i| i.timing.line_search).sum(), failure: None }, Some(reply.policy))
@@ -193,7 +216,7 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
                         // The solver was busy for the failed tick's time: the next tick
                         // comes after it, as after a policy.
                         let busy = match latency {
-                            PolicyLatency::Measured => reply.elapsed,
+                            PolicyLatency::Measured | PolicyLatency::Paced => reply.elapsed,
                             PolicyLatency::Fixed(l) => l,
                         };
                         (TickRecord { t: t_tick, solve_time: reply.elapsed, latency: busy, cost: None, alpha: None, regularization: None, iterations: 0, restarted: false, linearization_time: 0.0, backward_pass_time: 0.0, rollout_time: 0.0, failure: Some(e.to_string()), held_after_knot: None }, None)
