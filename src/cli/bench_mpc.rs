@@ -132,7 +132,8 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
     let max_threads = *bench.thread_counts.iter().max().unwrap_or(&1);
     let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, tail_ticks: bench.tail_ticks, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, ends_at_task_end: bench.ends_at_task_end, feedback: bench.feedback, tracking: legwork::mpc::TrackingWeights::default().scaled(bench.tracking), realtime_priority: bench.realtime_priority, ..MpcSettings::default() };
 
-    // The tick time against horizon and threads, on one task, the latency measured.
+    // The tick time against horizon and threads, on one task, the latency measured (and the
+    // ticks paced on the wall clock with --paced-timing).
     let timing_out = bench.out.join("timing");
     let timing_plan = Planned::solve(bench.timing_task, max_threads, &timing_out)?;
     let mut timing = Vec::new();

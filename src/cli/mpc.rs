@@ -144,7 +144,7 @@ pub enum SimChoice {
     Mujoco,
 }
 
-/// `measured` or seconds.
+/// `measured`, `paced` or seconds.
 pub fn parse_latency(text: &str) -> Result<PolicyLatency> {
     match text {
         "measured" => return Ok(PolicyLatency::Measured),
