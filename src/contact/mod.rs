@@ -54,7 +54,7 @@ use serde::{Deserialize, Serialize};
 /// legwork's MJCF export at 1 ms, legwork's simulator at 2 kHz; `tests/mujoco_check.rs`,
 /// docs/experiments/mujoco-check.md):
 ///
-/// | | static penetration [mm] | rest base height [m] | sink below rest [mm] | bounce [mm] |
+/// | | static penetration (mm) | rest base height (m) | sink below rest (mm) | bounce (mm) |
 /// |---|---|---|---|---|
 /// | HyQ, MuJoCo | 0.96-1.29 | 0.5792 | 27.8 | 9.5 |
 /// | HyQ, legwork | 4.28-5.03 | 0.5812 | 30.1 | 7.3 |

@@ -172,7 +172,7 @@ pub fn mass_matrix_factored_solve(model: &Model, data: &Data, x: &mut [f64]) {
 /// ABA, then the RNEA derivatives at its `qdd` on its own placements, inertias, velocities and
 /// accelerations, `M^-1` from their `M`, and the products `-M^-1 dtau`; on a trunk with equal
 /// serial limbs these skip `dtau`'s zero blocks between two limbs
-/// ([`super::minverse_limbs::neg_minv_times_limb_sparse`]).
+/// (`minverse_limbs::neg_minv_times_limb_sparse`).
 pub fn compute_aba_derivatives(model: &Model, data: &mut Data, q: &DVector<f64>, v: &DVector<f64>, tau: &DVector<f64>) {
     aba_keeping_body_inertias(model, data, q, v, tau);
     compute_rnea_derivatives_after_aba(model, data);

@@ -50,7 +50,7 @@ pub struct MjcfSettings {
     pub friction: Option<f64>,
     /// Radius of the visual capsules drawn along the links (m). Default 0.02.
     pub visual_radius: f64,
-    /// Depth of a height field's base below its lowest point (m; MuJoCo's `hfield` size[3],
+    /// Depth of a height field's base below its lowest point (m; MuJoCo's `hfield` `size[3]`,
     /// which must be positive). Default 0.1.
     pub hfield_base_depth: f64,
 }

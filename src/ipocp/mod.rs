@@ -12,7 +12,7 @@
 //!   monotone barrier update (or, as a setting, the adaptive one of Nocedal, Wächter & Waltz
 //!   2009: [`BarrierUpdate`]), a filter line search with second-order corrections, inertia
 //!   correction by regularizing the Hessian, and the feasibility restoration of sec. 3.3
-//!   ([`restoration`], stage-wise: the elastic variables of a stage's rows are its own) where
+//!   (`restoration`, stage-wise: the elastic variables of a stage's rows are its own) where
 //!   the filter line search fails from an infeasible point; if that finds no acceptable
 //!   point either, the solve stops with [`Status::LocallyInfeasible`].
 //! - **Linear algebra** ([`riccati`]): each KKT system is solved by a Riccati recursion

@@ -17,7 +17,7 @@
 //!
 //! 1. substitute the dynamics: `M = H_k + F^T P' F`, `m = q_k + F^T (P' b + p')`;
 //! 2. stack `[G_k; H' F] dz + [g_k; H' b + h'] = 0` and reduce it with complete pivoting
-//!    ([`RowReduction`]): rows the controls can satisfy fix `du` on an affine set
+//!    (`RowReduction`): rows the controls can satisfy fix `du` on an affine set
 //!    `du = K_c dx + k_c + Z w`, the others are state rows passed back;
 //! 3. minimize over `w` (the reduced Hessian `Z^T M_uu Z` must be positive definite: this
 //!    is the inertia test, a failure asks the caller for more regularization);

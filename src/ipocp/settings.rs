@@ -5,7 +5,7 @@
 /// Settings of [`super::Solver`] (defaults in parentheses).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Settings {
-    /// Tolerance of the scaled optimality error `E_0` (1e-8) [`tol`].
+    /// Tolerance of the scaled optimality error `E_0` (1e-8) \[`tol`\].
     pub tolerance: f64,
     /// Unscaled tolerances that must also hold at convergence: dual infeasibility (1),
     /// constraint violation (1e-4), complementarity (1e-4) [`dual_inf_tol`, `constr_viol_tol`,
@@ -13,9 +13,9 @@ pub struct Settings {
     pub dual_infeasibility_tolerance: f64,
     pub constraint_violation_tolerance: f64,
     pub complementarity_tolerance: f64,
-    /// Maximum iterations (3000) [`max_iter`].
+    /// Maximum iterations (3000) \[`max_iter`\].
     pub max_iterations: usize,
-    /// Initial barrier parameter (0.1) [`mu_init`]; smaller for a warm start close to the optimum.
+    /// Initial barrier parameter (0.1) \[`mu_init`\]; smaller for a warm start close to the optimum.
     pub mu_init: f64,
     /// Monotone barrier update `mu <- max(tol/10, min(kappa_mu mu, mu^theta_mu))` when
     /// `E_mu <= kappa_epsilon mu` (0.2, 1.5, 10) [`mu_linear_decrease_factor`,
@@ -23,11 +23,11 @@ pub struct Settings {
     pub kappa_mu: f64,
     pub theta_mu: f64,
     pub kappa_epsilon: f64,
-    /// How the barrier parameter is chosen (the monotone rule above) [`mu_strategy`].
+    /// How the barrier parameter is chosen (the monotone rule above) \[`mu_strategy`\].
     pub barrier_update: BarrierUpdate,
-    /// The adaptive update's bounds on `mu`: at least `adaptive_mu_min` (1e-11) [`mu_min`], at
+    /// The adaptive update's bounds on `mu`: at least `adaptive_mu_min` (1e-11) \[`mu_min`\], at
     /// most `adaptive_mu_max_factor` (1e3) times the first iterate's average complementarity
-    /// [`mu_max_fact`]; `mu = sigma avg(s z)` with the centering `sigma` in
+    /// \[`mu_max_fact`\]; `mu = sigma avg(s z)` with the centering `sigma` in
     /// `[sigma_min, sigma_max]` (1e-6, 100) [`sigma_min`, `sigma_max`].
     pub adaptive_mu_min: f64,
     pub adaptive_mu_max_factor: f64,
@@ -38,25 +38,25 @@ pub struct Settings {
     /// `adaptive_mu_error_reduction` (0.9999) times one of the last
     /// `adaptive_mu_error_references` (4) accepted errors [`adaptive_mu_kkterror_red_fact`,
     /// `adaptive_mu_kkterror_red_iters`]; otherwise the monotone rule from
-    /// `mu = adaptive_mu_monotone_init_factor avg(s z)` (0.8) [`adaptive_mu_monotone_init_factor`]
+    /// `mu = adaptive_mu_monotone_init_factor avg(s z)` (0.8) \[`adaptive_mu_monotone_init_factor`\]
     /// until the error is that much below the references again.
     pub adaptive_mu_error_reduction: f64,
     pub adaptive_mu_error_references: usize,
     pub adaptive_mu_monotone_init_factor: f64,
-    /// Fraction-to-the-boundary `tau = max(tau_min, 1 - mu)` (0.99) [`tau_min`].
+    /// Fraction-to-the-boundary `tau = max(tau_min, 1 - mu)` (0.99) \[`tau_min`\].
     pub tau_min: f64,
     /// Initial slacks pushed into the interior by `min(bound_push max(1, |bound|), bound_frac
     /// (upper - lower))` (1e-2, 1e-2) [`bound_push`, `bound_frac`].
     pub bound_push: f64,
     pub bound_frac: f64,
-    /// Initial bound multipliers (1) [`bound_mult_init_val`].
+    /// Initial bound multipliers (1) \[`bound_mult_init_val`\].
     pub bound_multiplier_init: f64,
     /// Least-squares estimate of the equality multipliers at the start, discarded if its
-    /// largest entry exceeds `multiplier_init_max` (true, 1e3) [`constr_mult_init_max`].
+    /// largest entry exceeds `multiplier_init_max` (true, 1e3) \[`constr_mult_init_max`\].
     pub least_squares_multipliers: bool,
     pub multiplier_init_max: f64,
     /// Bound multipliers are kept within `[mu / (kappa_sigma d), kappa_sigma mu / d]` (1e10)
-    /// [`kappa_sigma`].
+    /// \[`kappa_sigma`\].
     pub kappa_sigma: f64,
     /// Scaling threshold `s_max` of the optimality error (100).
     pub s_max: f64,
@@ -85,24 +85,24 @@ pub struct Settings {
     pub gamma_alpha: f64,
     pub backtracking_factor: f64,
     /// Second-order corrections tried when the full step is rejected and increases the
-    /// infeasibility (4; 0 turns them off) [`max_soc`], and their required decrease (0.99)
-    /// [`kappa_soc`].
+    /// infeasibility (4; 0 turns them off) \[`max_soc`\], and their required decrease (0.99)
+    /// \[`kappa_soc`\].
     pub max_second_order_corrections: usize,
     pub kappa_soc: f64,
     /// Iterative refinement of every KKT solve (sec. 3.1 of the paper's implementation; IPOPT
     /// refines on the full system): while the residual of the step, relative to the step
     /// and the right-hand side, is above `refinement_residual_ratio` (1e-10)
-    /// [`residual_ratio_max`], solve again for the residual, at most `max_refinement_steps`
-    /// times (10) [`max_refinement_steps`], stopping when a correction does not shrink the
+    /// \[`residual_ratio_max`\], solve again for the residual, at most `max_refinement_steps`
+    /// times (10) \[`max_refinement_steps`\], stopping when a correction does not shrink the
     /// ratio. Without it the end game stalls where the Riccati solve's round-off (about 1e-8
     /// of the gradient on the full-body stages) exceeds the dual infeasibility left to remove.
     pub refinement_residual_ratio: f64,
     pub max_refinement_steps: usize,
-    /// Feasibility restoration (sec. 3.3; [`super::restoration`]) where the filter line
+    /// Feasibility restoration (sec. 3.3; the `restoration` module) where the filter line
     /// search fails from an infeasible point (true): minimize the l1 violation plus a
     /// proximity term, return once the filter accepts. Its penalty `rho` (1000)
-    /// [`resto_penalty_parameter`], the reduction of the violation it must reach before it
-    /// returns (0.9) [`required_infeasibility_reduction`], its iteration limit per call (500)
+    /// \[`resto_penalty_parameter`\], the reduction of the violation it must reach before it
+    /// returns (0.9) \[`required_infeasibility_reduction`\], its iteration limit per call (500)
     /// and the number of calls per solve (10).
     pub restoration: bool,
     pub restoration_penalty: f64,
@@ -178,25 +178,25 @@ impl Default for Settings {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BarrierUpdate {
     /// Fiacco-McCormick: `mu` fixed until the barrier problem is solved to
-    /// `kappa_epsilon mu`, then decreased (Wächter & Biegler 2006, eq. 7) [`monotone`].
+    /// `kappa_epsilon mu`, then decreased (Wächter & Biegler 2006, eq. 7) \[`monotone`\].
     Monotone,
     /// `mu` chosen at every iteration by the oracle (Nocedal, Wächter & Waltz 2009), with the
-    /// monotone rule as the fallback when the optimality error stops decreasing [`adaptive`].
+    /// monotone rule as the fallback when the optimality error stops decreasing \[`adaptive`\].
     Adaptive(MuOracle),
 }
 
 /// How the adaptive update picks `mu = sigma avg(s z)` (Nocedal, Wächter & Waltz 2009)
-/// [`mu_oracle`].
+/// \[`mu_oracle`\].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MuOracle {
     /// Mehrotra's probing (sec. 3): the affine-scaling step (`mu = 0`) to the boundary,
-    /// `sigma = (avg(s z) after it / avg(s z))^3` [`probing`].
+    /// `sigma = (avg(s z) after it / avg(s z))^3` \[`probing`\].
     Probing,
     /// The quality function (sec. 4): `sigma` minimizes the linearized KKT error after the
-    /// step `d_aff + sigma d_cen`, by golden section on `log sigma` [`quality-function`].
+    /// step `d_aff + sigma d_cen`, by golden section on `log sigma` \[`quality-function`\].
     QualityFunction,
     /// LOQO's rule (eq. 3.6): `sigma = 0.1 min(0.05 (1 - xi) / xi, 2)^3`, `xi = min(s z) /
-    /// avg(s z)` [`loqo`].
+    /// avg(s z)` \[`loqo`\].
     Loqo,
 }
 

@@ -1,6 +1,6 @@
 //! Nguyen 2022's 3D jumps: the jump files ([`spec`]), the jump and landing controllers
 //! ([`control`]) with the robustness trials ([`trials`]), and the pipeline that plans, runs
-//! and reports a jump ([`pipeline`], [`bench`]).
+//! and reports a jump ([`pipeline`], [`bench`](mod@bench)).
 
 pub mod bench;
 pub mod control;

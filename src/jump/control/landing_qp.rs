@@ -1,5 +1,5 @@
 //! The landing controller's QP on the single rigid body (Nguyen 2022, sec. III, extending
-//! the Cheetah 3 landing QP of their ref. [4]): ground reaction forces of the feet in
+//! the Cheetah 3 landing QP of their ref. \[4\]): ground reaction forces of the feet in
 //! contact that best produce the wrench of a PD on the CoM position and the base
 //! orientation, inside the friction cones and the normal force bounds.
 //!

@@ -1,7 +1,7 @@
 //! The jumping and landing controllers of Nguyen 2022, sec. III, at 1 kHz in legwork's
 //! simulator:
 //!
-//! * [`reference`]: the full-body optimization's 10 ms reference, interpolated to 1 kHz;
+//! * [`reference`](mod@reference): the full-body optimization's 10 ms reference, interpolated to 1 kHz;
 //! * [`tracking`]: the jumping controller, eq. (5) (Cartesian foot PD + joint PD +
 //!   feed-forward);
 //! * [`switch`]: the switch to landing when a foot force exceeds `delta` after `T_posing`;
