@@ -261,8 +261,8 @@ impl MpcSettings {
         if let Some(shortest) = self.ends_at_task_end.filter(|s| !(s.is_finite() && *s >= 0.0)) {
             return bad("ends_at_task_end", format!("expected the shortest window as a finite number of seconds >= 0, got {shortest}"));
         }
-        if let Some(priority) = self.realtime_priority.filter(|p| !(1..=99).contains(p)) {
-            return bad("realtime_priority", format!("expected a SCHED_FIFO priority in 1..=99, got {priority}"));
+        if let Some(priority) = self.realtime_priority.filter(|p| !crate::slq::REALTIME_PRIORITIES.contains(p)) {
+            return bad("realtime_priority", crate::slq::RealtimePriorityError::OutOfRange(priority).to_string());
         }
         if !(1..=2).contains(&self.tail_ticks) {
             return bad("tail_ticks", format!("expected 1 or 2 tick periods, got {}", self.tail_ticks));

@@ -29,7 +29,7 @@ mod warm_start;
 
 pub use box_qp::{BoxQp, BoxQpSettings, BoxQpStatus};
 pub use problem::{KnotDerivatives, Policy, Problem};
-pub use realtime::{set_realtime_priority, RealtimePriorityError};
+pub use realtime::{set_realtime_priority, RealtimePriorityError, REALTIME_PRIORITIES};
 pub use receding::{RealTimeIteration, RealTimeIterationError};
 pub use warm_start::SolutionPolicy;
 

@@ -13,6 +13,9 @@
 //! that never sleeps is paused for the rest, so a thread stuck in a loop cannot freeze the
 //! machine. A closed loop's solver sleeps between ticks while the plant steps.
 
+/// The `SCHED_FIFO` priorities Linux accepts (1 = lowest, 99 = highest).
+pub const REALTIME_PRIORITIES: std::ops::RangeInclusive<i32> = 1..=99;
+
 /// Why a thread's real-time priority could not be set.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum RealtimePriorityError {
@@ -34,7 +37,7 @@ pub enum RealtimePriorityError {
 /// assert_eq!(set_realtime_priority(100), Err(RealtimePriorityError::OutOfRange(100)));
 /// ```
 pub fn set_realtime_priority(priority: i32) -> Result<(), RealtimePriorityError> {
-    if !(1..=99).contains(&priority) {
+    if !REALTIME_PRIORITIES.contains(&priority) {
         return Err(RealtimePriorityError::OutOfRange(priority));
     }
     set_fifo(priority)
