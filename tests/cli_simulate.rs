@@ -215,6 +215,10 @@ fn absurd_runs_are_refused_before_they_start() {
     // A real-time priority outside SCHED_FIFO's range, before the plan's solve.
     refused(&["mpc", "sidestep", "--realtime-priority", "0", "--out", out], &["--realtime-priority 0", "1..=99"]);
     refused(&["bench", "mpc", "--realtime-priority", "100", "--tasks", "sidestep", "--out", out], &["--realtime-priority 100", "1..=99"]);
+    // Window steps longer than the robot's contact model takes, before the plan's solve.
+    refused(&["mpc", "sidestep", "--substeps", "2", "--out", out], &["`substeps`", "0.0025 s", "contact.max_step", "at least 5"]);
+    refused(&["mpc", "sidestep", "--substeps", "0", "--out", out], &["`substeps`", "at least 1"]);
+    refused(&["bench", "mpc", "--substeps", "2", "--tasks", "sidestep", "--out", out], &["`substeps`", "at least 5"]);
     let long = dir.join("long.toml");
     std::fs::write(&long, SHIFT_TASK.replace("duration = 0.6", "duration = 2000.0")).unwrap();
     refused(&["--memory-limit", "16", "solve", long.to_str().unwrap(), "--out", out], &["long.toml", "1000000 knots", "would need about 64.0 GB", "limit of 16.0 GB (--memory-limit 16)"]);

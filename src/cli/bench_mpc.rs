@@ -36,6 +36,7 @@ pub struct MpcBench<'a> {
     pub fine_head: Option<f64>,
     /// The coarse tail's knots in tick periods (`legwork mpc --tail-ticks`).
     pub tail_ticks: usize,
+    pub substeps: Option<usize>,
     /// Horizon of the task runs (s).
     pub horizon: f64,
     pub model_reuse: Option<legwork::slq::ModelReuse>,
@@ -130,7 +131,15 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
     let sim = if bench.mujoco { ClosedLoopSim::Mujoco { check: MujocoCheck::locate().or_could_not_finish()?, depth_matching: bench.depth_matching } } else { ClosedLoopSim::Legwork };
     let sim_name = if bench.mujoco { "MuJoCo" } else { "legwork" };
     let max_threads = *bench.thread_counts.iter().max().unwrap_or(&1);
-    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, tail_ticks: bench.tail_ticks, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, ends_at_task_end: bench.ends_at_task_end, feedback: bench.feedback, tracking: legwork::mpc::TrackingWeights::default().scaled(bench.tracking), realtime_priority: bench.realtime_priority, ..MpcSettings::default() };
+    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, tail_ticks: bench.tail_ticks, substeps: bench.substeps, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, ends_at_task_end: bench.ends_at_task_end, feedback: bench.feedback, tracking: legwork::mpc::TrackingWeights::default().scaled(bench.tracking), realtime_priority: bench.realtime_priority, ..MpcSettings::default() };
+    // Every window of the benchmark checked against its task's robot before the first plan.
+    for name in std::iter::once(bench.timing_task).chain(bench.tasks.iter().map(String::as_str)) {
+        let (spec, origin) = super::solve::load_task(name, &[])?;
+        let model = spec.load_robot(&origin)?;
+        for &horizon in bench.horizons.iter().chain([&bench.horizon]) {
+            MpcSettings { horizon, ..base.clone() }.check_for(&model).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+        }
+    }
 
     // The tick time against horizon and threads, on one task, the latency measured (and the
     // ticks paced on the wall clock with --paced-timing).
@@ -199,6 +208,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         "rate_hz": bench.rate,
         "knot_dt_s": base.knot_dt(),
         "fine_head_s": base.fine_head,
+        "substeps": base.substeps,
         "tail_knot_dt_s": base.tail_knot_dt(),
         "model_reuse": base.model_reuse.map(|r| json!({ "fresh_head": r.fresh_head, "refresh_period": r.refresh_period })),
         "anchor_states": base.anchor_states,

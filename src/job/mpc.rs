@@ -52,7 +52,7 @@ pub struct MpcRun {
 impl MpcJob<'_> {
     /// What can be refused before any work: the plan's checks, the controller's settings.
     pub fn check(&self) -> Result<(), JobError> {
-        self.settings.check().map_err(JobError::bad_input)?;
+        self.settings.check_for(self.solve.model).map_err(JobError::bad_input)?;
         if let PolicyLatency::Fixed(l) = self.latency {
             if !(l.is_finite() && l >= 0.0) {
                 return Err(JobError::bad_input(format!("latency: expected a finite number of seconds >= 0, got {l}")));
@@ -162,7 +162,7 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
     // and its ticks cheaper): the figure for a tick time "with a horizon of h".
     let full_window: Vec<f64> = run.ticks.iter().filter(|t| t.t + s.horizon <= job.solve.spec.duration + 1e-9).map(|t| t.solve_time).collect();
     let period = s.period();
-    json!({
+    let mut summary = json!({
         "task": job.solve.spec.name,
         "robot": job.solve.model.name,
         "verdict": verdict.as_str(),
@@ -207,7 +207,10 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
         "plan": metrics_json(&plan.run.plan_metrics),
         "mpc": metrics.map_or(json!({ "failed": run.stopped }), metrics_json),
         "plan_solve_time_s": plan.run.solve_time(),
-    })
+    });
+    // Beside the macro's object: one more key would pass its recursion limit.
+    summary["substeps"] = json!(s.knot_substeps(job.solve.model.contact.max_step));
+    summary
 }
 
 /// `trajectory.json`, `summary.json`, `ticks.json`, `replay.html` and the plots.

@@ -116,6 +116,15 @@ pub struct MpcSettings {
     /// the tick period, the whole window in them; with 1 and finer knots, the tail in knots
     /// of the tick period.
     pub tail_ticks: usize,
+    /// Integration steps per knot of the window's head (`None`, the default: the fewest that
+    /// keep the step within the robot's `contact.max_step`, as a task's plan does; a coarse
+    /// tail's knots take as many steps of the same length). HyQ's 1 ms `max_step` gives one
+    /// step per 1 ms knot, and a hard landing measured in MuJoCo then blows up the window's
+    /// rollouts (squat_jump with 1 ms knots: 37 failed ticks at a 4 ms latency, none with two
+    /// steps); four steps of 0.25 ms a knot carry the gallop through MuJoCo, one does not
+    /// (docs/experiments/mpc-18.md). The rollouts cost the steps; the linearization does not
+    /// ([`KnotLinearization::FirstSubstep`]).
+    pub substeps: Option<usize>,
     /// SLQ iterations per tick (1: the real-time iteration scheme).
     pub iterations_per_tick: usize,
     /// SLQ iterations on the first window before the robot starts (10): the robot waits
@@ -196,7 +205,7 @@ impl MpcFeedback {
 
 impl Default for MpcSettings {
     fn default() -> Self {
-        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, tail_ticks: 1, iterations_per_tick: 1, initial_iterations: 10, threads: 2, realtime_priority: None, anchor_states: true, task_costs: true, plan_value: true, ends_at_task_end: Some(0.1), feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
+        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, tail_ticks: 1, substeps: None, iterations_per_tick: 1, initial_iterations: 10, threads: 2, realtime_priority: None, anchor_states: true, task_costs: true, plan_value: true, ends_at_task_end: Some(0.1), feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
     }
 }
 
@@ -216,6 +225,12 @@ impl MpcSettings {
         (self.period() / self.knot_dt()).round() as usize
     }
 
+    /// Integration steps per head knot on a robot whose contact model is stable up to
+    /// `max_step` seconds a step: [`Self::substeps`], or the fewest within `max_step`.
+    pub fn knot_substeps(&self, max_step: f64) -> usize {
+        self.substeps.unwrap_or_else(|| fewest_substeps(self.knot_dt(), max_step))
+    }
+
     /// The coarse tail's knot spacing (s): [`Self::tail_ticks`] tick periods.
     pub fn tail_knot_dt(&self) -> f64 {
         self.tail_ticks as f64 * self.period()
@@ -231,6 +246,18 @@ impl MpcSettings {
                 (fine, ((self.horizon - fine as f64 * dt) / self.tail_knot_dt()).round().max(0.0) as usize)
             }
             None => ((self.horizon / dt).round() as usize, 0),
+        }
+    }
+
+    /// [`Self::check`], and that the window's integration steps are no longer than
+    /// `model`'s contact model allows (`contact.max_step`).
+    pub fn check_for(&self, model: &Model) -> Result<(), MpcError> {
+        self.check()?;
+        let (dt, max_step) = (self.knot_dt(), model.contact.max_step);
+        let fewest = fewest_substeps(dt, max_step);
+        match self.substeps {
+            Some(n) if n < fewest => Err(MpcError::Settings { field: "substeps", problem: format!("{n} steps per knot of {dt} s are steps of {} s: {}'s contact model is stable only up to {max_step} s steps (contact.max_step); use at least {fewest}", dt / n as f64, model.name) }),
+            _ => Ok(()),
         }
     }
 
@@ -294,6 +321,9 @@ impl MpcSettings {
                 return bad("model_reuse", "not with a coarse tail (its knots are resampled every tick or two, so no model carries over): set tail_ticks to 1 with knots of the tick period, or fine_head to the horizon".into());
             }
         }
+        if self.substeps == Some(0) {
+            return bad("substeps", "expected at least 1 integration step per knot".into());
+        }
         if self.iterations_per_tick == 0 {
             return bad("iterations_per_tick", "expected at least 1".into());
         }
@@ -311,6 +341,12 @@ impl MpcSettings {
         }
         Ok(())
     }
+}
+
+/// The fewest integration steps that keep a knot of `dt` seconds in steps of at most
+/// `max_step` (as [`TaskSpec::substeps`] counts them).
+fn fewest_substeps(dt: f64, max_step: f64) -> usize {
+    ((dt / max_step) * (1.0 - 1e-9)).ceil().max(1.0) as usize
 }
 
 /// Why the controller could not be set up or could not go on.
@@ -345,7 +381,7 @@ pub enum MpcError {
 /// plan's value function (with [`MpcSettings::plan_value`]) and tracking the plan (its
 /// states and inputs, knots every `plan_dt` seconds from `t = 0`; module docs).
 pub fn window_problem<'a>(spec: &TaskSpec, model: &'a Model, terrain: &'a dyn Terrain, plan: &SlqSolution<RobotState>, plan_dt: f64, settings: &MpcSettings, origin: &str) -> Result<WholeBodyProblem<'a>, MpcError> {
-    settings.check()?;
+    settings.check_for(model)?;
     if plan.inputs.is_empty() {
         return Err(MpcError::EmptyPlan);
     }
@@ -356,7 +392,8 @@ pub fn window_problem<'a>(spec: &TaskSpec, model: &'a Model, terrain: &'a dyn Te
     // The knots' count (the feasibility rows are per knot); a coarse tail spaces the last
     // `tail` of them by its own knot spacing below.
     window.duration = settings.knot_dt() * (head + tail) as f64;
-    window.substeps = None;
+    // The task's own `substeps` are its plan knots'; the window's are the settings'.
+    window.substeps = settings.substeps;
     window.continuation = None;
     window.exploration = None;
     let mut problem = window.problem(model, terrain, initial, origin)?;
