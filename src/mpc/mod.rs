@@ -37,7 +37,7 @@ pub use closed_loop::{run_closed_loop, ClosedLoopRun, PolicyLatency, TickRecord}
 
 use crate::linalg::gemv_add;
 use crate::model::Model;
-use crate::ocp::{physical_gain, CoarseTail, KnotLinearization, PhysicalGainWorkspace, PlanValue, RecedingHorizon, ReferenceMotion, RobotState, TaskError, TaskSpec, WholeBodyProblem};
+use crate::ocp::{fewest_substeps, physical_gain, CoarseTail, KnotLinearization, PhysicalGainWorkspace, PlanValue, RecedingHorizon, ReferenceMotion, RobotState, TaskError, TaskSpec, WholeBodyProblem};
 use crate::sim::{ControlError, Controller, SimState};
 use crate::slq::{ModelReuse, Policy, Problem, RealTimeIteration, RealTimeIterationError, Slq, SlqError, SlqSettings, SlqSolution};
 use crate::terrain::Terrain;
@@ -342,12 +342,6 @@ impl MpcSettings {
         }
         Ok(())
     }
-}
-
-/// The fewest integration steps that keep a knot of `dt` seconds in steps of at most
-/// `max_step` (as [`TaskSpec::substeps`] counts them).
-fn fewest_substeps(dt: f64, max_step: f64) -> usize {
-    ((dt / max_step) * (1.0 - 1e-9)).ceil().max(1.0) as usize
 }
 
 /// Why the controller could not be set up or could not go on.

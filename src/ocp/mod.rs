@@ -43,7 +43,7 @@ pub use receding::{CoarseTail, KnotGrid, PlanValue, RecedingHorizon, ReferenceMo
 
 pub use run::{solution_trajectory, solve_task, ExplorationReport, Rerun, SingleStartFinal, SlqPolicyController, SolveError, SolveOptions, SolveProgress, StageReport, TaskRun};
 pub use target::{all_met, CheckTime, Target, TargetCoordinate, TargetResult, TargetSpec, TargetTime};
-pub use task::{Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, TaskError, TaskSpec, WaypointSpec, WeightSpec, EMBEDDED_TASKS};
+pub use task::{fewest_substeps, Coordinate, DesiredSpec, InputSpec, JointValues, JointWeights, TaskError, TaskSpec, WaypointSpec, WeightSpec, EMBEDDED_TASKS};
 
 use crate::control::JointPd;
 use crate::model::Model;

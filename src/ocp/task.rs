@@ -237,6 +237,13 @@ pub(super) fn read_task_file(path: &std::path::Path) -> Result<String, TaskError
     std::fs::read_to_string(path).map_err(|error| TaskError::Io { path: path.display().to_string(), error })
 }
 
+/// The fewest integration steps that keep a knot of `dt` seconds in steps of at most
+/// `max_step` (the robot's `contact.max_step`): a task's default `substeps`, and a receding
+/// window's ([`crate::mpc::MpcSettings::substeps`]).
+pub fn fewest_substeps(dt: f64, max_step: f64) -> usize {
+    ((dt / max_step) * (1.0 - 1e-9)).ceil().max(1.0) as usize
+}
+
 impl TaskSpec {
     /// Parses TOML text; `origin` (a path or `embedded task NAME`) goes into errors.
     pub fn from_toml(text: &str, origin: &str) -> Result<Self, TaskError> {
@@ -380,7 +387,7 @@ impl TaskSpec {
     /// robot's stable contact step, or the fewest that keep `dt / substeps` within it.
     pub fn substeps(&self, model: &Model, origin: &str) -> Result<usize, TaskError> {
         let max_step = model.contact.max_step;
-        let fewest = ((self.dt / max_step) * (1.0 - 1e-9)).ceil().max(1.0) as usize;
+        let fewest = fewest_substeps(self.dt, max_step);
         match self.substeps {
             None => Ok(fewest),
             Some(n) if n >= fewest => Ok(n),
