@@ -665,10 +665,45 @@ fn the_solvers_threads_run_under_sched_fifo_and_the_motion_is_the_same() {
     }
 }
 
+/// The preparation phase run ahead of each measurement (`MpcSettings::prepare_ahead`, the
+/// default) changes when a policy is out, not the policy: at a fixed latency the motion is
+/// the same to the bit as with every tick solved whole after its measurement. Each prepared
+/// tick reports its two parts; an unprepared one none before its measurement.
+#[test]
+fn preparing_each_tick_ahead_of_its_measurement_changes_no_bit_of_the_motion() {
+    let model = embedded::load("hyq").unwrap();
+    let spec = stand(0.2);
+    let run = plan(&spec, &model);
+    let ground = Plane::flat(0.0);
+    let closed_loop = |settings: MpcSettings| {
+        let problem = window_problem(&spec, &model, &ground, &run.solution, spec.dt, &settings, "stand.toml").unwrap();
+        let mpc = Mpc::new(&problem, &run.solution, spec.dt, settings.clone()).unwrap();
+        let mut sim = Simulator::from_plan(&model, &ground, &run.plan, SimConfig::default()).unwrap();
+        sim.add_push(Push::parse("0,100,0@0.05:0.1").unwrap());
+        run_closed_loop(mpc, &mut sim, spec.duration, PolicyLatency::Fixed(0.005), |_| ()).unwrap()
+    };
+    assert!(MpcSettings::default().prepare_ahead);
+    let ahead = closed_loop(MpcSettings::default());
+    let whole = closed_loop(MpcSettings { prepare_ahead: false, ..MpcSettings::default() });
+    assert_eq!(ahead.ticks.len(), 40);
+    assert_eq!(ahead.ticks.len(), whole.ticks.len());
+    for (a, w) in ahead.ticks.iter().zip(&whole.ticks) {
+        assert_eq!((a.t, a.cost, a.alpha, a.regularization), (w.t, w.cost, w.alpha, w.regularization));
+        assert!(a.preparation_time > 0.0 && a.preparation_time + a.feedback_time == a.solve_time, "{a:?}");
+        assert!(w.preparation_time == 0.0 && w.feedback_time == w.solve_time, "{w:?}");
+    }
+    assert_eq!(ahead.trajectory.knots.len(), whole.trajectory.knots.len());
+    for (a, w) in ahead.trajectory.knots.iter().zip(&whole.trajectory.knots) {
+        assert_eq!((&a.q, &a.v, &a.tau), (&w.q, &w.v, &w.tau), "t {}", a.t);
+    }
+}
+
 /// A paced loop starts each tick at its time on the wall clock, as a robot's control loop
 /// (tick `i` no earlier than `t_i` after the loop's start), where the unpaced one runs its
 /// ticks back to back, faster than real time; the ticks' times in the task are the same
-/// rule in both (`t_{i+1} = t_i + period * ceil(L_i / period)`).
+/// rule in both, leaving the solver time to prepare the next tick
+/// (`t_{i+1} = t_i + period * ceil((L_i + P_i) / period)`, `P_i` tick `i`'s preparation),
+/// and a policy's latency is at least its feedback phase.
 #[test]
 fn a_paced_loop_ticks_on_the_wall_clock() {
     let model = embedded::load("hyq").unwrap();
@@ -683,19 +718,22 @@ fn a_paced_loop_ticks_on_the_wall_clock() {
         let mut sim = Simulator::from_plan(&model, &ground, &run.plan, SimConfig::default()).unwrap();
         let started = std::time::Instant::now();
         let mut ends = Vec::new();
-        let closed = run_closed_loop(mpc, &mut sim, spec.duration, latency, |tick| ends.push((tick.t, tick.solve_time, started.elapsed().as_secs_f64()))).unwrap();
+        let closed = run_closed_loop(mpc, &mut sim, spec.duration, latency, |tick| ends.push((tick.t, tick.feedback_time, started.elapsed().as_secs_f64()))).unwrap();
         assert!(closed.stopped.is_none(), "{:?}", closed.stopped);
         for pair in closed.ticks.windows(2) {
-            let periods = (pair[0].latency / 0.005 - 1e-9).ceil().max(1.0);
+            let periods = ((pair[0].latency + pair[0].preparation_time) / 0.005 - 1e-9).ceil().max(1.0);
             assert!((pair[1].t - pair[0].t - periods * 0.005).abs() < 1e-9, "{} -> {}", pair[0].t, pair[1].t);
+        }
+        for tick in &closed.ticks {
+            assert!(tick.latency >= tick.feedback_time && tick.preparation_time > 0.0, "{tick:?}");
         }
         ends
     };
     let paced = closed_loop(PolicyLatency::Paced);
-    // Each tick ended at least its time plus its solve after the start (the measurement
-    // waits for its time); the last one near the task's end.
-    for &(t, solve, end) in &paced {
-        assert!(end >= t + solve - 1e-4, "tick at {t} s ended {end} s after the start");
+    // Each tick ended at least its time plus its feedback phase after the start (the
+    // measurement waits for its time); the last one near the task's end.
+    for &(t, feedback, end) in &paced {
+        assert!(end >= t + feedback - 1e-4, "tick at {t} s ended {end} s after the start");
     }
     let last = paced.last().unwrap();
     assert!(last.2 >= spec.duration - 0.01, "{last:?}");

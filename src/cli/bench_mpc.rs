@@ -37,6 +37,8 @@ pub struct MpcBench<'a> {
     /// The coarse tail's knots in tick periods (`legwork mpc --tail-ticks`).
     pub tail_ticks: usize,
     pub substeps: Option<usize>,
+    /// [`MpcSettings::prepare_ahead`].
+    pub prepare_ahead: bool,
     /// Horizon of the task runs (s).
     pub horizon: f64,
     pub model_reuse: Option<legwork::slq::ModelReuse>,
@@ -113,6 +115,8 @@ fn row(outcome: &ClosedLoopOutcome) -> Value {
         "tick_time_p50_full_window_s": s["tick_time_p50_full_window_s"],
         "tick_time_p99_full_window_s": s["tick_time_p99_full_window_s"],
         "tick_time_max_s": s["tick_time_max_s"],
+        "latency_p50_s": s["latency_p50_s"],
+        "latency_p99_s": s["latency_p99_s"],
         "target": s["target"]["mpc"],
     })
 }
@@ -131,7 +135,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
     let sim = if bench.mujoco { ClosedLoopSim::Mujoco { check: MujocoCheck::locate().or_could_not_finish()?, depth_matching: bench.depth_matching } } else { ClosedLoopSim::Legwork };
     let sim_name = if bench.mujoco { "MuJoCo" } else { "legwork" };
     let max_threads = *bench.thread_counts.iter().max().unwrap_or(&1);
-    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, tail_ticks: bench.tail_ticks, substeps: bench.substeps, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, ends_at_task_end: bench.ends_at_task_end, feedback: bench.feedback, tracking: legwork::mpc::TrackingWeights::default().scaled(bench.tracking), realtime_priority: bench.realtime_priority, ..MpcSettings::default() };
+    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, tail_ticks: bench.tail_ticks, substeps: bench.substeps, prepare_ahead: bench.prepare_ahead, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, ends_at_task_end: bench.ends_at_task_end, feedback: bench.feedback, tracking: legwork::mpc::TrackingWeights::default().scaled(bench.tracking), realtime_priority: bench.realtime_priority, ..MpcSettings::default() };
     // Every window of the benchmark checked against its task's robot before the first plan.
     for name in std::iter::once(bench.timing_task).chain(bench.tasks.iter().map(String::as_str)) {
         let (spec, origin) = super::solve::load_task(name, &[])?;
@@ -160,7 +164,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
             };
             if !bench.as_json {
                 let ms = |key: &str| r[key].as_f64().unwrap_or(f64::NAN) * 1e3;
-                say!("tick time {} h {horizon} s, {threads} thread(s): p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms ({} of {} ticks over the period); the {} ticks whose window lies within the task: p50 {:.2} ms, p99 {:.2} ms", timing_plan.spec.name, ms("tick_time_p50_s"), ms("tick_time_p99_s"), ms("tick_time_max_s"), r["ticks_over_period"], r["ticks"], r["full_window_ticks"], ms("tick_time_p50_full_window_s"), ms("tick_time_p99_full_window_s"));
+                say!("tick time {} h {horizon} s, {threads} thread(s): p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms ({} of {} ticks over the period); the {} ticks whose window lies within the task: p50 {:.2} ms, p99 {:.2} ms; latency p50 {:.2} ms, p99 {:.2} ms", timing_plan.spec.name, ms("tick_time_p50_s"), ms("tick_time_p99_s"), ms("tick_time_max_s"), r["ticks_over_period"], r["ticks"], r["full_window_ticks"], ms("tick_time_p50_full_window_s"), ms("tick_time_p99_full_window_s"), ms("latency_p50_s"), ms("latency_p99_s"));
             }
             timing.push(r);
         }
@@ -209,6 +213,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         "knot_dt_s": base.knot_dt(),
         "fine_head_s": base.fine_head,
         "substeps": base.substeps,
+        "prepare_ahead": base.prepare_ahead,
         "tail_knot_dt_s": base.tail_knot_dt(),
         "model_reuse": base.model_reuse.map(|r| json!({ "fresh_head": r.fresh_head, "refresh_period": r.refresh_period })),
         "anchor_states": base.anchor_states,

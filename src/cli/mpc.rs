@@ -50,6 +50,11 @@ pub struct MpcArgs {
     /// SLQ iterations per tick (real-time iteration: 1).
     #[arg(long, default_value_t = 1)]
     iterations_per_tick: usize,
+    /// Run each whole tick after its measurement. Default: the next tick's model and
+    /// backward pass are prepared as soon as a policy is out, and a measurement waits only
+    /// for the rollouts from it (the same iterates; the policy sooner).
+    #[arg(long)]
+    no_prepare_ahead: bool,
     /// Threads of the controller's solver (and of the plan's solve).
     #[arg(long, default_value_t = 2)]
     threads: usize,
@@ -206,7 +211,7 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join("mpc").join(&spec.name));
     let plan_out = out.join("plan");
     let threads = super::capped_threads(args.threads);
-    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, fine_head: args.fine_head, tail_ticks: args.tail_ticks, substeps: args.substeps, iterations_per_tick: args.iterations_per_tick, threads, realtime_priority: args.realtime_priority, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, ends_at_task_end: (!args.window_past_end).then_some(args.shortest_window), anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), model_reuse: args.reuse_models.as_deref().map(parse_model_reuse).transpose()?, feedback: args.feedback.into(), ..MpcSettings::default() };
+    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, fine_head: args.fine_head, tail_ticks: args.tail_ticks, substeps: args.substeps, iterations_per_tick: args.iterations_per_tick, prepare_ahead: !args.no_prepare_ahead, threads, realtime_priority: args.realtime_priority, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, ends_at_task_end: (!args.window_past_end).then_some(args.shortest_window), anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), model_reuse: args.reuse_models.as_deref().map(parse_model_reuse).transpose()?, feedback: args.feedback.into(), ..MpcSettings::default() };
     let sim = match args.sim {
         SimChoice::Legwork => ClosedLoopSim::Legwork,
         SimChoice::Mujoco => ClosedLoopSim::Mujoco { check: legwork::export::MujocoCheck::locate()?, depth_matching: !args.measured_depth },
@@ -230,11 +235,11 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
     };
     job.check().map_err(job_error)?;
     let s = &job.settings;
-    say!("Planning {} ({}) for {}: {} s, then MPC in {} at {} Hz on a {} s window of {} knots of {} s{} ({} integration step(s) a knot), {} iteration(s) per tick{}, {} thread(s){}", spec.name, spec.summary, model.name, spec.duration, if args.sim == SimChoice::Mujoco { "MuJoCo" } else { "legwork's simulator" }, s.rate, s.horizon, s.knot_counts().0, s.knot_dt(), if s.knot_counts().1 > 0 { format!(" and {} of {} s", s.knot_counts().1, s.tail_knot_dt()) } else { String::new() }, s.knot_substeps(model.contact.max_step), s.iterations_per_tick, s.model_reuse.map(|r| format!(" (models kept: the first {} knots, the new ones and every {}th other relinearized)", r.fresh_head, r.refresh_period)).unwrap_or_default(), s.threads, s.realtime_priority.map(|p| format!(" under SCHED_FIFO priority {p}")).unwrap_or_default());
+    say!("Planning {} ({}) for {}: {} s, then MPC in {} at {} Hz on a {} s window of {} knots of {} s{} ({} integration step(s) a knot), {} iteration(s) per tick{}{}, {} thread(s){}", spec.name, spec.summary, model.name, spec.duration, if args.sim == SimChoice::Mujoco { "MuJoCo" } else { "legwork's simulator" }, s.rate, s.horizon, s.knot_counts().0, s.knot_dt(), if s.knot_counts().1 > 0 { format!(" and {} of {} s", s.knot_counts().1, s.tail_knot_dt()) } else { String::new() }, s.knot_substeps(model.contact.max_step), s.iterations_per_tick, if s.prepare_ahead { " (the next tick's model and backward pass prepared ahead of its measurement)" } else { "" }, s.model_reuse.map(|r| format!(" (models kept: the first {} knots, the new ones and every {}th other relinearized)", r.fresh_head, r.refresh_period)).unwrap_or_default(), s.threads, s.realtime_priority.map(|p| format!(" under SCHED_FIFO priority {p}")).unwrap_or_default());
     let (plan, run) = job.run(|_| {}, |_| {}).map_err(job_error)?;
     let sum = &run.summary;
     let ms = |key: &str| sum[key].as_f64().unwrap_or(f64::NAN) * 1e3;
-    say!("plan: {:.2} s to solve; closed loop: {} ticks, solve time per tick median {:.2} ms, p99 {:.2} ms, max {:.2} ms; {} over the {:.1} ms period, {} restarted from the plan, {} held (every trial past the valid states before the window's end), {} failed", sum["plan_solve_time_s"].as_f64().unwrap_or(0.0), sum["ticks"], ms("tick_time_p50_s"), ms("tick_time_p99_s"), ms("tick_time_max_s"), sum["ticks_over_period"], s.period() * 1e3, sum["restarted_ticks"], sum["held_ticks"], sum["failed_ticks"]);
+    say!("plan: {:.2} s to solve; closed loop: {} ticks, solve time per tick median {:.2} ms, p99 {:.2} ms, max {:.2} ms; {} over the {:.1} ms period; latency median {:.2} ms, p99 {:.2} ms; {} restarted from the plan, {} held (every trial past the valid states before the window's end), {} failed", sum["plan_solve_time_s"].as_f64().unwrap_or(0.0), sum["ticks"], ms("tick_time_p50_s"), ms("tick_time_p99_s"), ms("tick_time_max_s"), sum["ticks_over_period"], s.period() * 1e3, ms("latency_p50_s"), ms("latency_p99_s"), sum["restarted_ticks"], sum["held_ticks"], sum["failed_ticks"]);
     if let Some(reason) = &run.closed_loop.stopped {
         say!("the closed loop stopped: {reason}");
     }

@@ -210,6 +210,13 @@ fn summary(job: &MpcJob<'_>, plan: &SolvedTask, run: &ClosedLoopRun, metrics: Op
     });
     // Beside the macro's object: one more key would pass its recursion limit.
     summary["substeps"] = json!(s.knot_substeps(job.solve.model.contact.max_step));
+    summary["prepare_ahead"] = json!(s.prepare_ahead);
+    // What the robot waited for: from a tick's time to its policy (the feedback phase and
+    // any wait for the last preparation, or the fixed latency).
+    let latencies: Vec<f64> = run.ticks.iter().map(|t| t.latency).collect();
+    summary["latency_p50_s"] = json!(percentile(latencies.clone(), 50.0));
+    summary["latency_p99_s"] = json!(percentile(latencies, 99.0));
+    summary["feedback_time_p50_s"] = json!(percentile(run.ticks.iter().map(|t| t.feedback_time).collect(), 50.0));
     summary
 }
 

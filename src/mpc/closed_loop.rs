@@ -6,11 +6,24 @@
 //!
 //! ```text
 //! tick i at t_i: the plant's state goes to the solver (the "measurement")
-//! the solve takes L_i seconds (measured wall time, or a fixed latency)
+//! its policy comes L_i seconds later (measured wall time, or a fixed latency)
 //! [t_i, t_i + L_i): the robot runs the previous policy
 //! from t_i + L_i: the new one
 //! t_{i+1} = t_i + period * max(1, ceil(L_i / period))   (an overrun skips ticks)
 //! ```
+//!
+//! With [`super::MpcSettings::prepare_ahead`] the solver moves the window on to `t_{i+1}`
+//! and prepares that tick's model and backward pass ([`Mpc::prepare`]) right after tick
+//! `i`'s policy is out, so `L_i` is the feedback phase's time (the rollouts from the
+//! measurement) plus whatever of the preparation was still running at `t_i`; without it,
+//! the whole tick's. The next tick then also leaves the solver time to prepare it (tick
+//! `i`'s own preparation time `P_i` as the estimate; a fixed latency assumes it fits):
+//!
+//! ```text
+//! t_{i+1} = t_i + period * max(1, ceil((L_i + P_i) / period))
+//! ```
+//!
+//! so a solver slower than the rate skips ticks rather than keep measurements waiting.
 //!
 //! A tick that fails keeps the previous policy running (a tick whose measurement is not a
 //! valid state fails at once, the solver's solution left as it was); its `L_i` is still its
@@ -59,10 +72,16 @@ impl PolicyLatency {
 pub struct TickRecord {
     /// The tick's time (s).
     pub t: f64,
-    /// Wall time of the solve (s), a failed one's too.
+    /// Wall time of the solve (s), a failed one's too; with the tick prepared ahead, its
+    /// preparation's too.
     pub solve_time: f64,
-    /// When after `t` its policy took over (s); for a failed tick, when the solver was free
-    /// again (the next tick waits for it as for a policy).
+    /// The solve's two parts (s): its preparation before the measurement (0 if not prepared
+    /// ahead) and the rest, from the measurement's arrival at the solver to the policy.
+    pub preparation_time: f64,
+    pub feedback_time: f64,
+    /// When after `t` its policy took over (s): its feedback time, after the rest of the
+    /// previous tick's preparation if that was still running at `t`; for a failed tick, when
+    /// the solver was free again (the next tick waits for it as for a policy).
     pub latency: f64,
     /// Cost of the kept trajectory, its step size, iterations run; `None` if the tick failed
     /// or kept a trajectory held after [`Self::held_after_knot`] (no finite cost).
@@ -123,6 +142,20 @@ struct Reply {
     report: Result<TickReport, MpcError>,
     /// Wall time of the tick (s), measured around it (a failed tick has no report).
     elapsed: f64,
+    /// When after the tick's time its policy was out, or the solver free after a failed
+    /// tick (s): the tick after any wait for the last preparation (module docs); the fixed
+    /// latency with [`PolicyLatency::Fixed`].
+    latency: f64,
+    /// The next tick's time (s), the one the solver prepared (module docs).
+    next_tick: f64,
+    /// The tick's preparation before its measurement (s; 0 without).
+    preparation: f64,
+}
+
+/// The tick after one at `t` whose policy came `latency` seconds later: the next period
+/// boundary from then on, at least one period on (an overrun skips ticks).
+fn next_tick(t: f64, latency: f64, period: f64) -> f64 {
+    t + (latency / period - 1e-9).ceil().max(1.0) * period
 }
 
 /// Runs `mpc` on `sim` for `duration` seconds (module docs), recording the motion at the
@@ -167,6 +200,15 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
             if to_starter.send(scheduled).is_err() || refused {
                 return;
             }
+            let prepare_ahead = mpc.settings().prepare_ahead;
+            // The first tick's, before the robot starts (it waits for its first plan).
+            let mut last_preparation = if prepare_ahead { mpc.prepare(0.0) } else { 0.0 };
+            // When the solver was free again after its last preparation, in the task's time:
+            // the last tick's time, its latency and the preparation after it. (Paced too: a
+            // request that reaches the solver after its time on the wall clock because the
+            // simulated plant took long to step does not make the solver late, as a robot's
+            // physics would not have.)
+            let mut free_at = 0.0;
             let loop_started = Instant::now();
             for Request { t, x, mut policy } in requests {
                 if latency == PolicyLatency::Paced {
@@ -174,13 +216,35 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
                     let due = loop_started + std::time::Duration::from_secs_f64(t);
                     std::thread::sleep(due.saturating_duration_since(Instant::now()));
                 }
+                // A measurement due while the solver still prepared waited for it.
+                let waited = match latency {
+                    PolicyLatency::Measured | PolicyLatency::Paced => (free_at - t).max(0.0),
+                    PolicyLatency::Fixed(_) => 0.0,
+                };
                 let started = Instant::now();
                 let report = mpc.tick(t, &x);
                 let elapsed = started.elapsed().as_secs_f64();
                 if report.is_ok() {
                     mpc.write_policy(&mut policy);
                 }
-                if to_loop.send(Reply { x, policy, report, elapsed }).is_err() {
+                let policy_latency = match latency {
+                    PolicyLatency::Measured | PolicyLatency::Paced => waited + elapsed,
+                    PolicyLatency::Fixed(l) => l,
+                };
+                // The next tick leaves the solver time to prepare it (this tick's preparation
+                // time as the estimate), and is prepared before the reply: the plant steps
+                // after it, the solver having the cores to itself meanwhile, as without it.
+                let preparation = last_preparation;
+                let busy = match latency {
+                    PolicyLatency::Fixed(_) => policy_latency,
+                    _ => policy_latency + preparation,
+                };
+                let next = next_tick(t, busy, period);
+                if prepare_ahead && next < duration - 0.5 * physics_dt {
+                    last_preparation = mpc.prepare(next);
+                    free_at = t + policy_latency + last_preparation;
+                }
+                if to_loop.send(Reply { x, policy, report, elapsed, latency: policy_latency, next_tick: next, preparation }).is_err() {
                     break;
                 }
             }
@@ -202,24 +266,17 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
                 }
                 let Ok(reply) = replies.recv() else { break };
                 measured = Some(reply.x);
+                let reply_next_tick = reply.next_tick;
                 let (record, new_policy) = match reply.report {
                     Ok(report) => {
                         let last = report.iterations.last();
-                        let wait = match latency {
-                            PolicyLatency::Measured | PolicyLatency::Paced => report.solve_time,
-                            PolicyLatency::Fixed(l) => l,
-                        };
-                        (TickRecord { t: t_tick, solve_time: report.solve_time, latency: wait, cost: report.cost.is_finite().then_some(report.cost), held_after_knot: report.iterations.iter().rev().find_map(|i| i.held_after).filter(|_| !report.cost.is_finite()), alpha: last.map(|i| i.alpha), regularization: last.map(|i| i.regularization), iterations: report.iterations.len(), restarted: report.restarted, linearization_time: report.iterations.iter().map(|i| i.timing.linearization).sum(), backward_pass_time: report.iterations.iter().map(|i| i.timing.backward_pass).sum(), rollout_time: report.iterations.iter().map(|i| i.timing.line_search).sum(), failure: None }, Some(reply.policy))
+                        (TickRecord { t: t_tick, solve_time: report.solve_time, preparation_time: report.preparation_time, feedback_time: report.feedback_time, latency: reply.latency, cost: report.cost.is_finite().then_some(report.cost), held_after_knot: report.iterations.iter().rev().find_map(|i| i.held_after).filter(|_| !report.cost.is_finite()), alpha: last.map(|i| i.alpha), regularization: last.map(|i| i.regularization), iterations: report.iterations.len(), restarted: report.restarted, linearization_time: report.iterations.iter().map(|i| i.timing.linearization).sum(), backward_pass_time: report.iterations.iter().map(|i| i.timing.backward_pass).sum(), rollout_time: report.iterations.iter().map(|i| i.timing.line_search).sum(), failure: None }, Some(reply.policy))
                     }
                     Err(e) => {
                         spare = Some(reply.policy);
                         // The solver was busy for the failed tick's time: the next tick
                         // comes after it, as after a policy.
-                        let busy = match latency {
-                            PolicyLatency::Measured | PolicyLatency::Paced => reply.elapsed,
-                            PolicyLatency::Fixed(l) => l,
-                        };
-                        (TickRecord { t: t_tick, solve_time: reply.elapsed, latency: busy, cost: None, alpha: None, regularization: None, iterations: 0, restarted: false, linearization_time: 0.0, backward_pass_time: 0.0, rollout_time: 0.0, failure: Some(e.to_string()), held_after_knot: None }, None)
+                        (TickRecord { t: t_tick, solve_time: reply.preparation + reply.elapsed, preparation_time: reply.preparation, feedback_time: reply.elapsed, latency: reply.latency, cost: None, alpha: None, regularization: None, iterations: 0, restarted: false, linearization_time: 0.0, backward_pass_time: 0.0, rollout_time: 0.0, failure: Some(e.to_string()), held_after_knot: None }, None)
                     }
                 };
                 step_until(sim, &mut controller, &mut trajectory, t_tick + record.latency)?;
@@ -227,8 +284,7 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
                     controller.swap_policy(&mut policy);
                     spare = Some(policy);
                 }
-                let periods = (record.latency / period - 1e-9).ceil().max(1.0);
-                t_tick += periods * period;
+                t_tick = reply_next_tick;
                 on_tick(&record);
                 ticks.push(record);
                 step_until(sim, &mut controller, &mut trajectory, t_tick)?;

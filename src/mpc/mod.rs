@@ -128,6 +128,16 @@ pub struct MpcSettings {
     pub substeps: Option<usize>,
     /// SLQ iterations per tick (1: the real-time iteration scheme).
     pub iterations_per_tick: usize,
+    /// Run each tick's preparation phase ahead of its measurement (true): after a tick's
+    /// policy is out, the closed loop moves the window on to the next tick and builds its
+    /// model and backward pass ([`Mpc::prepare`]), which do not depend on the measured state
+    /// (Diehl, Bock, Schlöder 2005); the next measurement then waits only for the rollouts
+    /// from it. The same iterates to the bit; the policy comes out after the rollouts
+    /// instead of the whole tick. A tick's solve time still counts both phases (they must
+    /// fit the period together); its latency is the wait for the rollouts, plus any part of
+    /// the preparation still running when the measurement came. False: the whole tick after
+    /// the measurement.
+    pub prepare_ahead: bool,
     /// SLQ iterations on the first window before the robot starts (10): the robot waits
     /// for its first plan, as on hardware.
     pub initial_iterations: usize,
@@ -206,7 +216,7 @@ impl MpcFeedback {
 
 impl Default for MpcSettings {
     fn default() -> Self {
-        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, tail_ticks: 1, substeps: None, iterations_per_tick: 1, initial_iterations: 10, threads: 2, realtime_priority: None, anchor_states: true, task_costs: true, plan_value: true, ends_at_task_end: Some(0.1), feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
+        Self { horizon: 0.5, rate: 200.0, knot_dt: None, fine_head: None, tail_ticks: 1, substeps: None, iterations_per_tick: 1, prepare_ahead: true, initial_iterations: 10, threads: 2, realtime_priority: None, anchor_states: true, task_costs: true, plan_value: true, ends_at_task_end: Some(0.1), feasibility: true, regularization: 1e-3, linearization: KnotLinearization::FirstSubstep, tracking: TrackingWeights::default(), model_reuse: None, feedback: MpcFeedback::Optimizer }
     }
 }
 
@@ -540,9 +550,13 @@ pub struct Mpc<'p, 'a> {
     slq: Slq<'p, WholeBodyProblem<'a>>,
     settings: MpcSettings,
     plan_policy: PlanPolicy<'p>,
-    /// The window's start at the last tick (s).
+    /// The window's start at the last tick (s), or at the tick prepared for.
     last_start: f64,
     cost: f64,
+    /// The tick time the window was moved to and prepared for ([`Self::prepare`]), and the
+    /// preparation's wall time (s).
+    prepared_for: Option<f64>,
+    preparation_time: f64,
 }
 
 /// What one tick did.
@@ -550,8 +564,13 @@ pub struct Mpc<'p, 'a> {
 pub struct TickReport {
     /// The window's start (s).
     pub t: f64,
-    /// Wall time of the tick's solve (s): shift, iterations, nothing else.
+    /// Wall time of the tick's solve (s): shift, iterations, nothing else; with the tick
+    /// prepared ahead ([`Mpc::prepare`]), the preparation's time too.
     pub solve_time: f64,
+    /// Wall time of the preparation before the measurement (s; 0 if the tick was not
+    /// prepared ahead) and from the measurement to the policy (the rest).
+    pub preparation_time: f64,
+    pub feedback_time: f64,
     /// The kept trajectory's cost and the iterations' records.
     pub cost: f64,
     pub iterations: Vec<RealTimeIteration>,
@@ -581,7 +600,7 @@ impl<'p, 'a> Mpc<'p, 'a> {
             cost = it.cost;
         }
         slq.set_model_reuse(settings.model_reuse)?;
-        Ok(Self { problem, slq, settings, plan_policy, last_start: 0.0, cost })
+        Ok(Self { problem, slq, settings, plan_policy, last_start: 0.0, cost, prepared_for: None, preparation_time: 0.0 })
     }
 
     pub fn settings(&self) -> &MpcSettings {
@@ -592,17 +611,23 @@ impl<'p, 'a> Mpc<'p, 'a> {
         self.problem
     }
 
-    /// One tick at time `t` (a multiple of the knot spacing after the last tick's) from the
-    /// measured state `x`: the window moved to `t`, the solution shifted, the iteration
-    /// budget spent. The new policy is then in [`Self::write_policy`].
-    pub fn tick(&mut self, t: f64, x: &RobotState) -> Result<TickReport, MpcError> {
+    /// Moves the window to tick time `t` (a multiple of the knot spacing after the last
+    /// tick's) and runs the part of that tick's first iteration that does not need its
+    /// measurement, the model and the backward pass
+    /// ([`Slq::prepare_real_time_iteration`]): the preparation phase, run between ticks
+    /// ([`MpcSettings::prepare_ahead`]). Returns its wall time (s). A [`Self::tick`] at `t`
+    /// then only rolls out from its measurement.
+    pub fn prepare(&mut self, t: f64) -> f64 {
         let started = Instant::now();
-        // A garbled measurement would leave the solution to the next tick as rollouts from
-        // it leave it (NaN states to linearize around): the next tick moves the window on
-        // by the ticks passed, from the solution the robot's policy came from.
-        if !self.problem.is_valid(x) {
-            return Err(MpcError::InvalidMeasurement { t });
-        }
+        self.move_window(t);
+        self.slq.prepare_real_time_iteration();
+        self.prepared_for = Some(self.last_start);
+        self.preparation_time = started.elapsed().as_secs_f64();
+        self.preparation_time
+    }
+
+    /// The window moved on to start at `t` and the solution shifted with it.
+    fn move_window(&mut self, t: f64) {
         if let Some(tail) = self.problem.tail {
             // A coarse tail: the window moves by whole tick periods, a tail knot of one
             // period (split into the head's knots) or a head knot of a two-period tail.
@@ -633,6 +658,25 @@ impl<'p, 'a> Mpc<'p, 'a> {
             self.last_start = start;
             self.slq.shift(knots, &self.plan_policy);
         }
+    }
+
+    /// One tick at time `t` (a multiple of the knot spacing after the last tick's) from the
+    /// measured state `x`: the window moved to `t`, the solution shifted, the iteration
+    /// budget spent (the first iteration's model and backward pass already done if
+    /// [`Self::prepare`] prepared `t`). The new policy is then in [`Self::write_policy`].
+    pub fn tick(&mut self, t: f64, x: &RobotState) -> Result<TickReport, MpcError> {
+        let started = Instant::now();
+        // A garbled measurement would leave the solution to the next tick as rollouts from
+        // it leave it (NaN states to linearize around): the next tick moves the window on
+        // by the ticks passed, from the solution the robot's policy came from.
+        if !self.problem.is_valid(x) {
+            return Err(MpcError::InvalidMeasurement { t });
+        }
+        let prepared = self.prepared_for.take().is_some_and(|p| self.is_tick_time(p, t)) && self.slq.is_prepared();
+        let preparation_time = if prepared { self.preparation_time } else { 0.0 };
+        if !prepared {
+            self.move_window(t);
+        }
         let start = self.last_start;
         let mut iterations = Vec::with_capacity(self.settings.iterations_per_tick);
         let mut restarted = false;
@@ -654,7 +698,13 @@ impl<'p, 'a> Mpc<'p, 'a> {
             self.cost = it.cost;
             iterations.push(it);
         }
-        Ok(TickReport { t: start, solve_time: started.elapsed().as_secs_f64(), cost: self.cost, iterations, restarted })
+        let feedback_time = started.elapsed().as_secs_f64();
+        Ok(TickReport { t: start, solve_time: preparation_time + feedback_time, preparation_time, feedback_time, cost: self.cost, iterations, restarted })
+    }
+
+    /// Whether tick times `a` and `b` fall on the same knot.
+    fn is_tick_time(&self, a: f64, b: f64) -> bool {
+        (a - b).abs() < 0.5 * self.problem.dt
     }
 
     /// The current solution as the policy the robot runs.

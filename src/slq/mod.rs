@@ -333,6 +333,9 @@ pub struct Slq<'p, P: Problem> {
     /// task's end and lose knots as it moves on ([`Problem::horizon`]; the buffers keep the
     /// first window's length).
     window_knots: usize,
+    /// The next real-time iteration's model and backward pass, run ahead of its measurement
+    /// ([`Slq::prepare_real_time_iteration`]): whether the pass succeeded, and its timing.
+    prepared: Option<(bool, IterationTiming)>,
 }
 
 /// Where a knot's model was taken ([`ModelReuse`]), and scratch to move it.
@@ -766,6 +769,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             recording: false,
             real_time_step: 1.0,
             window_knots: n,
+            prepared: None,
             regularization: settings.initial_regularization,
             settings,
             pool,

@@ -10,6 +10,11 @@
 //!   keep the cheapest                                                  (step 4)
 //! ```
 //!
+//! Only the rollouts need the measurement: the shift, the model and the backward pass are
+//! the RTI scheme's preparation phase, which a controller runs between ticks
+//! ([`Slq::prepare_real_time_iteration`]), so that a measurement waits for its rollouts
+//! alone (the feedback phase).
+//!
 //! The first iteration of a tick starts from a state the shifted trajectory did not start
 //! from, so its costs are not comparable with the trajectory's: the cheapest trial is
 //! taken whatever the old cost (the step is the controller's answer to the new state).
@@ -100,6 +105,7 @@ impl<'p, P: Problem> Slq<'p, P> {
     /// the first tick); returns its cost. The gains stay those of the last pass (zero on a
     /// new solver) until [`Self::real_time_iteration`] computes them.
     pub fn start_from(&mut self, x0: &P::State, policy: &dyn Policy<P>) -> Result<f64, SlqError> {
+        self.prepared = None;
         self.forget_models(0);
         self.states[0].clone_from(x0);
         self.rollout(policy)
@@ -108,6 +114,7 @@ impl<'p, P: Problem> Slq<'p, P> {
     /// Back to the initial regularization (after the trajectory was replaced: the
     /// regularization an old one needed says nothing of the new).
     pub fn reset_regularization(&mut self) {
+        self.prepared = None;
         self.regularization = self.settings.initial_regularization;
         self.real_time_step = 1.0;
     }
@@ -121,6 +128,7 @@ impl<'p, P: Problem> Slq<'p, P> {
     pub fn shift(&mut self, knots: usize, tail: &dyn Policy<P>) -> usize {
         // A window that ends at its task's end may have lost knots as it moved: the tail
         // to roll out is what the moved solution does not cover.
+        self.prepared = None;
         let (before, n) = (self.window_knots, self.problem.horizon());
         self.window_knots = n;
         let m = knots.min(before);
@@ -175,6 +183,7 @@ impl<'p, P: Problem> Slq<'p, P> {
     /// later knot integrates the head's steps), the later knots move up by one and the last
     /// comes from `tail` as in [`Self::shift`]. Returns how many tail steps held their state.
     pub fn shift_head(&mut self, head: usize, m: usize, tail: &dyn Policy<P>) -> usize {
+        self.prepared = None;
         let n = self.problem.horizon();
         if m == 0 || head < m || head >= n {
             return self.shift(m, tail);
@@ -208,6 +217,7 @@ impl<'p, P: Problem> Slq<'p, P> {
     /// is one head knot shorter than after a plain [`Self::shift`], which adds a later knot
     /// at the end; the two alternate and the knot count stays).
     pub fn shift_halving(&mut self, head: usize) {
+        self.prepared = None;
         let n = self.problem.horizon();
         assert!(head >= 1 && head < n, "shift_halving: the head ({head} knots) must leave a later knot in a window of {n}");
         // The halved knot's model is not its halves' ([`crate::slq::ModelReuse`] keeps none).
@@ -232,6 +242,7 @@ impl<'p, P: Problem> Slq<'p, P> {
             let (nx, nu) = (self.problem.nx(), self.problem.nu());
             self.points = (0..self.problem.horizon()).map(|_| Mutex::new(ModelPoint::new(self.states[0].clone(), nx, nu))).collect();
         }
+        self.prepared = None;
         self.forget_models(0);
         self.settings.model_reuse = reuse;
         Ok(())
@@ -257,15 +268,41 @@ impl<'p, P: Problem> Slq<'p, P> {
         self.reuse_iterations += 1;
     }
 
-    /// One real-time iteration from the measured state `x0` (module docs): the model
-    /// around the current solution, then one round of trials (a step size per thread) from
-    /// `x0`. With `must_improve`, a trial is kept only if it costs less than `cost`
-    /// (a later iteration of the same tick, whose trajectory already starts at `x0`).
-    pub fn real_time_iteration(&mut self, x0: &P::State, must_improve: Option<f64>) -> Result<RealTimeIteration, RealTimeIterationError> {
+    /// The part of the next [`Self::real_time_iteration`] that does not need its measured
+    /// state, run now (the preparation phase of Diehl, Bock, Schlöder 2005): the model
+    /// around the current solution and the backward pass. A controller runs it after moving
+    /// the window on to its next tick and before that tick's measurement; the iteration then
+    /// only rolls out from the measurement. The iterates are the same to the bit as the
+    /// iteration's own. A shift, a new start or new settings before the iteration discard it.
+    pub fn prepare_real_time_iteration(&mut self) {
+        self.prepared = Some(self.model_and_backward_pass());
+    }
+
+    /// Steps 2-3 of a real-time iteration: whether the pass found its gains, and the timing.
+    fn model_and_backward_pass(&mut self) -> (bool, IterationTiming) {
         let mut timing = IterationTiming::default();
         self.choose_reused_models();
         let passed = self.linearize_and_backward_pass(&mut timing);
         self.reused.fill(false);
+        (passed, timing)
+    }
+
+    /// Whether the next real-time iteration's model and backward pass are ready
+    /// ([`Self::prepare_real_time_iteration`]).
+    pub fn is_prepared(&self) -> bool {
+        self.prepared.is_some()
+    }
+
+    /// One real-time iteration from the measured state `x0` (module docs): the model
+    /// around the current solution (unless [`Self::prepare_real_time_iteration`] made it),
+    /// then one round of trials (a step size per thread) from `x0`. With `must_improve`, a
+    /// trial is kept only if it costs less than `cost` (a later iteration of the same tick,
+    /// whose trajectory already starts at `x0`).
+    pub fn real_time_iteration(&mut self, x0: &P::State, must_improve: Option<f64>) -> Result<RealTimeIteration, RealTimeIterationError> {
+        let (passed, mut timing) = match self.prepared.take() {
+            Some(prepared) => prepared,
+            None => self.model_and_backward_pass(),
+        };
         if !passed {
             return Err(RealTimeIterationError::BackwardPass);
         }
