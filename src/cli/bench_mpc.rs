@@ -174,7 +174,8 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
     let names: Vec<String> = if bench.tasks.is_empty() { EMBEDDED_TASKS.iter().map(|(n, _)| n.to_string()).collect() } else { bench.tasks.to_vec() };
     let mut tasks = Vec::new();
     for name in &names {
-        let task_out = bench.out.join(name);
+        // A task file's folder by its stem (`tasks/gallop.toml`: `gallop/`), not its path.
+        let task_out = bench.out.join(std::path::Path::new(name).file_stem().unwrap_or(name.as_ref()));
         let plan = Planned::solve(name, max_threads, &task_out)?;
         let settings = MpcSettings { threads: max_threads, horizon: bench.horizon, ..base.clone() };
         let nominal = plan.closed_loop(settings.clone(), &sim, bench.latency, Vec::new(), &task_out.join("nominal"))?;
