@@ -660,7 +660,13 @@ fn the_solvers_threads_run_under_sched_fifo_and_the_motion_is_the_same() {
     // The solver's thread and the two threads of its pool; the plant's (this one) not.
     assert!(!fifo_during.is_empty() && fifo_during.iter().all(|&n| n == 3), "{fifo_during:?}");
     assert_eq!(realtime.ticks.len(), plain.ticks.len());
-    for (a, b) in realtime.trajectory.knots.iter().zip(&plain.trajectory.knots) {
+    assert_same_motion(&realtime.trajectory, &plain.trajectory);
+}
+
+/// Two closed-loop motions the same to the bit: every recorded knot's `q`, `v` and torques.
+fn assert_same_motion(a: &Trajectory, b: &Trajectory) {
+    assert_eq!(a.knots.len(), b.knots.len());
+    for (a, b) in a.knots.iter().zip(&b.knots) {
         assert_eq!((&a.q, &a.v, &a.tau), (&b.q, &b.v, &b.tau), "t {}", a.t);
     }
 }
@@ -692,10 +698,7 @@ fn preparing_each_tick_ahead_of_its_measurement_changes_no_bit_of_the_motion() {
         assert!(a.preparation_time > 0.0 && a.preparation_time + a.feedback_time == a.solve_time, "{a:?}");
         assert!(w.preparation_time == 0.0 && w.feedback_time == w.solve_time, "{w:?}");
     }
-    assert_eq!(ahead.trajectory.knots.len(), whole.trajectory.knots.len());
-    for (a, w) in ahead.trajectory.knots.iter().zip(&whole.trajectory.knots) {
-        assert_eq!((&a.q, &a.v, &a.tau), (&w.q, &w.v, &w.tau), "t {}", a.t);
-    }
+    assert_same_motion(&ahead.trajectory, &whole.trajectory);
 }
 
 /// A paced loop starts each tick at its time on the wall clock, as a robot's control loop

@@ -216,19 +216,15 @@ pub fn run_closed_loop(mut mpc: Mpc<'_, '_>, sim: &mut dyn Plant, duration: f64,
                     let due = loop_started + std::time::Duration::from_secs_f64(t);
                     std::thread::sleep(due.saturating_duration_since(Instant::now()));
                 }
-                // A measurement due while the solver still prepared waited for it.
-                let waited = match latency {
-                    PolicyLatency::Measured | PolicyLatency::Paced => (free_at - t).max(0.0),
-                    PolicyLatency::Fixed(_) => 0.0,
-                };
                 let started = Instant::now();
                 let report = mpc.tick(t, &x);
                 let elapsed = started.elapsed().as_secs_f64();
                 if report.is_ok() {
                     mpc.write_policy(&mut policy);
                 }
+                // A measurement due while the solver still prepared waited for it.
                 let policy_latency = match latency {
-                    PolicyLatency::Measured | PolicyLatency::Paced => waited + elapsed,
+                    PolicyLatency::Measured | PolicyLatency::Paced => (free_at - t).max(0.0) + elapsed,
                     PolicyLatency::Fixed(l) => l,
                 };
                 // The next tick leaves the solver time to prepare it (this tick's preparation

@@ -553,9 +553,7 @@ pub struct Mpc<'p, 'a> {
     /// The window's start at the last tick (s), or at the tick prepared for.
     last_start: f64,
     cost: f64,
-    /// The tick time the window was moved to and prepared for ([`Self::prepare`]), and the
-    /// preparation's wall time (s).
-    prepared_for: Option<f64>,
+    /// The last preparation's wall time (s; [`Self::prepare`]).
     preparation_time: f64,
 }
 
@@ -600,7 +598,7 @@ impl<'p, 'a> Mpc<'p, 'a> {
             cost = it.cost;
         }
         slq.set_model_reuse(settings.model_reuse)?;
-        Ok(Self { problem, slq, settings, plan_policy, last_start: 0.0, cost, prepared_for: None, preparation_time: 0.0 })
+        Ok(Self { problem, slq, settings, plan_policy, last_start: 0.0, cost, preparation_time: 0.0 })
     }
 
     pub fn settings(&self) -> &MpcSettings {
@@ -621,7 +619,6 @@ impl<'p, 'a> Mpc<'p, 'a> {
         let started = Instant::now();
         self.move_window(t);
         self.slq.prepare_real_time_iteration();
-        self.prepared_for = Some(self.last_start);
         self.preparation_time = started.elapsed().as_secs_f64();
         self.preparation_time
     }
@@ -672,7 +669,9 @@ impl<'p, 'a> Mpc<'p, 'a> {
         if !self.problem.is_valid(x) {
             return Err(MpcError::InvalidMeasurement { t });
         }
-        let prepared = self.prepared_for.take().is_some_and(|p| self.is_tick_time(p, t)) && self.slq.is_prepared();
+        // Prepared for this tick: the solver still holds a preparation (any shift since
+        // would have discarded it) and the window already starts at `t`.
+        let prepared = self.slq.is_prepared() && self.is_tick_time(self.last_start, t);
         let preparation_time = if prepared { self.preparation_time } else { 0.0 };
         if !prepared {
             self.move_window(t);
