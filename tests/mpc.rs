@@ -816,10 +816,11 @@ fn a_failed_tick_keeps_the_running_policy_and_the_next_tick_moves_it_on() {
 /// integrated in four 0.25 ms steps (`MpcSettings::substeps`), the physical gains, tracking
 /// x10, a fixed 5 ms latency (reproducible). The closed loop meets the task's target at
 /// twice its tolerances: x within 0.1 m of 2 m, y within 0.1 m, five lift-offs per foot,
-/// the base never below 0.45 m. With one 1 ms step a knot the window's rollouts through
-/// MuJoCo's landings fail and the robot falls (base 0.04 m at 1.19 s;
-/// docs/experiments/mpc-18.md). Without the checker's Python the test fails when `CI` is
-/// set, and otherwise skips.
+/// the base never below 0.45 m (it meets at every fixed latency from 1 to 5 ms, plain and
+/// under a push: docs/experiments/mpc-20.md). With one 1 ms step a knot the window's
+/// rollouts through MuJoCo's landings fail and the robot falls (x 2.265 m, y -0.162 m, the
+/// base below the ground by 3.00 s; docs/experiments/mpc-18.md). Without the checker's
+/// Python the test fails when `CI` is set, and otherwise skips.
 #[test]
 fn the_gallop_meets_its_target_in_mujoco_with_four_steps_a_knot() {
     use legwork::job::mpc::{ClosedLoopSim, MpcJob};

@@ -306,27 +306,24 @@ fn sidestep_reaches_30_cm_to_the_left() {
 
 /// The full gallop (five continuation stages, then 1500 knots in 1 ms substeps, about 3-8 s
 /// of solving): the targets on the plan (x 2.00 +- 0.05 m, at least five lift-offs
-/// per foot, 40 iterations), joints within reach of their limits, the SLQ policy re-run
-/// ending where the plan does, and the tracking controller's re-run within twice the
-/// tolerance (0.10 m) with five lift-offs per foot. The gallop's iterates are sensitive to
-/// round-off and to its settings (BENCHMARKS.md).
+/// per foot, 40 iterations and the polish's 20), no joint past its limit (the task keeps
+/// them 0.55 rad inside; without that margin the plan ran on straight legs at the knees'
+/// stops, 2.5 deg past one, and reached 1.838 m), and the SLQ policy re-run ending where the
+/// plan does. The gallop's iterates are sensitive to round-off and to its settings
+/// (BENCHMARKS.md). Its closed loop in MuJoCo under MPC is tests/mpc.rs's.
 #[test]
-#[ignore = "x 1.838 m (target 2.00 +- 0.05) under the robot's calibrated contact and the feasibility constraints, 40 iterations and the polish's 20 (docs/experiments/feasible-slq-4.md)"]
 fn gallop_reaches_two_metres_lifting_every_foot_five_times() {
     let (_, run) = solve("gallop");
     let plan = &run.plan_metrics;
-    assert_feasible("gallop", plan, Feasible::default());
+    assert_feasible("gallop", plan, Feasible { joints: true, ..Feasible::default() });
     let policy = run.policy_rerun.metrics().unwrap_or_else(|| panic!("SLQ policy re-run failed"));
-    let tracking = tracking_metrics(&run);
     eprintln!(
-        "gallop: {} iterations ({} stages), x {:.3} m (policy {:.3}, tracking {:.3}), lift-offs {:?} (tracking {:?}), slide {:?} m",
+        "gallop: {} iterations ({} stages), x {:.3} m (policy {:.3}), lift-offs {:?}, slide {:?} m",
         run.iterations(),
         run.stages.len(),
         plan.final_base_position[0],
         policy.final_base_position[0],
-        tracking.final_base_position[0],
         plan.liftoffs,
-        tracking.liftoffs,
         plan.slide
     );
     assert_eq!(run.stages.len(), 5);
@@ -335,13 +332,19 @@ fn gallop_reaches_two_metres_lifting_every_foot_five_times() {
     assert!(plan.final_base_position[1].abs() < 0.05, "plan y {}", plan.final_base_position[1]);
     // Contacts emerged: every foot left the ground at least five times.
     assert!(plan.liftoffs.iter().all(|&n| n >= 5), "{:?}", plan.liftoffs);
-    // The joint-limit cost keeps the joints near their ranges (135 deg past without it and
-    // without the continuation).
-    let excess = plan.joint_limit_excess.as_ref().map_or(0.0, |e| e.excess_deg);
-    assert!(excess < 10.0, "{:?}", plan.joint_limit_excess);
     // The policy re-run is the optimizer's own system: it ends where the plan does.
     assert!((policy.final_base_position[0] - plan.final_base_position[0]).abs() < 1e-3);
-    // The tracking controller, on the 2 kHz physics, within twice the tolerance.
+}
+
+/// The gallop under Neunert 2017's tracking controller (the plan's contact schedule, fixed
+/// gains, 1 kHz on 2 kHz physics) within twice the tolerance (0.10 m), five lift-offs per
+/// foot, joints within 10 deg of their limits.
+#[test]
+#[ignore = "the tracking controller's re-run falls (base -0.09 m at 2.79 s, x 2.664 m; 2026-12-06; before the task's joint-limit margin it missed too, 1.798 m): the gallop holds in closed loop under MPC (tests/mpc.rs)"]
+fn gallop_under_the_tracking_controller_reaches_two_metres() {
+    let (_, run) = solve("gallop");
+    let tracking = tracking_metrics(&run);
+    eprintln!("gallop, tracking: x {:.3} m, lift-offs {:?}", tracking.final_base_position[0], tracking.liftoffs);
     assert!((tracking.final_base_position[0] - 2.0).abs() <= 0.10, "tracking x {}", tracking.final_base_position[0]);
     assert!(tracking.liftoffs.iter().all(|&n| n >= 5), "tracking lift-offs {:?}", tracking.liftoffs);
     let excess = tracking.joint_limit_excess.as_ref().map_or(0.0, |e| e.excess_deg);
