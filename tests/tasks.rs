@@ -306,11 +306,12 @@ fn sidestep_reaches_30_cm_to_the_left() {
 
 /// The full gallop (five continuation stages, then 1500 knots in 1 ms substeps, about 3-8 s
 /// of solving): the targets on the plan (x 2.00 +- 0.05 m, at least five lift-offs
-/// per foot, 40 iterations and the polish's 20), no joint past its limit (the task keeps
-/// them 0.55 rad inside; without that margin the plan ran on straight legs at the knees'
-/// stops, 2.5 deg past one, and reached 1.838 m), and the SLQ policy re-run ending where the
-/// plan does. The gallop's iterates are sensitive to round-off and to its settings
-/// (BENCHMARKS.md). Its closed loop in MuJoCo under MPC is tests/mpc.rs's.
+/// per foot, 40 iterations and the polish's 20), no joint past its limit (the task's
+/// joint-limit cost starts 0.55 rad inside the ranges; without that margin the plan ran on
+/// straight legs at the knees' stops, 2.5 deg past one, and reached 1.838 m), and the SLQ
+/// policy re-run ending where the plan does. The gallop's iterates are sensitive to
+/// round-off and to its settings (BENCHMARKS.md). Its closed loop in MuJoCo under MPC is
+/// tests/mpc.rs's.
 #[test]
 fn gallop_reaches_two_metres_lifting_every_foot_five_times() {
     let (_, run) = solve("gallop");
