@@ -5,7 +5,7 @@
 use legwork::export::MujocoPlant;
 use legwork::io::Trajectory;
 use legwork::model::{embedded, Model};
-use legwork::mpc::{run_closed_loop, window_problem, Mpc, MpcError, MpcFeedback, MpcPolicy, MpcPolicyController, MpcSettings, PolicyLatency};
+use legwork::mpc::{run_closed_loop, window_problem, Mpc, MpcError, MpcFeedback, MpcPolicy, MpcPolicyController, MpcSettings, PolicyLatency, TrackingWeights};
 use legwork::ocp::{physical_gain, solve_task, PdPolicy, PhysicalGainWorkspace, RobotState, SolveOptions, TaskRun, TaskSpec};
 use legwork::sim::{Controller, Push, SimConfig, SimState, Simulator};
 use legwork::slq::{ModelReuse, Problem, Slq, SlqSettings};
@@ -543,6 +543,8 @@ fn bad_settings_and_a_plan_without_its_value_function_are_named() {
         (MpcSettings { realtime_priority: Some(100), ..MpcSettings::default() }, "realtime_priority"),
         (MpcSettings { model_reuse: Some(ModelReuse { fresh_head: 10, refresh_period: 0 }), ..MpcSettings::default() }, "model_reuse"),
         (MpcSettings { knot_dt: Some(0.001), fine_head: Some(0.05), model_reuse: Some(ModelReuse { fresh_head: 10, refresh_period: 5 }), ..MpcSettings::default() }, "model_reuse"),
+        (MpcSettings { tracking: TrackingWeights { base_position: [1e3, f64::NAN, 1e3], ..TrackingWeights::default() }, ..MpcSettings::default() }, "tracking.base_position[1]"),
+        (MpcSettings { tracking: TrackingWeights { input: -1.0, ..TrackingWeights::default() }, ..MpcSettings::default() }, "tracking.input"),
     ] {
         let message = name(settings.check().unwrap_err());
         assert!(message.contains(&format!("`{field}`")), "{message}");

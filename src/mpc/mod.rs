@@ -50,8 +50,11 @@ use std::time::Instant;
 /// `terminal_seconds` times them at the window's end).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct TrackingWeights {
-    /// Base position, world frame (1e3).
-    pub base_position: f64,
+    /// Base position along the world's x, y and z ([1e3, 2e3, 1e3]). The sideways weight is
+    /// twice the others: at 1e3 the walk forward (trot) swayed +-0.1 m sideways in MuJoCo at
+    /// a ~2 s period, growing until it fell at 1.7 ms latency; at 2e3 it sways at most 0.05 m
+    /// peak to peak there. Doubling x too lost the gallop at 1 ms (docs/experiments/mpc-21.md).
+    pub base_position: [f64; 3],
     /// Base orientation error `log(R_ref^T R)` (1e3).
     pub base_orientation: f64,
     /// Joint angles (10).
@@ -68,20 +71,20 @@ pub struct TrackingWeights {
 
 impl Default for TrackingWeights {
     fn default() -> Self {
-        Self { base_position: 1e3, base_orientation: 1e3, joint_position: 10.0, base_velocity: 10.0, joint_velocity: 0.1, terminal_seconds: 0.5, input: 0.01 }
+        Self { base_position: [1e3, 2e3, 1e3], base_orientation: 1e3, joint_position: 10.0, base_velocity: 10.0, joint_velocity: 0.1, terminal_seconds: 0.5, input: 0.01 }
     }
 }
 
 impl TrackingWeights {
     /// Every weight times `factor` (the terminal seconds as they are).
     pub fn scaled(&self, factor: f64) -> Self {
-        Self { base_position: self.base_position * factor, base_orientation: self.base_orientation * factor, joint_position: self.joint_position * factor, base_velocity: self.base_velocity * factor, joint_velocity: self.joint_velocity * factor, terminal_seconds: self.terminal_seconds, input: self.input * factor }
+        Self { base_position: self.base_position.map(|w| w * factor), base_orientation: self.base_orientation * factor, joint_position: self.joint_position * factor, base_velocity: self.base_velocity * factor, joint_velocity: self.joint_velocity * factor, terminal_seconds: self.terminal_seconds, input: self.input * factor }
     }
 
     /// The running weights as a vector over `2 nv` deviation coordinates.
     fn running(&self, nv: usize) -> DVector<f64> {
         let mut w = DVector::zeros(2 * nv);
-        w.rows_mut(0, 3).fill(self.base_position);
+        w.rows_mut(0, 3).copy_from_slice(&self.base_position);
         w.rows_mut(3, 3).fill(self.base_orientation);
         w.rows_mut(6, nv - 6).fill(self.joint_position);
         w.rows_mut(nv, 6).fill(self.base_velocity);
@@ -345,7 +348,7 @@ impl MpcSettings {
             return bad("threads", "expected at least 1".into());
         }
         let t = &self.tracking;
-        for (field, w) in [("tracking.base_position", t.base_position), ("tracking.base_orientation", t.base_orientation), ("tracking.joint_position", t.joint_position), ("tracking.base_velocity", t.base_velocity), ("tracking.joint_velocity", t.joint_velocity), ("tracking.terminal_seconds", t.terminal_seconds), ("tracking.input", t.input)] {
+        for (field, w) in [("tracking.base_position[0]", t.base_position[0]), ("tracking.base_position[1]", t.base_position[1]), ("tracking.base_position[2]", t.base_position[2]), ("tracking.base_orientation", t.base_orientation), ("tracking.joint_position", t.joint_position), ("tracking.base_velocity", t.base_velocity), ("tracking.joint_velocity", t.joint_velocity), ("tracking.terminal_seconds", t.terminal_seconds), ("tracking.input", t.input)] {
             if !(w.is_finite() && w >= 0.0) {
                 return bad(field, format!("expected a finite number >= 0, got {w}"));
             }
