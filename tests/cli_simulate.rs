@@ -47,6 +47,8 @@ fn simulate_writes_the_trajectory_and_prints_a_summary() {
     let o = legwork(&["simulate", "--robot", "a1", "--controller", "track", "--reference", reference.to_str().unwrap(), "--duration", "0.5", "--out", tracked.to_str().unwrap()]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     assert!(text(&o.stdout).contains("with the track controller"));
+    std::fs::remove_dir_all(&dir).ok();
+    std::fs::remove_dir_all(&tracked).ok();
 }
 
 #[test]
@@ -90,6 +92,7 @@ fn tasks_lists_the_embedded_tasks_and_bench_slq_reports_json() {
         assert!(bench.join(name).join("replay.html").is_file(), "{name}");
         assert!(page.contains(&format!("<a href=\"{name}/replay.html\">replay</a>")), "{name}");
     }
+    std::fs::remove_dir_all(&bench).ok();
     let o = legwork(&["solve", "no_such_task"]);
     assert!(!o.status.success() && text(&o.stderr).contains("no embedded task named 'no_such_task'"));
 }
@@ -139,6 +142,7 @@ fn simulate_track_reproduces_the_tracking_rerun_of_solve() {
     // The plan records the world it was made in.
     let plan = Trajectory::load_file(&plan).unwrap();
     assert!(plan.metadata.initial_anchors.as_ref().is_some_and(|a| a.iter().all(Option::is_some)), "four feet down at the start");
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// `legwork solve`'s exit codes (`legwork --help`): 0 the plan met the task's target, 1 it

@@ -13,17 +13,35 @@ use legwork::ocp::{solve_task, Rerun, SolveOptions, TaskSpec, EMBEDDED_TASKS};
 use legwork::sim::{standing_on_ground, SimConfig, Simulator};
 use legwork::terrain::{Plane, Terrain, TerrainSpec};
 use nalgebra::DVector;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 mod common;
 #[path = "support/mujoco.rs"]
 mod mujoco;
 use mujoco::mujoco_or_skip;
 
-fn scratch(name: &str) -> PathBuf {
+/// A test's folder, removed when the test is done with it (kept if the test fails, to look at).
+struct Scratch(PathBuf);
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            std::fs::remove_dir_all(&self.0).ok();
+        }
+    }
+}
+
+fn scratch(name: &str) -> Scratch {
     let dir = std::env::temp_dir().join(format!("legwork-mujoco-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    dir
+    Scratch(dir)
 }
 
 /// A small deterministic generator of U(0, 1) samples.

@@ -35,6 +35,7 @@ fn round_trip_through_a_file_is_exact() {
     back.check_against(&embedded::load("hyq").unwrap(), "x").unwrap();
     assert_eq!(back.metadata.units.torque, "N m");
     assert_eq!(back.metadata.legwork_version, env!("CARGO_PKG_VERSION"));
+    std::fs::remove_dir_all(path.parent().unwrap()).ok();
 }
 
 #[test]

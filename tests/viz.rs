@@ -90,7 +90,9 @@ fn a_trajectory_that_does_not_fit_is_an_error_naming_the_field() {
     bad.knots[5].q.pop();
     let e = viz::replay_html(&model, &bad).unwrap_err().to_string();
     assert!(e.contains("knots[5].q"), "{e}");
-    let e = viz::write_plots(&bad, temp_dir("bad-plots")).unwrap_err().to_string();
+    let dir = temp_dir("bad-plots");
+    let e = viz::write_plots(&bad, &dir).unwrap_err().to_string();
+    std::fs::remove_dir_all(&dir).ok();
     assert!(e.contains("knots[5].q"), "{e}");
 
     let mut wall = traj;
