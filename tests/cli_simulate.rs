@@ -223,6 +223,9 @@ fn absurd_runs_are_refused_before_they_start() {
     refused(&["mpc", "sidestep", "--substeps", "2", "--out", out], &["`substeps`", "0.0025 s", "contact.max_step", "at least 5"]);
     refused(&["mpc", "sidestep", "--substeps", "0", "--out", out], &["`substeps`", "at least 1"]);
     refused(&["bench", "mpc", "--substeps", "2", "--tasks", "sidestep", "--out", out], &["`substeps`", "at least 5"]);
+    // Tracking weights that are not three weights >= 0, before the plan's solve.
+    refused(&["mpc", "sidestep", "--tracking-base-position", "1000,nan,1000", "--out", out], &["--tracking-base-position 1000,nan,1000", "three finite weights >= 0"]);
+    refused(&["bench", "mpc", "--tracking-base-position", "1000,2000", "--tasks", "sidestep", "--out", out], &["--tracking-base-position 1000,2000", "x, y, z"]);
     let long = dir.join("long.toml");
     std::fs::write(&long, SHIFT_TASK.replace("duration = 0.6", "duration = 2000.0")).unwrap();
     refused(&["--memory-limit", "16", "solve", long.to_str().unwrap(), "--out", out], &["long.toml", "1000000 knots", "would need about 64.0 GB", "limit of 16.0 GB (--memory-limit 16)"]);

@@ -118,6 +118,10 @@ pub enum BenchCommand {
         /// Scale of the windows' tracking weights (`legwork mpc --tracking`).
         #[arg(long, default_value_t = 1.0)]
         tracking: f64,
+        /// The windows' base-position tracking weights along x, y, z before `--tracking`
+        /// (`legwork mpc --tracking-base-position`).
+        #[arg(long, value_name = "X,Y,Z")]
+        tracking_base_position: Option<String>,
         /// What the robot's policy feeds back between ticks (`legwork mpc --feedback`).
         #[arg(long, value_enum, default_value_t = super::mpc::FeedbackChoice::Optimizer)]
         feedback: super::mpc::FeedbackChoice,
@@ -267,12 +271,12 @@ pub fn run(cmd: BenchCommand) -> Result<Verdict> {
         BenchCommand::Jumps { json, repeats, knots, trials, jumps: names, barrier_contact_timing, barrier_full_body, barrier_curvature, threads } => jumps(json, repeats, knots, trials, &names, [barrier_contact_timing, barrier_full_body, barrier_curvature], super::capped_threads(threads)),
         BenchCommand::Slq { json, threads, iterations, check, out } => slq(json, super::capped_threads(threads), iterations, check.is_some(), &out),
         BenchCommand::Terrain { trials, json, threads, scenarios, out } => terrain(trials, json, super::capped_threads(threads), &scenarios, &out),
-        BenchCommand::Mpc { tasks, timing_task, horizons, thread_counts, push, rate, knot_dt, fine_head, tail_ticks, substeps, no_prepare_ahead, horizon, reuse_models, no_anchor_states, window_past_end, tracking, feedback, latency, sim, measured_depth, realtime_priority, paced_timing, json, out } => {
+        BenchCommand::Mpc { tasks, timing_task, horizons, thread_counts, push, rate, knot_dt, fine_head, tail_ticks, substeps, no_prepare_ahead, horizon, reuse_models, no_anchor_states, window_past_end, tracking, tracking_base_position, feedback, latency, sim, measured_depth, realtime_priority, paced_timing, json, out } => {
             let thread_counts: Vec<usize> = thread_counts.iter().map(|&t| super::capped_threads(t)).collect();
             super::mpc::check_measured_depth(measured_depth, sim)?;
             super::mpc::check_realtime_priority(realtime_priority)?;
             let latency = super::mpc::parse_latency(&latency)?;
-            super::bench_mpc::run(&super::bench_mpc::MpcBench { tasks: &tasks, timing_task: &timing_task, horizons: &horizons, thread_counts: &thread_counts, push, mujoco: sim == super::mpc::SimChoice::Mujoco, depth_matching: !measured_depth, latency, timing_latency: if paced_timing { legwork::mpc::PolicyLatency::Paced } else { legwork::mpc::PolicyLatency::Measured }, rate, knot_dt, fine_head, tail_ticks, substeps, prepare_ahead: !no_prepare_ahead, horizon, model_reuse: reuse_models.as_deref().map(super::mpc::parse_model_reuse).transpose()?, anchor_states: !no_anchor_states, ends_at_task_end: if window_past_end { None } else { legwork::mpc::MpcSettings::default().ends_at_task_end }, tracking, feedback: feedback.into(), realtime_priority, as_json: json, out: &out })
+            super::bench_mpc::run(&super::bench_mpc::MpcBench { tasks: &tasks, timing_task: &timing_task, horizons: &horizons, thread_counts: &thread_counts, push, mujoco: sim == super::mpc::SimChoice::Mujoco, depth_matching: !measured_depth, latency, timing_latency: if paced_timing { legwork::mpc::PolicyLatency::Paced } else { legwork::mpc::PolicyLatency::Measured }, rate, knot_dt, fine_head, tail_ticks, substeps, prepare_ahead: !no_prepare_ahead, horizon, model_reuse: reuse_models.as_deref().map(super::mpc::parse_model_reuse).transpose()?, anchor_states: !no_anchor_states, ends_at_task_end: if window_past_end { None } else { legwork::mpc::MpcSettings::default().ends_at_task_end }, tracking, tracking_weights: super::mpc::tracking_weights(tracking, tracking_base_position.as_deref())?, feedback: feedback.into(), realtime_priority, as_json: json, out: &out })
         }
     }
 }

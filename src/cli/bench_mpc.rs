@@ -50,6 +50,9 @@ pub struct MpcBench<'a> {
     pub ends_at_task_end: Option<f64>,
     /// Scale of the windows' tracking weights (1: the defaults).
     pub tracking: f64,
+    /// The windows' tracking weights (the defaults times `tracking`, or with the base
+    /// position's from `--tracking-base-position`).
+    pub tracking_weights: legwork::mpc::TrackingWeights,
     /// What the robot's policy feeds back between ticks.
     pub feedback: legwork::mpc::MpcFeedback,
     /// SCHED_FIFO priority of the solvers' threads (`None`: the default scheduling).
@@ -135,7 +138,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
     let sim = if bench.mujoco { ClosedLoopSim::Mujoco { check: MujocoCheck::locate().or_could_not_finish()?, depth_matching: bench.depth_matching } } else { ClosedLoopSim::Legwork };
     let sim_name = if bench.mujoco { "MuJoCo" } else { "legwork" };
     let max_threads = *bench.thread_counts.iter().max().unwrap_or(&1);
-    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, tail_ticks: bench.tail_ticks, substeps: bench.substeps, prepare_ahead: bench.prepare_ahead, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, ends_at_task_end: bench.ends_at_task_end, feedback: bench.feedback, tracking: legwork::mpc::TrackingWeights::default().scaled(bench.tracking), realtime_priority: bench.realtime_priority, ..MpcSettings::default() };
+    let base = MpcSettings { rate: bench.rate, knot_dt: bench.knot_dt, fine_head: bench.fine_head, tail_ticks: bench.tail_ticks, substeps: bench.substeps, prepare_ahead: bench.prepare_ahead, model_reuse: bench.model_reuse, anchor_states: bench.anchor_states, plan_value: bench.anchor_states, ends_at_task_end: bench.ends_at_task_end, feedback: bench.feedback, tracking: bench.tracking_weights.clone(), realtime_priority: bench.realtime_priority, ..MpcSettings::default() };
     // Every window of the benchmark checked against its task's robot before the first plan.
     for name in std::iter::once(bench.timing_task).chain(bench.tasks.iter().map(String::as_str)) {
         let (spec, origin) = super::solve::load_task(name, &[])?;
@@ -222,6 +225,7 @@ pub fn run(bench: &MpcBench<'_>) -> Result<Verdict> {
         "ends_at_task_end": base.ends_at_task_end,
         "feedback": base.feedback.name(),
         "tracking_scale": bench.tracking,
+        "tracking": bench.tracking_weights,
         "realtime_priority": base.realtime_priority,
         "task_horizon_s": bench.horizon,
         "latency": bench.latency.to_json(),

@@ -185,4 +185,17 @@ mod tests {
     fn command_line_definition_is_consistent() {
         Cli::command().debug_assert();
     }
+
+    #[test]
+    fn tracking_base_position_sets_the_three_axes_before_the_scale() {
+        let default = legwork::mpc::TrackingWeights::default();
+        assert_eq!(mpc::tracking_weights(10.0, None).unwrap(), default.scaled(10.0));
+        let weights = mpc::tracking_weights(10.0, Some("1000, 3000,500")).unwrap();
+        assert_eq!(weights.base_position, [1e4, 3e4, 5e3]);
+        assert_eq!(legwork::mpc::TrackingWeights { base_position: default.scaled(10.0).base_position, ..weights }, default.scaled(10.0));
+        for bad in ["1000,2000", "1000,2000,1000,1", "1000,nan,1000", "1000,-1,1000", "a,b,c", ""] {
+            let message = mpc::tracking_weights(1.0, Some(bad)).unwrap_err().to_string();
+            assert!(message.contains(&format!("--tracking-base-position {bad}:")) && message.contains("three finite weights >= 0"), "{message}");
+        }
+    }
 }

@@ -112,6 +112,11 @@ pub struct MpcArgs {
     /// Scale of the tracking weights (0: none).
     #[arg(long, default_value_t = 1.0)]
     tracking: f64,
+    /// The window's base-position tracking weights along the world's x, y and z, before
+    /// `--tracking` scales them (default 1000,2000,1000: the sideways one doubled against the
+    /// walk forward's sway in MuJoCo, docs/experiments/mpc-21.md).
+    #[arg(long, value_name = "X,Y,Z")]
+    tracking_base_position: Option<String>,
     /// Overrides the plan's iteration limit.
     #[arg(long)]
     iterations: Option<usize>,
@@ -196,6 +201,20 @@ pub fn parse_model_reuse(text: &str) -> Result<legwork::slq::ModelReuse> {
     }
 }
 
+/// The window's tracking weights: the defaults, the base position's per axis from
+/// `--tracking-base-position X,Y,Z` if given (finite, >= 0), all times `--tracking`.
+pub fn tracking_weights(scale: f64, base_position: Option<&str>) -> Result<legwork::mpc::TrackingWeights> {
+    let mut weights = legwork::mpc::TrackingWeights::default();
+    if let Some(text) = base_position {
+        let axes: Vec<Option<f64>> = text.split(',').map(|w| w.trim().parse::<f64>().ok().filter(|w| w.is_finite() && *w >= 0.0)).collect();
+        weights.base_position = match axes[..] {
+            [Some(x), Some(y), Some(z)] => [x, y, z],
+            _ => anyhow::bail!("--tracking-base-position {text}: expected three finite weights >= 0 along x, y, z, e.g. 1000,2000,1000"),
+        };
+    }
+    Ok(weights.scaled(scale))
+}
+
 /// The exit code's verdict: the closed-loop motion meets the task's targets at twice
 /// their tolerances (as every re-run of a plan).
 pub fn run(args: MpcArgs) -> Result<Verdict> {
@@ -211,7 +230,7 @@ pub fn run(args: MpcArgs) -> Result<Verdict> {
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join("mpc").join(&spec.name));
     let plan_out = out.join("plan");
     let threads = super::capped_threads(args.threads);
-    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, fine_head: args.fine_head, tail_ticks: args.tail_ticks, substeps: args.substeps, iterations_per_tick: args.iterations_per_tick, prepare_ahead: !args.no_prepare_ahead, threads, realtime_priority: args.realtime_priority, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, ends_at_task_end: (!args.window_past_end).then_some(args.shortest_window), anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: legwork::mpc::TrackingWeights::default().scaled(args.tracking), model_reuse: args.reuse_models.as_deref().map(parse_model_reuse).transpose()?, feedback: args.feedback.into(), ..MpcSettings::default() };
+    let settings = MpcSettings { horizon: args.horizon, rate: args.rate, knot_dt: args.knot_dt, fine_head: args.fine_head, tail_ticks: args.tail_ticks, substeps: args.substeps, iterations_per_tick: args.iterations_per_tick, prepare_ahead: !args.no_prepare_ahead, threads, realtime_priority: args.realtime_priority, task_costs: !args.no_task_costs, plan_value: !args.no_plan_value, ends_at_task_end: (!args.window_past_end).then_some(args.shortest_window), anchor_states: !args.no_anchor_states, regularization: args.regularization, linearization: if args.exact_knots { legwork::ocp::KnotLinearization::EverySubstep } else { legwork::ocp::KnotLinearization::FirstSubstep }, tracking: tracking_weights(args.tracking, args.tracking_base_position.as_deref())?, model_reuse: args.reuse_models.as_deref().map(parse_model_reuse).transpose()?, feedback: args.feedback.into(), ..MpcSettings::default() };
     let sim = match args.sim {
         SimChoice::Legwork => ClosedLoopSim::Legwork,
         SimChoice::Mujoco => ClosedLoopSim::Mujoco { check: legwork::export::MujocoCheck::locate()?, depth_matching: !args.measured_depth },
